@@ -1,0 +1,26 @@
+"""mtwin: a G-code optimiser built on a digital twin of a CNC machine tool.
+
+The Python API mirrors the CLI; heavy modules (numba kernels) load on first use
+so that ``import mtwin`` and ``mtwin --help`` stay fast.
+"""
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+__all__ = ["load_program", "InterpreterSettings", "Program", "rewrite", "verify", "summarize", "scale_feeds"]
+
+
+def __getattr__(name):
+    if name in ("load_program", "InterpreterSettings", "Program"):
+        from .gcode import interpreter
+        return getattr(interpreter, name)
+    if name in ("rewrite", "scale_feeds"):
+        from .gcode import writer
+        return getattr(writer, name)
+    if name == "verify":
+        from .gcode.verify import verify
+        return verify
+    if name == "summarize":
+        from .gcode.summary import summarize
+        return summarize
+    raise AttributeError(name)

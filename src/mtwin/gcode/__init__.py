@@ -1,0 +1,1 @@
+"""G-code front end: lexer, interpreter, writer and geometry check."""

@@ -1,0 +1,841 @@
+"""numba kernel of the interpreter: a modal state machine over lexed words.
+
+It executes blocks in the RS274NGC order of execution (feed mode, F, S, T, M6,
+spindle, coolant, dwell, plane, units, tool length, work offset, path mode,
+distance modes, retract mode, G10/G28/G30/G53, motion, program flow) and writes
+motion records into a preallocated structured array.  It never raises: errors
+and warnings come back as codes with the word that caused them, and the Python
+wrapper (``interpreter.py``) writes the message.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
+from .records import (
+    ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
+    FL_MACHINE, FL_R_ARC, FL_SUB, LINEAR, RAPID,
+)
+
+MM_PER_INCH = 25.4
+# LinuxCNC's arc tolerances (interp_internal.hh), mm.
+RADIUS_TOL_MM = 0.00127
+CENTER_TOL_MM = 2 * 0.01 * math.sqrt(2.0)
+CENTER_TOL_INCH_MM = 2 * 0.001 * math.sqrt(2.0) * MM_PER_INCH
+SPIRAL_REL_TOL = 0.001
+# Peck clearance of G73/G83 (LinuxCNC: 0.010 in or 0.254 mm)
+PECK_CLEAR_MM = 0.254
+PECK_CLEAR_INCH_MM = 0.010 * MM_PER_INCH
+MAX_SUB_DEPTH = 16
+
+# ---- error codes (messages in interpreter.py) ----
+E_OK = 0
+E_OVERFLOW = 1
+E_UNSUPPORTED_G = 2
+E_UNSUPPORTED_M = 3
+E_UNSUPPORTED_WORD = 4
+E_DUP_WORD = 5
+E_MODAL_CONFLICT = 6
+E_ARC_RADIUS_MISMATCH = 7
+E_ARC_R_TOO_SMALL = 8
+E_ARC_NO_CENTER = 9
+E_ARC_ZERO_RADIUS = 10
+E_ARC_R_FULL_CIRCLE = 11
+E_ZERO_FEED = 12
+E_NO_MOTION_MODE = 13
+E_TOOL_OFFSET_MISSING = 14
+E_BAD_G_NUMBER = 15
+E_CANNED_NO_Z = 16
+E_CANNED_NO_R = 17
+E_CANNED_Q = 18
+E_CANNED_R_BELOW_Z = 19
+E_SUB_NOT_FOUND = 20
+E_SUB_DEPTH = 21
+E_LOOP = 22
+E_GEOMETRY_G = 23  # cutter comp, rotation, scaling: would change the path
+E_BAD_WCS = 24
+E_BAD_G10 = 25
+E_INVERSE_NO_F = 26
+E_BAD_VALUE = 27
+E_G53_MODE = 28
+E_BAD_TURNS = 29
+E_ROTARY = 30
+E_UNUSED_WORD = 31
+E_AMBIGUOUS_R = 32
+
+# ---- warning codes ----
+W_IGNORED_G = 1
+W_IGNORED_M = 2
+W_M99_IN_MAIN = 3
+W_AXIS_LETTER_ZERO = 4
+
+# letters
+_A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
+_N, _O, _P, _Q, _R, _S, _T, _U, _V, _W, _X, _Y, _Z = range(13, 26)
+
+# state indices (float)
+SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO = 0, 1, 2, 3
+# state indices (int)
+SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS = range(8)
+
+
+@njit
+def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
+    """Write one record (or only count it when ``out`` is full)."""
+    if n < out.size:
+        r = out[n]
+        r.line = line + 1
+        r.kind = kind
+        r.plane = si[SI_PLANE]
+        r.path_mode = si[SI_PATH_MODE]
+        r.feed_mode = si[SI_FEED_MODE]
+        r.spindle_dir = si[SI_SPINDLE_DIR]
+        r.coolant = si[SI_COOLANT]
+        r.wcs = si[SI_WCS]
+        r.flags = si[SI_FLAGS] | flags
+        r.turns = turns
+        r.tool = si[SI_TOOL]
+        r.sx = s[0]
+        r.sy = s[1]
+        r.sz = s[2]
+        r.x = e[0]
+        r.y = e[1]
+        r.z = e[2]
+        r.cx = c[0]
+        r.cy = c[1]
+        r.cz = c[2]
+        fw = st[SF_FEED]
+        r.feed_word = fw
+        if kind == RAPID or kind == DWELL:
+            r.feed = 0.0
+        elif si[SI_FEED_MODE] == 1:
+            r.feed = fw * st[SF_SPINDLE]
+        elif si[SI_FEED_MODE] == 2:
+            r.feed = 0.0  # filled by the caller, which knows the length
+        else:
+            r.feed = fw
+        r.spindle = st[SF_SPINDLE]
+        r.dwell = dwell
+        r.path_tol = st[SF_PATH_TOL]
+        r.tlo = st[SF_TLO]
+        w = si[SI_WCS]
+        r.ox = wcs_off[w, 0]
+        r.oy = wcs_off[w, 1]
+        r.oz = wcs_off[w, 2]
+    return n + 1
+
+
+@njit
+def _has_code(codes, n, code):
+    for i in range(n):
+        if codes[i] == code:
+            return True
+    return False
+
+
+@njit
+def _arc_len(s, e, c, a1, a2, an, ccw, turns):
+    r = math.hypot(s[a1] - c[a1], s[a2] - c[a2])
+    t0 = math.atan2(s[a2] - c[a2], s[a1] - c[a1])
+    t1 = math.atan2(e[a2] - c[a2], e[a1] - c[a1])
+    d = (t1 - t0) if ccw else (t0 - t1)
+    d = d % (2 * math.pi)
+    if d * r < 1e-9:
+        d = 2 * math.pi
+    d += 2 * math.pi * turns
+    return math.hypot(r * d, e[an] - s[an])
+
+
+@njit
+def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
+                  sub_num, sub_line, wcs_init, tool_len, tool_known, have_tool_table,
+                  home28, home30, dialect, lenient, skip_block_delete, max_steps, out,
+                  warn_code, warn_word):
+    """Interpret a lexed program.  See module docstring.
+
+    Returns (n_records, err_code, err_word, err_line, err_vals, n_warnings).
+    ``err_word`` is a global word index (or -1), ``err_line`` a 0-based line.
+    """
+    nl = line_w0.size
+    n = 0
+    nwarn = 0
+    err_vals = np.zeros(4)
+    wcs_off = wcs_init.copy()
+
+    st = np.zeros(4)
+    si = np.zeros(8, np.int64)
+    si[SI_PATH_MODE] = 0
+    pos = np.zeros(3)
+    inch = False
+    incremental = False
+    ijk_abs = False
+    motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
+    retract_old = True  # G98
+    tool_sel = 0
+    canned_r = math.nan
+    canned_z = math.nan
+    canned_q = math.nan
+    canned_p = 0.0
+
+    has = np.zeros(26, np.bool_)
+    val = np.zeros(26)
+    widx = np.zeros(26, np.int64)
+    gcodes = np.zeros(16, np.int64)
+    gword = np.zeros(16, np.int64)
+    mcodes = np.zeros(16, np.int64)
+    mword = np.zeros(16, np.int64)
+    e = np.zeros(3)
+    s = np.zeros(3)
+    c = np.zeros(3)
+    stack_ret = np.zeros(MAX_SUB_DEPTH, np.int64)
+    stack_start = np.zeros(MAX_SUB_DEPTH, np.int64)
+    stack_left = np.zeros(MAX_SUB_DEPTH, np.int64)
+    depth = 0
+    percents = 0
+    steps = 0
+
+    li = 0
+    while li < nl:
+        steps += 1
+        if steps > max_steps:
+            return n, E_LOOP, -1, li, err_vals, nwarn
+        lf = line_flags[li]
+        if lf & LF_PERCENT:
+            percents += 1
+            if percents >= 2 and depth == 0:
+                break
+            li += 1
+            continue
+        nw = line_nw[li]
+        if nw == 0 or (skip_block_delete and (lf & LF_BLOCK_DELETE)):
+            li += 1
+            continue
+        w0 = line_w0[li]
+        # ---- gather words ----
+        for k in range(26):
+            has[k] = False
+        ng = 0
+        nm = 0
+        for k in range(w0, w0 + nw):
+            L = w_letter[k] - 65
+            v = w_value[k]
+            if L == _G or L == _M:
+                code = int(round(v * 10.0))
+                if v < 0 or abs(v * 10.0 - code) > 1e-6:
+                    return n, E_BAD_G_NUMBER, k, li, err_vals, nwarn
+                if L == _G:
+                    if ng >= 16:
+                        return n, E_MODAL_CONFLICT, k, li, err_vals, nwarn
+                    gcodes[ng] = code
+                    gword[ng] = k
+                    ng += 1
+                else:
+                    if nm >= 16:
+                        return n, E_MODAL_CONFLICT, k, li, err_vals, nwarn
+                    mcodes[nm] = code
+                    mword[nm] = k
+                    nm += 1
+            else:
+                if has[L]:
+                    return n, E_DUP_WORD, k, li, err_vals, nwarn
+                has[L] = True
+                val[L] = v
+                widx[L] = k
+        for L in (_A, _B, _C, _U, _V, _W):
+            if has[L]:
+                return n, E_ROTARY, widx[L], li, err_vals, nwarn
+        if has[_E]:
+            return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
+
+        # ---- classify G codes ----
+        g_feedmode = -1
+        g_plane = -1
+        g_units = -1
+        g_tlo = -1
+        g_wcs = -1
+        g_path = -1
+        g_dist = -1
+        g_ijk = -1
+        g_retract = -1
+        g_nonmodal = -1
+        g_nonmodal_w = -1
+        g_motion = -1
+        g_motion_w = -1
+        g_dwell = False
+        g_cancel = False
+        g_exact_stop_once = False
+        for q in range(ng):
+            code = gcodes[q]
+            kw = gword[q]
+            grp = -1
+            if code == 800:
+                # G80 cancels the cycle; Fanuc posts write it beside G0 (G0G80)
+                g_cancel = True
+                grp = 9
+            elif code == 0 or code == 10 or code == 20 or code == 30 \
+                    or code == 810 or code == 820 or code == 830 or code == 730 \
+                    or code == 850 or code == 890 or code == 840 or code == 860:
+                if g_motion >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_motion = code
+                g_motion_w = kw
+                grp = 1
+            elif code == 40:
+                if g_dwell:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_dwell = True
+                grp = 0
+            elif code == 90:
+                g_exact_stop_once = True
+                grp = 0
+            elif code == 170 or code == 180 or code == 190:
+                if g_plane >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_plane = (code - 170) // 10
+                grp = 2
+            elif code == 200 or code == 210:
+                if g_units >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_units = 1 if code == 200 else 0
+                grp = 6
+            elif code == 400:
+                grp = 7
+            elif code == 430 or code == 490:
+                if g_tlo >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_tlo = code
+                grp = 8
+            elif (code >= 540 and code <= 590 and code % 10 == 0) or code == 591 or code == 592 \
+                    or code == 593:
+                if g_wcs >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_wcs = (code - 540) // 10 if code % 10 == 0 else 5 + code - 590
+                grp = 12
+            elif code == 610 or code == 611 or code == 640:
+                if g_path >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_path = code
+                grp = 13
+            elif code == 900 or code == 910:
+                if g_dist >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_dist = 1 if code == 910 else 0
+                grp = 3
+            elif code == 901 or code == 911:
+                if g_ijk >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_ijk = 1 if code == 901 else 0
+                grp = 4
+            elif code == 930 or code == 940 or code == 950:
+                if g_feedmode >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_feedmode = 2 if code == 930 else (0 if code == 940 else 1)
+                grp = 5
+            elif code == 980 or code == 990:
+                if g_retract >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_retract = code
+                grp = 10
+            elif code == 100 or code == 280 or code == 300 or code == 530:
+                if g_nonmodal >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_nonmodal = code
+                g_nonmodal_w = kw
+                grp = 0
+            elif code == 970 or code == 960 or code == 150 or code == 500 or code == 690 \
+                    or code == 501 or code == 670:
+                # G97 rpm mode, G15/G50/G69/G50.1/G67 cancel codes: harmless
+                if code == 960:
+                    return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
+                grp = 99
+            elif code == 410 or code == 420 or code == 411 or code == 421 or code == 680 \
+                    or code == 510 or code == 511 or code == 160 or code == 920 \
+                    or code == 520 or code == 120 or code == 130 or code == 330 \
+                    or code == 760 or code == 70 or code == 80 or code == 681 \
+                    or code == 650 or code == 660 or code == 661:
+                return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
+            if grp < 0:
+                if lenient:
+                    if nwarn < warn_code.size:
+                        warn_code[nwarn] = W_IGNORED_G
+                        warn_word[nwarn] = kw
+                    nwarn += 1
+                else:
+                    return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
+
+        # ---- classify M codes ----
+        m_tc = False
+        m_spindle = -2
+        m_cool = -1
+        m_end = False
+        m_sub = False
+        m_ret = False
+        for q in range(nm):
+            code = mcodes[q]
+            kw = mword[q]
+            if code == 60:
+                m_tc = True
+            elif code == 30 or code == 40 or code == 50:
+                m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
+            elif code == 70 or code == 80 or code == 90:
+                m_cool = 1 if code == 70 else (2 if code == 80 else 0)
+            elif code == 20 or code == 300:
+                m_end = True
+            elif code == 980:
+                m_sub = True
+            elif code == 990:
+                m_ret = True
+            elif code == 0 or code == 10 or code == 480 or code == 490 or code == 10 \
+                    or code == 1 or code == 190 or code == 500 or code == 510 \
+                    or code == 520 or code == 530 or code == 290:
+                pass  # stops, override switches, orient, rigid-tap mode: no effect on the path
+            else:
+                if lenient:
+                    if nwarn < warn_code.size:
+                        warn_code[nwarn] = W_IGNORED_M
+                        warn_word[nwarn] = kw
+                    nwarn += 1
+                else:
+                    return n, E_UNSUPPORTED_M, kw, li, err_vals, nwarn
+
+        # ---- words that no code on this block (or the active mode) uses ----
+        mm = g_motion if g_motion >= 0 else motion
+        if g_cancel and g_motion < 0:
+            mm = -1
+        is_arc = mm == 20 or mm == 30
+        is_canned = mm >= 730 and mm != 800
+        m19 = nm > 0 and _has_code(mcodes, nm, 190)
+        if has[_R] and m19 and g_path == 640:
+            return n, E_AMBIGUOUS_R, widx[_R], li, err_vals, nwarn
+        if has[_R] and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
+            return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
+        if has[_Q] and not ((mm == 830 or mm == 730) or g_path == 640 or m19):
+            return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
+        if has[_P] and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
+                            or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
+            return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
+        if has[_L] and not (g_nonmodal == 100 or is_canned or m_sub):
+            return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
+        for L in (_I, _J, _K):
+            if has[L] and not is_arc:
+                return n, E_UNUSED_WORD, widx[L], li, err_vals, nwarn
+
+        scale = MM_PER_INCH if inch else 1.0
+        # 1. feed mode
+        if g_feedmode >= 0:
+            si[SI_FEED_MODE] = g_feedmode
+        # 2. F (in the units active before this block's G20/G21)
+        if has[_F]:
+            if val[_F] < 0:
+                return n, E_BAD_VALUE, widx[_F], li, err_vals, nwarn
+            st[SF_FEED] = val[_F] if si[SI_FEED_MODE] == 2 else val[_F] * scale
+        # 3. S
+        if has[_S]:
+            if val[_S] < 0:
+                return n, E_BAD_VALUE, widx[_S], li, err_vals, nwarn
+            st[SF_SPINDLE] = val[_S]
+        # 4. T
+        if has[_T]:
+            if val[_T] < 0 or val[_T] != math.floor(val[_T]):
+                return n, E_BAD_VALUE, widx[_T], li, err_vals, nwarn
+            tool_sel = int(val[_T])
+        # 5. tool change
+        if m_tc:
+            si[SI_TOOL] = tool_sel
+        # 6. spindle, 7. coolant
+        if m_spindle != -2:
+            si[SI_SPINDLE_DIR] = m_spindle
+        if m_cool >= 0:
+            si[SI_COOLANT] = m_cool
+        # units change happens before dwell/motion but after F
+        if g_units >= 0:
+            inch = g_units == 1
+            scale = MM_PER_INCH if inch else 1.0
+        base = 0
+        if inch:
+            base |= FL_INCH
+        # 8. dwell
+        if g_dwell:
+            if has[_P]:
+                dw = val[_P]
+                if dialect == 0 and w_ndec[widx[_P]] < 0:
+                    dw = dw / 1000.0  # Fanuc: P without a point is milliseconds
+            elif has[_X] and dialect == 0:
+                dw = val[_X]
+            else:
+                return n, E_BAD_VALUE, gword[0], li, err_vals, nwarn
+            if dw < 0:
+                return n, E_BAD_VALUE, widx[_P] if has[_P] else widx[_X], li, err_vals, nwarn
+            si[SI_FLAGS] = base | (FL_SUB if depth > 0 else 0)
+            n = _emit(out, n, DWELL, li, pos, pos, pos, 0, dw, st, si, wcs_off, FL_FIRST_IN_LINE)
+        # 9. plane
+        if g_plane >= 0:
+            si[SI_PLANE] = g_plane
+        # 10. tool length
+        if g_tlo == 430:
+            hn = si[SI_TOOL]
+            if has[_H]:
+                hn = int(val[_H])
+            if hn < 0 or hn >= tool_len.size or (have_tool_table and not tool_known[hn]):
+                return n, E_TOOL_OFFSET_MISSING, widx[_H] if has[_H] else -1, li, err_vals, nwarn
+            st[SF_TLO] = tool_len[hn]
+        elif g_tlo == 490:
+            st[SF_TLO] = 0.0
+        # 11. work offsets: positions stay in program coordinates of the new frame
+        if g_wcs >= 0:
+            ow = si[SI_WCS]
+            for a in range(3):
+                pos[a] += wcs_off[ow, a] - wcs_off[g_wcs, a]
+            si[SI_WCS] = g_wcs
+        # 12. path mode
+        if g_path == 610:
+            si[SI_PATH_MODE] = 1
+            st[SF_PATH_TOL] = 0.0
+        elif g_path == 611:
+            si[SI_PATH_MODE] = 2
+            st[SF_PATH_TOL] = 0.0
+        elif g_path == 640:
+            si[SI_PATH_MODE] = 0
+            st[SF_PATH_TOL] = val[_P] * scale if has[_P] else 0.0
+        # 13. distance modes
+        if g_dist >= 0:
+            incremental = g_dist == 1
+        if g_ijk >= 0:
+            ijk_abs = g_ijk == 1
+        if incremental:
+            base |= FL_INCREMENTAL
+        if ijk_abs:
+            base |= FL_IJK_ABSOLUTE
+        if depth > 0:
+            base |= FL_SUB
+        si[SI_FLAGS] = base
+        # 14. retract mode
+        if g_retract >= 0:
+            retract_old = g_retract == 980
+        # motion mode update
+        if g_cancel and (motion >= 730 and motion != 800):
+            motion = -1
+        if g_motion >= 0:
+            motion = g_motion
+        has_axis = has[_X] or has[_Y] or has[_Z]
+        if g_dwell and dialect == 0:
+            has_axis = has[_Y] or has[_Z]  # Fanuc G4 X is the dwell time
+        saved_path_mode = si[SI_PATH_MODE]
+        if g_exact_stop_once:
+            si[SI_PATH_MODE] = 2
+        first_flag = 0 if g_dwell else FL_FIRST_IN_LINE
+
+        # 15. G10 / G28 / G30 / G53
+        if g_nonmodal == 100:
+            if not (has[_L] and val[_L] == 2 and has[_P]):
+                return n, E_BAD_G10, g_nonmodal_w, li, err_vals, nwarn
+            if has[_R] and val[_R] != 0.0:
+                return n, E_GEOMETRY_G, widx[_R], li, err_vals, nwarn
+            p = int(val[_P])
+            if p < 0 or p > 9:
+                return n, E_BAD_WCS, widx[_P], li, err_vals, nwarn
+            p = si[SI_WCS] if p == 0 else p - 1
+            if has[_X]:
+                wcs_off[p, 0] = val[_X] * scale
+            if has[_Y]:
+                wcs_off[p, 1] = val[_Y] * scale
+            if has[_Z]:
+                wcs_off[p, 2] = val[_Z] * scale
+            has_axis = False
+        elif g_nonmodal == 280 or g_nonmodal == 300:
+            home = home28 if g_nonmodal == 280 else home30
+            for a in range(3):
+                s[a] = pos[a]
+                e[a] = pos[a]
+            # intermediate point, in the active distance mode
+            for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                if has[L]:
+                    e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+            if has_axis:
+                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
+                first_flag = 0
+            for a in range(3):
+                s[a] = e[a]
+            for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                if has[L] or not has_axis:
+                    e[a] = home[a] - wcs_off[si[SI_WCS], a] - (st[SF_TLO] if a == 2 else 0.0)
+            n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
+            for a in range(3):
+                pos[a] = e[a]
+            has_axis = False
+        elif g_nonmodal == 530:
+            if not (motion == 0 or motion == 10) or (g_motion >= 0 and g_motion != 0 and g_motion != 10):
+                return n, E_G53_MODE, g_nonmodal_w, li, err_vals, nwarn
+            for a in range(3):
+                s[a] = pos[a]
+                e[a] = pos[a]
+            for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                if has[L]:
+                    e[a] = val[L] * scale - wcs_off[si[SI_WCS], a] - (st[SF_TLO] if a == 2 else 0.0)
+            if has_axis:
+                kind = RAPID if motion == 0 else LINEAR
+                if kind == LINEAR and st[SF_FEED] <= 0.0:
+                    return n, E_ZERO_FEED, g_nonmodal_w, li, err_vals, nwarn
+                n = _emit(out, n, kind, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
+                for a in range(3):
+                    pos[a] = e[a]
+            has_axis = False
+
+        # 16. motion
+        if has_axis or (g_motion >= 20 and g_motion <= 30 and (has[_I] or has[_J] or has[_K])):
+            if motion < 0:
+                kw = widx[_X] if has[_X] else (widx[_Y] if has[_Y] else widx[_Z])
+                return n, E_NO_MOTION_MODE, kw, li, err_vals, nwarn
+            for a in range(3):
+                s[a] = pos[a]
+            if motion <= 30:
+                for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                    if has[L]:
+                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+                    else:
+                        e[a] = pos[a]
+                if motion == 0:
+                    n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
+                else:
+                    if si[SI_FEED_MODE] == 2:
+                        if not has[_F]:
+                            return n, E_INVERSE_NO_F, g_motion_w, li, err_vals, nwarn
+                    if st[SF_FEED] <= 0.0:
+                        return n, E_ZERO_FEED, g_motion_w if g_motion >= 0 else (widx[_F] if has[_F] else -1), \
+                            li, err_vals, nwarn
+                    if motion == 10:
+                        n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
+                        if si[SI_FEED_MODE] == 2 and n <= out.size:
+                            out[n - 1].feed = math.sqrt((e[0] - s[0]) ** 2 + (e[1] - s[1]) ** 2
+                                                        + (e[2] - s[2]) ** 2) * st[SF_FEED]
+                    else:
+                        pl = si[SI_PLANE]
+                        a1 = (0, 2, 1)[pl]
+                        a2 = (1, 0, 2)[pl]
+                        an = (2, 1, 0)[pl]
+                        ccw = motion == 30
+                        turns = 0
+                        if has[_P]:
+                            tp = val[_P]
+                            if tp < 1 or tp != math.floor(tp):
+                                return n, E_BAD_TURNS, widx[_P], li, err_vals, nwarn
+                            turns = int(tp) - 1
+                        ctol = CENTER_TOL_INCH_MM if inch else CENTER_TOL_MM
+                        fl = first_flag
+                        if has[_R]:
+                            fl |= FL_R_ARC
+                            rr = val[_R] * scale
+                            d1 = e[a1] - s[a1]
+                            d2 = e[a2] - s[a2]
+                            chord = math.hypot(d1, d2)
+                            if chord < 1e-12:
+                                return n, E_ARC_R_FULL_CIRCLE, widx[_R], li, err_vals, nwarn
+                            h = chord / 2.0
+                            if h - abs(rr) > RADIUS_TOL_MM:
+                                err_vals[0] = abs(rr)
+                                err_vals[1] = h
+                                return n, E_ARC_R_TOO_SMALL, widx[_R], li, err_vals, nwarn
+                            dd = math.sqrt(max(rr * rr - h * h, 0.0))
+                            sgn = (1.0 if ccw else -1.0) * (1.0 if rr > 0 else -1.0)
+                            c[a1] = s[a1] + d1 / 2.0 - sgn * d2 / chord * dd
+                            c[a2] = s[a2] + d2 / 2.0 + sgn * d1 / chord * dd
+                        else:
+                            L1 = (_I, _K, _J)[pl]
+                            L2 = (_J, _I, _K)[pl]
+                            if not (has[L1] or has[L2]):
+                                return n, E_ARC_NO_CENTER, g_motion_w, li, err_vals, nwarn
+                            o1 = val[L1] * scale if has[L1] else 0.0
+                            o2 = val[L2] * scale if has[L2] else 0.0
+                            if ijk_abs:
+                                c[a1] = o1
+                                c[a2] = o2
+                            else:
+                                c[a1] = s[a1] + o1
+                                c[a2] = s[a2] + o2
+                            r1 = math.hypot(s[a1] - c[a1], s[a2] - c[a2])
+                            r2 = math.hypot(e[a1] - c[a1], e[a2] - c[a2])
+                            if r1 < RADIUS_TOL_MM or r2 < RADIUS_TOL_MM:
+                                return n, E_ARC_ZERO_RADIUS, g_motion_w, li, err_vals, nwarn
+                            aerr = abs(r1 - r2)
+                            if aerr > 100.0 * ctol or (aerr > ctol and aerr / max(r1, r2) > SPIRAL_REL_TOL):
+                                err_vals[0] = r1
+                                err_vals[1] = r2
+                                err_vals[2] = aerr
+                                err_vals[3] = c[a1] if a1 == 0 else c[a2]
+                                return n, E_ARC_RADIUS_MISMATCH, g_motion_w if g_motion_w >= 0 else -1, \
+                                    li, err_vals, nwarn
+                        c[an] = s[an]
+                        n = _emit(out, n, ARC_CCW if ccw else ARC_CW, li, s, e, c, turns, 0.0, st, si,
+                                  wcs_off, fl)
+                        if si[SI_FEED_MODE] == 2 and n <= out.size:
+                            out[n - 1].feed = _arc_len(s, e, c, a1, a2, an, ccw, turns) * st[SF_FEED]
+                for a in range(3):
+                    pos[a] = e[a]
+            else:
+                # ---- canned cycles ----
+                pl = si[SI_PLANE]
+                a1 = (0, 2, 1)[pl]
+                a2 = (1, 0, 2)[pl]
+                an = (2, 1, 0)[pl]
+                LN = (_Z, _Y, _X)[pl]
+                L1 = (_X, _Z, _Y)[pl]
+                L2 = (_Y, _X, _Z)[pl]
+                if has[_R]:
+                    canned_r = val[_R] * scale
+                if has[LN]:
+                    canned_z = val[LN] * scale
+                if has[_Q]:
+                    canned_q = val[_Q] * scale
+                if has[_P]:
+                    pv = val[_P]
+                    if dialect == 0 and w_ndec[widx[_P]] < 0:
+                        pv = pv / 1000.0
+                    canned_p = pv
+                if math.isnan(canned_z):
+                    return n, E_CANNED_NO_Z, g_motion_w, li, err_vals, nwarn
+                if math.isnan(canned_r):
+                    return n, E_CANNED_NO_R, g_motion_w, li, err_vals, nwarn
+                reps = 1
+                if has[_L]:
+                    if val[_L] < 0 or val[_L] != math.floor(val[_L]):
+                        return n, E_BAD_VALUE, widx[_L], li, err_vals, nwarn
+                    reps = int(val[_L])
+                old_n = pos[an]
+                if incremental:
+                    r_lvl = old_n + canned_r
+                    bottom = r_lvl + canned_z
+                else:
+                    r_lvl = canned_r
+                    bottom = canned_z
+                if r_lvl < bottom:
+                    err_vals[0] = r_lvl
+                    err_vals[1] = bottom
+                    return n, E_CANNED_R_BELOW_Z, g_motion_w, li, err_vals, nwarn
+                if (motion == 830 or motion == 730) and (math.isnan(canned_q) or canned_q <= 0):
+                    return n, E_CANNED_Q, g_motion_w, li, err_vals, nwarn
+                if st[SF_FEED] <= 0.0:
+                    return n, E_ZERO_FEED, g_motion_w, li, err_vals, nwarn
+                clear = max(old_n, r_lvl) if retract_old else r_lvl
+                pclear = PECK_CLEAR_INCH_MM if inch else PECK_CLEAR_MM
+                si[SI_PATH_MODE] = 1  # cycles run in exact-path mode
+                fl = first_flag | FL_CANNED
+                # preliminary move up to the R level
+                for a in range(3):
+                    s[a] = pos[a]
+                    e[a] = pos[a]
+                if pos[an] < r_lvl:
+                    e[an] = r_lvl
+                    n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                    fl = FL_CANNED
+                    pos[an] = r_lvl
+                for rep in range(reps):
+                    # move in the plane at the current height
+                    for a in range(3):
+                        s[a] = pos[a]
+                        e[a] = pos[a]
+                    if incremental:
+                        if has[L1]:
+                            e[a1] = pos[a1] + val[L1] * scale
+                        if has[L2]:
+                            e[a2] = pos[a2] + val[L2] * scale
+                    else:
+                        if has[L1]:
+                            e[a1] = val[L1] * scale
+                        if has[L2]:
+                            e[a2] = val[L2] * scale
+                    n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                    fl = FL_CANNED
+                    for a in range(3):
+                        pos[a] = e[a]
+                        s[a] = e[a]
+                    if pos[an] != r_lvl:
+                        e[an] = r_lvl
+                        n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                        s[an] = r_lvl
+                    if motion == 830 or motion == 730:
+                        depth_now = r_lvl - canned_q
+                        while depth_now > bottom:
+                            e[an] = depth_now
+                            n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                            s[an] = depth_now
+                            if motion == 830:
+                                e[an] = r_lvl
+                                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                                s[an] = r_lvl
+                            e[an] = depth_now + pclear
+                            n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                            s[an] = depth_now + pclear
+                            depth_now -= canned_q
+                    e[an] = bottom
+                    n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                    s[an] = bottom
+                    if motion == 820 or motion == 890 or motion == 860:
+                        n = _emit(out, n, DWELL, li, s, s, s, 0, canned_p, st, si, wcs_off, fl)
+                    if motion == 840:
+                        n = _emit(out, n, DWELL, li, s, s, s, 0, canned_p, st, si, wcs_off, fl)
+                        e[an] = clear
+                        n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                    elif motion == 850 or motion == 890:
+                        e[an] = r_lvl
+                        n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                        s[an] = r_lvl
+                        if clear != r_lvl:
+                            e[an] = clear
+                            n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                    else:
+                        e[an] = clear
+                        n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+                    pos[an] = clear
+                si[SI_PATH_MODE] = saved_path_mode
+        si[SI_PATH_MODE] = saved_path_mode
+
+        # 17. program flow
+        if m_end:
+            break
+        if m_sub:
+            if not has[_P]:
+                return n, E_SUB_NOT_FOUND, mword[0], li, err_vals, nwarn
+            pnum = int(val[_P])
+            reps = 1
+            if has[_L]:
+                reps = int(val[_L])
+            target = -1
+            for q in range(sub_num.size):
+                if sub_num[q] == pnum:
+                    target = sub_line[q]
+            if target < 0 and pnum > 9999 and not has[_L]:
+                # Fanuc packs the repeat count in front of a 4-digit program number
+                for q in range(sub_num.size):
+                    if sub_num[q] == pnum % 10000:
+                        target = sub_line[q]
+                reps = pnum // 10000
+            if target < 0:
+                return n, E_SUB_NOT_FOUND, widx[_P], li, err_vals, nwarn
+            if depth >= MAX_SUB_DEPTH:
+                return n, E_SUB_DEPTH, widx[_P], li, err_vals, nwarn
+            if reps > 0:
+                stack_ret[depth] = li + 1
+                stack_start[depth] = target + 1
+                stack_left[depth] = reps - 1
+                depth += 1
+                li = target + 1
+                continue
+        if m_ret:
+            if depth == 0:
+                if nwarn < warn_code.size:
+                    warn_code[nwarn] = W_M99_IN_MAIN
+                    warn_word[nwarn] = mword[0]
+                nwarn += 1
+                break
+            if stack_left[depth - 1] > 0:
+                stack_left[depth - 1] -= 1
+                li = stack_start[depth - 1]
+                continue
+            depth -= 1
+            li = stack_ret[depth]
+            continue
+        li += 1
+    return n, E_OK, -1, -1, err_vals, nwarn

@@ -1,0 +1,251 @@
+"""The interpreter: lexed words -> motion records (numpy structured array).
+
+:func:`load_program` is the public entry point.  The modal state machine itself
+is the numba kernel in ``_interpkernel.py``; this module validates settings,
+builds the small lookup tables the kernel needs, and turns its error codes into
+``file:line:col: message``.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import GCodeError, SourceLocation
+from . import _interpkernel as K
+from .lexer import Lexed, lex
+from .records import MOVE_DTYPE
+
+DIALECTS = ("auto", "fanuc", "linuxcnc")
+_WCS_NAMES = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
+
+
+@dataclass
+class InterpreterSettings:
+    """What the interpreter needs to know about the machine and the shop.
+
+    Parameters
+    ----------
+    dialect : "auto" | "fanuc" | "linuxcnc"
+        Only dwell words differ: Fanuc ``G4 P1000`` is milliseconds (a P without
+        a decimal point), LinuxCNC ``G4 P1`` is seconds.  ``auto`` picks
+        ``linuxcnc`` for ``.ngc`` files and ``fanuc`` otherwise.
+    lenient : bool
+        Unsupported G/M codes that cannot change the path become warnings.
+    skip_block_delete : bool
+        The block-delete switch: when on, lines starting with ``/`` are skipped.
+    work_offsets : dict
+        ``{"G54": (x, y, z), ...}`` in mm; missing ones are zero.
+    tool_lengths : dict or None
+        ``{tool_number: length_mm}``.  None means no tool table: every length is 0
+        and G43 is accepted; with a table, G43 on a missing tool is an error.
+    home_g28, home_g30 : tuple
+        Machine coordinates (mm) of the G28 and G30 positions.
+    """
+
+    dialect: str = "auto"
+    lenient: bool = False
+    skip_block_delete: bool = False
+    work_offsets: dict = field(default_factory=dict)
+    tool_lengths: dict | None = None
+    home_g28: tuple = (0.0, 0.0, 0.0)
+    home_g30: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass
+class GCodeWarning:
+    location: SourceLocation
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.location}: warning: {self.message}"
+
+
+@dataclass
+class Program:
+    """A lexed and interpreted program.  ``records`` is a MOVE_DTYPE array."""
+
+    lexed: Lexed
+    records: np.ndarray
+    settings: InterpreterSettings
+    dialect: str
+    warnings: list
+
+    @property
+    def path(self) -> str:
+        return self.lexed.path
+
+    @property
+    def data(self) -> bytes:
+        return self.lexed.data
+
+
+def read_source(path: str | os.PathLike) -> bytes:
+    """Read a program file, or standard input for ``-``."""
+    if str(path) == "-":
+        return sys.stdin.buffer.read()
+    try:
+        return Path(path).read_bytes()
+    except OSError as exc:
+        raise GCodeError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def load_program(source, settings: InterpreterSettings | None = None, *, path: str | None = None) -> Program:
+    """Lex and interpret a program.
+
+    Parameters
+    ----------
+    source : str | os.PathLike | bytes
+        A file path (``-`` for stdin) or the program text itself as bytes.
+    settings : InterpreterSettings, optional
+    path : str, optional
+        Name used in messages when ``source`` is bytes.
+    """
+    settings = settings or InterpreterSettings()
+    if isinstance(source, (bytes, bytearray)):
+        data = bytes(source)
+        name = path or "<string>"
+    else:
+        name = str(source) if path is None else path
+        data = read_source(source)
+        if name == "-":
+            name = "<stdin>"
+    lexed = lex(data, name)
+    return interpret(lexed, settings)
+
+
+def _resolve_dialect(settings: InterpreterSettings, path: str) -> str:
+    if settings.dialect not in DIALECTS:
+        raise GCodeError(f"unknown dialect {settings.dialect!r} (choose from {', '.join(DIALECTS)})")
+    if settings.dialect != "auto":
+        return settings.dialect
+    return "linuxcnc" if path.lower().endswith(".ngc") else "fanuc"
+
+
+def _offsets_array(settings: InterpreterSettings) -> np.ndarray:
+    arr = np.zeros((9, 3))
+    for key, xyz in settings.work_offsets.items():
+        name = key.upper()
+        if name not in _WCS_NAMES:
+            raise GCodeError(f"unknown work offset {key!r} (expected one of {', '.join(_WCS_NAMES)})")
+        arr[_WCS_NAMES.index(name)] = np.asarray(xyz, dtype=float)
+    return arr
+
+
+def _tool_arrays(settings: InterpreterSettings):
+    table = settings.tool_lengths
+    if not table:
+        return np.zeros(1000), np.zeros(1000, np.bool_), table is not None
+    size = max(1000, max(int(t) for t in table) + 1)
+    lengths = np.zeros(size)
+    known = np.zeros(size, np.bool_)
+    for t, length in table.items():
+        lengths[int(t)] = float(length)
+        known[int(t)] = True
+    return lengths, known, True
+
+
+def _subprogram_table(lexed: Lexed):
+    """O-numbers that start a line, as candidate M98 targets."""
+    is_o = lexed.w_letter == ord("O")
+    if not is_o.any():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    ks = np.flatnonzero(is_o)
+    first = lexed.line_w0[lexed.w_line[ks]] == ks
+    ks = ks[first]
+    return lexed.w_value[ks].astype(np.int64), lexed.w_line[ks].astype(np.int64)
+
+
+def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
+    dialect = _resolve_dialect(settings, lexed.path)
+    wcs = _offsets_array(settings)
+    tool_len, tool_known, have_table = _tool_arrays(settings)
+    sub_num, sub_line = _subprogram_table(lexed)
+    cap = max(64, 2 * int(lexed.line_nw.size) + 16)
+    max_steps = 200 * lexed.n_lines + 1_000_000
+    warn_code = np.zeros(256, np.int64)
+    warn_word = np.zeros(256, np.int64)
+    while True:
+        out = np.zeros(cap, MOVE_DTYPE)
+        n, err, ew, eline, evals, nwarn = K.interp_kernel(
+            lexed.line_w0, lexed.line_nw, lexed.line_flags, lexed.w_letter, lexed.w_value, lexed.w_ndec,
+            sub_num, sub_line, wcs, tool_len, tool_known, have_table,
+            np.asarray(settings.home_g28, float), np.asarray(settings.home_g30, float),
+            0 if dialect == "fanuc" else 1, settings.lenient, settings.skip_block_delete, max_steps,
+            out, warn_code, warn_word)
+        if n <= cap or err not in (K.E_OK,):
+            if err != K.E_OK and n > cap:
+                pass  # the error is real; the overflow does not matter
+            break
+        if n > 50_000_000:
+            raise GCodeError("program expands to more than 50 million moves")
+        cap = n + 16
+    if err != K.E_OK:
+        raise _interp_error(lexed, int(err), int(ew), int(eline), evals)
+    warnings = [_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(min(nwarn, 256))]
+    if nwarn > 256:
+        warnings.append(GCodeWarning(SourceLocation(lexed.path, 0, 0), f"{nwarn - 256} more warnings"))
+    return Program(lexed, out[:n], settings, dialect, warnings)
+
+
+def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
+    loc = lexed.word_location(k)
+    w = lexed.word_text(k)
+    if code == K.W_IGNORED_G:
+        msg = f"unsupported G-code {w} ignored (--lenient)"
+    elif code == K.W_IGNORED_M:
+        msg = f"unsupported M-code {w} ignored (--lenient)"
+    elif code == K.W_M99_IN_MAIN:
+        msg = "M99 in the main program ends it here (a Fanuc control would loop to the start)"
+    else:
+        msg = f"warning {code}"
+    return GCodeWarning(loc, msg)
+
+
+def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
+    if k >= 0:
+        loc = lexed.word_location(k)
+        w = lexed.word_text(k).strip()
+    else:
+        loc = SourceLocation(lexed.path, li + 1, 1)
+        w = ""
+    msgs = {
+        K.E_UNSUPPORTED_G: f"unsupported G-code {w} (use --lenient to ignore codes that do not move the tool)",
+        K.E_UNSUPPORTED_M: f"unsupported M-code {w} (use --lenient to pass it through)",
+        K.E_UNSUPPORTED_WORD: f"unsupported word {w}",
+        K.E_DUP_WORD: f"word {w[:1].upper()} appears twice in one block",
+        K.E_MODAL_CONFLICT: f"{w}: two codes from the same modal group in one block",
+        K.E_ARC_RADIUS_MISMATCH: (f"arc radius to end differs from radius to start: r1={vals[0]:.4f} mm "
+                                  f"r2={vals[1]:.4f} mm abs_err={vals[2]:.4g} mm"),
+        K.E_ARC_R_TOO_SMALL: (f"arc radius {vals[0]:.4f} mm is too small to reach the end point "
+                              f"(half chord {vals[1]:.4f} mm)"),
+        K.E_ARC_NO_CENTER: "arc has neither I/J/K nor R",
+        K.E_ARC_ZERO_RADIUS: "arc has zero radius",
+        K.E_ARC_R_FULL_CIRCLE: "R-format arc whose start and end are the same point (a full circle needs I/J/K)",
+        K.E_ZERO_FEED: "feed move with zero feed rate (no F word in effect)",
+        K.E_NO_MOTION_MODE: f"axis word {w} without an active motion mode (G0/G1/G2/G3/G8x)",
+        K.E_TOOL_OFFSET_MISSING: f"tool length offset {w or '(current tool)'} is not in the tool table",
+        K.E_BAD_G_NUMBER: f"malformed code {w}",
+        K.E_CANNED_NO_Z: "canned cycle without a depth (Z) word",
+        K.E_CANNED_NO_R: "canned cycle without an R (retract level) word",
+        K.E_CANNED_Q: "peck cycle needs a positive Q (peck depth)",
+        K.E_CANNED_R_BELOW_Z: f"canned cycle R level {vals[0]:.4f} mm is below the bottom {vals[1]:.4f} mm",
+        K.E_SUB_NOT_FOUND: f"M98 subprogram {w} not found in this file",
+        K.E_SUB_DEPTH: f"subprogram nesting deeper than {K.MAX_SUB_DEPTH}",
+        K.E_LOOP: "program does not terminate (subprogram loop)",
+        K.E_GEOMETRY_G: (f"{w} is not supported: it changes the toolpath geometry (cutter compensation, "
+                         "rotation, scaling, polar or lathe modes), which mtwin does not model yet"),
+        K.E_BAD_WCS: f"work offset number {w} out of range",
+        K.E_BAD_G10: f"{w}: only G10 L2 P<n> (set work offset) is supported; other G10 forms are not supported",
+        K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
+        K.E_BAD_VALUE: f"invalid value in word {w}",
+        K.E_G53_MODE: "G53 needs G0 or G1 motion",
+        K.E_BAD_TURNS: f"arc turn count {w} must be a positive integer",
+        K.E_UNUSED_WORD: f"word {w} is not used by any code on this block",
+        K.E_AMBIGUOUS_R: "R word is ambiguous on a block with both G64 and M19; use separate blocks",
+        K.E_ROTARY: f"rotary/secondary axis word {w} is not supported (3-axis machine)",
+    }
+    return GCodeError(msgs.get(code, f"interpreter error {code}"), loc)
