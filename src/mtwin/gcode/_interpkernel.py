@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_R_ARC, FL_SUB, LINEAR, RAPID,
+    FL_MACHINE, FL_R_ARC, FL_SUB, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -451,12 +451,15 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         if m_cool >= 0:
             si[SI_COOLANT] = m_cool
         # units change happens before dwell/motion but after F
+        f_inch = inch
         if g_units >= 0:
             inch = g_units == 1
             scale = MM_PER_INCH if inch else 1.0
         base = 0
         if inch:
             base |= FL_INCH
+        if f_inch:
+            base |= FL_F_INCH
         # 8. dwell
         if g_dwell:
             if has[_P]:

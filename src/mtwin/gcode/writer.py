@@ -1,0 +1,398 @@
+"""Byte-preserving rewrite of a program with new feeds, spindle speeds and move splits.
+
+The output differs from the input only where asked: F/S words changed or
+inserted, and moves split into pieces whose end points lie on the original path.
+Every other byte — comments, N-numbers, spacing, case, blank lines, line
+endings — is copied from the input.  Before returning, the result is
+re-interpreted and checked: same geometry (:func:`verify.compare`) and the
+requested feeds and speeds in effect on every move.  A rewrite that cannot be
+expressed raises :class:`WriteError` and nothing is returned.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import WriteError
+from ._lexkernel import LF_BLOCK_DELETE
+from .interpreter import Program, interpret
+from .lexer import lex
+from .numfmt import NumberStyle, detect_style
+from .records import (
+    ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
+    FL_F_INCH, FL_INCH, FL_INCREMENTAL, FL_R_ARC, FL_SUB, LINEAR, PLANE_AXES, RAPID, move_lengths, arc_sweep,
+)
+from .verify import compare
+
+_AXIS = "XYZ"
+_IJK = "IJK"
+
+
+@dataclass
+class Split:
+    """Split one move at path fractions ``ts`` (strictly increasing, in (0, 1)).
+
+    ``feeds`` has ``len(ts) + 1`` entries, the feed (mm/min) of each piece.
+    """
+
+    ts: list
+    feeds: list
+
+
+class _Edits:
+    def __init__(self):
+        self.items = []  # (start, end, order, bytes)
+
+    def replace(self, start, end, text: str):
+        self.items.append((int(start), int(end), 0, text.encode("latin-1")))
+
+    def insert(self, pos, text: str, order=1):
+        self.items.append((int(pos), int(pos), order, text.encode("latin-1")))
+
+    def apply(self, data: bytes) -> bytes:
+        out = []
+        last = 0
+        for start, end, _, text in sorted(self.items, key=lambda e: (e[0], e[1], e[2])):
+            if start < last:
+                raise WriteError("internal error: overlapping edits")
+            out.append(data[last:start])
+            out.append(text)
+            last = end
+        out.append(data[last:])
+        return b"".join(out)
+
+
+def _point_at(r, t):
+    """Point at path fraction t of record r (linear or arc), mm."""
+    s = np.array([r["sx"], r["sy"], r["sz"]])
+    e = np.array([r["x"], r["y"], r["z"]])
+    if r["kind"] == LINEAR:
+        return s + t * (e - s)
+    a1, a2, an = PLANE_AXES[r["plane"]]
+    c = np.array([r["cx"], r["cy"], r["cz"]])
+    sweep = float(arc_sweep(r.reshape(1))[0])
+    th = t * sweep * (1.0 if r["kind"] == ARC_CCW else -1.0)
+    v1, v2 = s[a1] - c[a1], s[a2] - c[a2]
+    p = s.copy()
+    p[a1] = c[a1] + v1 * math.cos(th) - v2 * math.sin(th)
+    p[a2] = c[a2] + v1 * math.sin(th) + v2 * math.cos(th)
+    p[an] = s[an] + t * (e[an] - s[an])
+    return p
+
+
+class _Writer:
+    def __init__(self, prog: Program, style: NumberStyle | None):
+        self.prog = prog
+        self.lx = prog.lexed
+        self.style = style or detect_style(self.lx)
+        self.edits = _Edits()
+        lx = self.lx
+        nl = lx.n_lines
+        self.word_of = {}  # (line, letter) -> word index
+        for letter in "FSXYZIJKRG":
+            ks = np.flatnonzero(lx.w_letter == ord(letter))
+            if letter == "G":
+                continue
+            for k in ks:
+                self.word_of[(int(lx.w_line[k]), letter)] = int(k)
+        self.nl = nl
+        data = lx.data
+        self.eol = "\r\n" if b"\r\n" in data[:4096] else "\n"
+        self.lower = bool(lx.w_letter.size) and data[int(lx.w_start[0])] >= 97
+
+    def letter(self, ch):
+        return ch.lower() if self.lower else ch
+
+    def sep(self, li):
+        """' ' if words on this line are separated by spaces."""
+        lx = self.lx
+        w0 = int(lx.line_w0[li])
+        nw = int(lx.line_nw[li])
+        if nw >= 2:
+            gap = self.lx.data[int(lx.w_end[w0]):int(lx.w_start[w0 + 1])]
+            return " " if gap.strip() == b"" and gap else ""
+        return " "
+
+    def set_word(self, li, letter, text, order=1):
+        k = self.word_of.get((li, letter))
+        if k is not None:
+            # keep the letter byte (and any space after it); replace the number
+            lx = self.lx
+            start = int(lx.w_start[k]) + 1
+            self.edits.replace(start, int(lx.w_end[k]), text)
+        else:
+            self.edits.insert(int(self.lx.line_insert[li]), self.sep(li) + self.letter(letter) + text, order=order)
+
+
+def _feed_word(r, feed, spindle, length, own_line=True):
+    # an F on the record's own line is read in the units before that line's G20/G21;
+    # on a line inserted after it, in the units in force for the move
+    scale = 25.4 if r["flags"] & (FL_F_INCH if own_line else FL_INCH) else 1.0
+    if r["feed_mode"] == FEED_PER_REV:
+        if spindle <= 0:
+            raise WriteError(f"line {r['line']}: feed per revolution (G95) with the spindle at 0 rpm")
+        return feed / spindle / scale
+    if r["feed_mode"] == FEED_INVERSE_TIME:
+        return feed / max(length, 1e-12)
+    return feed / scale
+
+
+def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None,
+            style: NumberStyle | None = None, check: bool = True) -> bytes:
+    """Return the program's bytes with new feeds/speeds and split moves.
+
+    Parameters
+    ----------
+    prog : Program
+    feeds : array of float, optional
+        Desired feed (mm/min) per record; NaN keeps it.  Only feed moves matter.
+    spindles : array of float, optional
+        Desired spindle speed (rpm) per record; NaN keeps it.
+    splits : dict, optional
+        ``{record_index: Split}``: split that move into pieces.
+    style : NumberStyle, optional
+        Number format; detected from the program when omitted.
+    check : bool
+        Re-interpret the result and prove geometry, feeds and speeds (default).
+    """
+    rec = prog.records
+    n = rec.size
+    feeds = np.full(n, np.nan) if feeds is None else np.asarray(feeds, float).copy()
+    spindles = np.full(n, np.nan) if spindles is None else np.asarray(spindles, float).copy()
+    if feeds.shape != (n,) or spindles.shape != (n,):
+        raise WriteError(f"feeds and spindles must have one value per record ({n})")
+    splits = dict(splits or {})
+    w = _Writer(prog, style)
+    st = w.style
+    lengths = move_lengths(rec)
+    kinds = rec["kind"]
+    is_feed = (kinds == LINEAR) | (kinds == ARC_CW) | (kinds == ARC_CCW)
+    new_spindle = np.where(np.isnan(spindles), rec["spindle"], spindles)
+    new_feed = np.where(np.isnan(feeds), rec["feed"], feeds)
+    if (new_feed[is_feed] <= 0).any() or not np.isfinite(new_feed[is_feed]).all():
+        raise WriteError("feeds must be positive and finite")
+    if (new_spindle < 0).any() or not np.isfinite(new_spindle).all():
+        raise WriteError("spindle speeds must be non-negative and finite")
+    for i, sp in splits.items():
+        if not (0 <= i < n) or not is_feed[i]:
+            raise WriteError(f"split requested on record {i}, which is not a feed move")
+        new_feed[i] = sp.feeds[0]
+
+    # ---- per-line targets (a line executed several times must agree) ----
+    line0 = rec["line"].astype(np.int64) - 1
+    f_target: dict = {}
+    s_target: dict = {}
+    changed_f = np.flatnonzero(is_feed & ~np.isclose(new_feed, rec["feed"], rtol=1e-12, atol=0))
+    changed_s = np.flatnonzero(~np.isclose(new_spindle, rec["spindle"], rtol=1e-12, atol=0))
+    f_lines = set(line0[changed_f].tolist()) | set(line0[changed_s].tolist())
+    for i in np.flatnonzero(is_feed):
+        li = int(line0[i])
+        if li not in f_lines and i not in splits:
+            continue
+        txt = st.feed(_feed_word(rec[i], new_feed[i], new_spindle[i], lengths[i]),
+                      bool(rec[i]["flags"] & FL_F_INCH) and rec[i]["feed_mode"] != FEED_INVERSE_TIME)
+        prev = f_target.get(li)
+        if prev is not None and prev != txt:
+            raise WriteError(f"{prog.path}:{li + 1}: this line runs several moves (canned cycle, "
+                             f"subprogram or repeat) that were given different feeds ({prev} and {txt})")
+        f_target[li] = txt
+    for i in changed_s:
+        li = int(line0[i])
+        txt = st.feed(new_spindle[i])
+        prev = s_target.get(li)
+        if prev is not None and prev != txt:
+            raise WriteError(f"{prog.path}:{li + 1}: spindle speed would differ between executions of this line")
+        s_target[li] = txt
+
+    split_lines = {}
+    for i, sp in splits.items():
+        li = int(line0[i])
+        r = rec[i]
+        if r["flags"] & (FL_CANNED | FL_SUB) or not r["flags"] & FL_FIRST_IN_LINE or r["turns"] > 0:
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a canned-cycle, subprogram or multi-turn move")
+        if (line0 == li).sum() != 1:
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a line that produces several moves")
+        ts = [float(t) for t in sp.ts]
+        if len(sp.feeds) != len(ts) + 1 or any(not (0 < t < 1) for t in ts) or ts != sorted(set(ts)):
+            raise WriteError(f"split of line {li + 1}: fractions must be increasing in (0, 1), one more feed than "
+                             "fractions")
+        split_lines[li] = i
+
+    _apply_modal(w, prog, "F", f_target, split_lines, splits)
+    _apply_modal(w, prog, "S", s_target, {}, {})
+    for li, i in split_lines.items():
+        _write_split(w, rec[i], li, splits[i], new_spindle[i], lengths[i])
+    out = w.edits.apply(prog.data)
+    if check:
+        _self_check(prog, out, new_feed, new_spindle, splits)
+    return out
+
+
+def _apply_modal(w: _Writer, prog: Program, letter: str, targets: dict, split_lines: dict, splits: dict):
+    """Set F (or S) on the lines that need it, tracking the modal value in file order."""
+    if not targets:
+        return
+    lx = w.lx
+    ks = np.flatnonzero(lx.w_letter == ord(letter))
+    word_lines = {int(lx.w_line[k]): float(lx.w_value[k]) for k in ks}
+    modal = None
+    for li in sorted(set(word_lines) | set(targets)):
+        tgt = targets.get(li)
+        old = word_lines.get(li)
+        if tgt is None:
+            modal = old
+            continue
+        if old is not None:
+            if float(tgt) != old:
+                w.set_word(li, letter, tgt)
+        elif modal is None or float(tgt) != modal:
+            w.set_word(li, letter, tgt, order=2)
+        modal = float(tgt)
+        if li in split_lines:
+            i = split_lines[li]
+            r = prog.records[i]
+            modal = float(w.style.feed(_feed_word(r, splits[i].feeds[-1], r["spindle"], 1.0, own_line=False),
+                                       bool(r["flags"] & FL_INCH)))
+
+
+def _write_split(w: _Writer, r, li: int, sp: Split, spindle: float, length: float):
+    lx = w.lx
+    st = w.style
+    inch = bool(r["flags"] & FL_INCH)
+    scale = 25.4 if inch else 1.0
+    dec = max(st.coord_decimals, 5 if inch else 4)
+    incremental = bool(r["flags"] & FL_INCREMENTAL)
+    is_arc = r["kind"] != LINEAR
+    s = np.array([r["sx"], r["sy"], r["sz"]])
+    e = np.array([r["x"], r["y"], r["z"]])
+    c = np.array([r["cx"], r["cy"], r["cz"]])
+    if is_arc:
+        a1, a2, an = PLANE_AXES[r["plane"]]
+        axes = sorted({int(a1), int(a2)} | ({int(an)} if abs(e[an] - s[an]) > 0 else set()))
+    else:
+        axes = [a for a in range(3) if e[a] != s[a]]
+    for a in range(3):
+        if (li, _AXIS[a]) in w.word_of and a not in axes:
+            axes.append(a)
+    axes.sort()
+    pts = [_point_at(r, t) for t in sp.ts] + [e]
+    q = 10.0 ** dec
+    # positions in program units on the decimal grid, so that in G91 the written
+    # increments add up exactly to the original move and nothing drifts
+    if incremental:
+        base = s / scale
+        grid = [np.round((p / scale - base) * q) for p in pts[:-1]]
+        orig = []
+        for a in range(3):
+            k = w.word_of.get((li, _AXIS[a]))
+            orig.append(lx.w_value[k] if k is not None else (e[a] - s[a]) / scale)
+        grid.append(np.round(np.array(orig) * q))
+        words_at = []
+        prev = np.zeros(3)
+        for g in grid:
+            words_at.append((g - prev) / q)
+            prev = g
+        written = [base + g / q for g in grid]
+    else:
+        words_at = [np.round(p / scale * q) / q for p in pts]
+        written = [wv.copy() for wv in words_at]
+    piece_start = s / scale
+    # first piece: the original line, end point moved
+    for a in axes:
+        w.set_word(li, _AXIS[a], st.coord(words_at[0][a], dec))
+    if is_arc and r["flags"] & FL_R_ARC:
+        k = w.word_of[(li, "R")]
+        cen = _ijk(c / scale, piece_start, r)
+        txt = w.sep(li).join(w.letter(_IJK[a]) + st.coord(cen[a], dec) for a in (a1, a2))
+        w.edits.replace(int(lx.w_start[k]), int(lx.w_end[k]), txt)
+    # following pieces: new lines after the original one
+    sep = w.sep(li)
+    prefix = "/" if lx.line_flags[li] & LF_BLOCK_DELETE else ""
+    gword = {LINEAR: "G1", ARC_CW: "G2", ARC_CCW: "G3"}[int(r["kind"])]
+    for k in range(1, len(pts)):
+        start_k = written[k - 1]
+        parts = [w.letter(gword[0]) + gword[1:]]
+        for a in axes:
+            parts.append(w.letter(_AXIS[a]) + st.coord(words_at[k][a], dec))
+        if is_arc:
+            cen = _ijk(c / scale, start_k, r)
+            parts += [w.letter(_IJK[a]) + st.coord(cen[a], dec) for a in (a1, a2)]
+        fw = _feed_word(r, sp.feeds[k], spindle, length, own_line=False)
+        parts.append(w.letter("F") + st.feed(fw, inch))
+        w.edits.insert(int(lx.line_end[li]), w.eol + prefix + sep.join(parts), order=2 + k)
+
+
+def _ijk(center, start, r):
+    """Arc centre words: absolute (G90.1) or relative to the piece start (G91.1)."""
+    if r["flags"] & FL_IJK_ABSOLUTE:
+        return center
+    return center - start
+
+
+def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
+    new = interpret(lex(out, prog.path), prog.settings)
+    diff = compare(prog, new, tol=2e-3)
+    if diff is not None:
+        raise WriteError(f"internal check failed, nothing written: rewritten program differs in geometry: {diff}")
+    # expected feeds per new record: originals expanded by the splits
+    exp_f = []
+    exp_s = []
+    rec = prog.records
+    for i in range(rec.size):
+        if i in splits:
+            exp_f.extend(splits[i].feeds)
+            exp_s.extend([new_spindle[i]] * len(splits[i].feeds))
+        else:
+            exp_f.append(new_feed[i])
+            exp_s.append(new_spindle[i])
+    exp_f = np.asarray(exp_f)
+    exp_s = np.asarray(exp_s)
+    nr = new.records
+    if nr.size != exp_f.size:
+        raise WriteError(f"internal check failed, nothing written: {nr.size} moves instead of {exp_f.size}")
+    isf = (nr["kind"] != RAPID) & (nr["kind"] != DWELL)
+    # tolerance: half a unit of the last written digit, relative to the feed
+    style = detect_style(prog.lexed)
+    inch_f = (nr["flags"] & (FL_F_INCH | FL_INCH)) != 0
+    res = np.where(inch_f, 0.5 * 10.0 ** -style.feed_decimals_for(True) * 25.4,
+                   0.5 * 10.0 ** -style.feed_decimals_for(False))
+    res = np.where(nr["feed_mode"] == FEED_PER_REV, res * nr["spindle"], res)
+    tol = res * 1.0001 + 1e-9 * np.abs(exp_f)
+    tol = np.where(nr["feed_mode"] == FEED_INVERSE_TIME, np.inf, tol)
+    bad = np.flatnonzero(isf & (np.abs(nr["feed"] - exp_f) > tol))
+    if bad.size:
+        j = bad[0]
+        raise WriteError(f"internal check failed, nothing written: line {nr['line'][j]} would run at "
+                         f"{nr['feed'][j]:g} mm/min instead of {exp_f[j]:g}")
+    bad = np.flatnonzero(np.abs(nr["spindle"] - exp_s) > 0.5 * 10.0 ** -style.feed_decimals + 1e-9)
+    if bad.size:
+        j = bad[0]
+        raise WriteError(f"internal check failed, nothing written: line {nr['line'][j]} would run the spindle at "
+                         f"{nr['spindle'][j]:g} rpm instead of {exp_s[j]:g}")
+
+
+def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed: float | None = None,
+                style: NumberStyle | None = None) -> bytes:
+    """Bake a feed (and spindle) override into the program; clamp feeds to ``max_feed`` (mm/min)."""
+    if not (feed > 0 and math.isfinite(feed)):
+        raise WriteError("--feed must be a positive number")
+    if not (spindle > 0 and math.isfinite(spindle)):
+        raise WriteError("--spindle must be a positive number")
+    if max_feed is not None and not (max_feed > 0):
+        raise WriteError("--max-feed must be positive")
+    rec = prog.records
+    feeds = np.full(rec.size, np.nan)
+    spindles = np.full(rec.size, np.nan)
+    is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
+    if feed != 1.0 or max_feed is not None or spindle != 1.0:
+        # in G95 the feed per revolution is kept, so mm/min follows the spindle
+        f = rec["feed"] * feed * np.where(rec["feed_mode"] == FEED_PER_REV, spindle, 1.0)
+        if max_feed is not None:
+            f = np.minimum(f, max_feed)
+        feeds = np.where(is_feed & (f != rec["feed"]), f, np.nan)
+    if spindle != 1.0:
+        spindles = rec["spindle"] * spindle
+        spindles = np.where(spindles != rec["spindle"], spindles, np.nan)
+    return rewrite(prog, feeds, spindles, style=style)
