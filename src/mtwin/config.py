@@ -1,0 +1,105 @@
+"""Twin configuration file (TOML): the parts the G-code front end reads.
+
+Precedence is CLI option > file > built-in default, resolved here and nowhere
+else.  Unknown keys and wrong types are errors that name the key.  Later issues
+add the machine (axes, servo, spindle) sections to the same file.
+
+Example::
+
+    [interpreter]
+    dialect = "fanuc"           # auto | fanuc | linuxcnc
+    block_delete = false        # true: skip lines starting with '/'
+    home_g28 = [0.0, 0.0, 0.0]  # machine coordinates, mm
+    home_g30 = [0.0, 0.0, 0.0]
+
+    [work_offsets]              # mm, machine coordinates of each work zero
+    G54 = [-400.0, -200.0, -350.0]
+
+    [tool_lengths]              # tool number -> length offset, mm
+    1 = 95.2
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+from .errors import ConfigError
+
+_SECTIONS = {"interpreter", "work_offsets", "tool_lengths"}
+_INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30"}
+
+
+def _vec3(value, key):
+    if not (isinstance(value, list) and len(value) == 3 and all(isinstance(v, (int, float)) for v in value)):
+        raise ConfigError(f"{key}: expected a list of three numbers in mm, got {value!r}")
+    if not all(math.isfinite(v) for v in value):
+        raise ConfigError(f"{key}: values must be finite")
+    return tuple(float(v) for v in value)
+
+
+def load_twin_file(path: str | None) -> dict:
+    """Read and validate a twin TOML file; returns a plain dict of validated values."""
+    if path is None:
+        return {}
+    try:
+        raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"cannot read twin file {path}: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+    out: dict = {}
+    for section, body in raw.items():
+        if section not in _SECTIONS:
+            raise ConfigError(f"{path}: unknown section [{section}] (known: {', '.join(sorted(_SECTIONS))})")
+        if not isinstance(body, dict):
+            raise ConfigError(f"{path}: [{section}] must be a table")
+    interp = raw.get("interpreter", {})
+    for key, value in interp.items():
+        if key not in _INTERP_KEYS:
+            raise ConfigError(f"{path}: unknown key interpreter.{key} (known: {', '.join(sorted(_INTERP_KEYS))})")
+    if "dialect" in interp:
+        if interp["dialect"] not in ("auto", "fanuc", "linuxcnc"):
+            raise ConfigError(f"{path}: interpreter.dialect must be auto, fanuc or linuxcnc")
+        out["dialect"] = interp["dialect"]
+    if "block_delete" in interp:
+        if not isinstance(interp["block_delete"], bool):
+            raise ConfigError(f"{path}: interpreter.block_delete must be true or false")
+        out["skip_block_delete"] = interp["block_delete"]
+    for key in ("home_g28", "home_g30"):
+        if key in interp:
+            out[key] = _vec3(interp[key], f"{path}: interpreter.{key}")
+    offsets = {}
+    valid = {"G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"}
+    for key, value in raw.get("work_offsets", {}).items():
+        if key.upper() not in valid:
+            raise ConfigError(f"{path}: unknown key work_offsets.{key} (G54 … G59.3)")
+        offsets[key.upper()] = _vec3(value, f"{path}: work_offsets.{key}")
+    if offsets:
+        out["work_offsets"] = offsets
+    if "tool_lengths" in raw:
+        tools = {}
+        for key, value in raw["tool_lengths"].items():
+            if not key.isdigit():
+                raise ConfigError(f"{path}: tool_lengths.{key}: tool numbers are non-negative integers")
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"{path}: tool_lengths.{key}: expected a length in mm")
+            tools[int(key)] = float(value)
+        out["tool_lengths"] = tools
+    return out
+
+
+def interpreter_settings(twin_file: str | None = None, **overrides):
+    """InterpreterSettings from the twin file, with CLI overrides (None = not given)."""
+    from .gcode.interpreter import InterpreterSettings
+
+    values = load_twin_file(twin_file)
+    for key, value in overrides.items():
+        if value is not None:
+            values[key] = value
+    return InterpreterSettings(**values)
