@@ -173,7 +173,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     incremental = False
     ijk_abs = False
     motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
-    retract_old = True  # G98
+    retract_old = dialect == 0  # power-on default: Fanuc G98, LinuxCNC G99
     tool_sel = 0
     canned_r = math.nan
     canned_z = math.nan
@@ -250,6 +250,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         if has[_E]:
             return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
 
+        nwarn_line = nwarn  # codes ignored by --lenient may own words we cannot check
         # ---- classify G codes ----
         g_feedmode = -1
         g_plane = -1
@@ -408,16 +409,17 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         is_arc = mm == 20 or mm == 30
         is_canned = mm >= 730 and mm != 800
         m19 = nm > 0 and _has_code(mcodes, nm, 190)
+        ignored = nwarn > nwarn_line
         if has[_R] and m19 and g_path == 640:
             return n, E_AMBIGUOUS_R, widx[_R], li, err_vals, nwarn
-        if has[_R] and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
+        if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
-        if has[_Q] and not ((mm == 830 or mm == 730) or g_path == 640 or m19):
+        if has[_Q] and not ignored and not ((mm == 830 or mm == 730) or g_path == 640 or m19):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
-        if has[_P] and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
+        if has[_P] and not ignored and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
-        if has[_L] and not (g_nonmodal == 100 or is_canned or m_sub):
+        if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub):
             return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
         for L in (_I, _J, _K):
             if has[L] and not is_arc:

@@ -1,0 +1,244 @@
+"""End points and arc centres for every supported code, checked against hand-computed values."""
+import math
+
+import numpy as np
+import pytest
+
+from mtwin.errors import GCodeError
+from mtwin.gcode.interpreter import InterpreterSettings, load_program
+from mtwin.gcode.records import ARC_CCW, ARC_CW, DWELL, LINEAR, RAPID, arc_sweep, move_lengths
+
+
+def run(text, **kw):
+    return load_program(text.encode(), InterpreterSettings(**kw), path="t.nc").records
+
+
+def xyz(r):
+    return [float(r["x"]), float(r["y"]), float(r["z"])]
+
+
+def ctr(r):
+    return [float(r["cx"]), float(r["cy"]), float(r["cz"])]
+
+
+def test_linear_rapid_feed_spindle_tool():
+    r = run("G21 G90\nT3 M6\nS5000 M3\nG0 X1 Y2 Z3\nG1X10Y-2.5F300\nx.5 y10. z-0.5\nM30\n")
+    assert [int(k) for k in r["kind"]] == [RAPID, LINEAR, LINEAR]
+    assert xyz(r[1]) == [10, -2.5, 3] and xyz(r[2]) == [0.5, 10, -0.5]
+    assert r["feed"][1] == 300 and r["feed"][0] == 0
+    assert (r["spindle"] == 5000).all() and (r["tool"] == 3).all() and (r["spindle_dir"] == 1).all()
+    assert list(r["line"]) == [4, 5, 6]
+
+
+def test_inch_program_converts_to_mm():
+    r = run("G20 G90\nG0 X1 Y2\nG1 X2.5 F10.\n")
+    assert xyz(r[0]) == pytest.approx([25.4, 50.8, 0])
+    assert xyz(r[1]) == pytest.approx([63.5, 50.8, 0])
+    assert r["feed"][1] == pytest.approx(254.0)
+
+
+def test_feed_applied_before_unit_change():
+    # RS274NGC: F is read in the units in force before this block's G20
+    r = run("G21\nG0 X0\nG20 G1 X1 F20\n")
+    assert r["feed"][1] == pytest.approx(20.0)
+
+
+def test_g91_incremental_and_g91_arc():
+    r = run("G21 G90 G0 X10 Y10\nG91 G1 X5 Y-5 F100\nG2 X10 Y0 I5 J0\n")
+    assert xyz(r[1]) == [15, 5, 0]
+    assert xyz(r[2]) == [25, 5, 0] and ctr(r[2]) == [20, 5, 0]
+    assert arc_sweep(r)[2] == pytest.approx(math.pi)
+
+
+def test_ijk_absolute_g90_1():
+    r = run("G90 G90.1 G0 X0 Y0\nG3 X10 Y0 I5 J0 F100\n")
+    assert ctr(r[1]) == [5, 0, 0] and r["kind"][1] == ARC_CCW
+
+
+@pytest.mark.parametrize("rval,cw,center,sweep", [
+    (5.0, True, (5, 0), math.pi),  # semicircle
+    # CW along +X: a short arc has its centre right of the chord (below), a long one (R<0) above
+    (-10.0, True, (5, 8.660254), 2 * math.pi - 2 * math.asin(0.5)),
+    (10.0, True, (5, -8.660254), 2 * math.asin(0.5)),
+    (10.0, False, (5, 8.660254), 2 * math.asin(0.5)),  # CCW: left of the chord
+])
+def test_r_format_arcs(rval, cw, center, sweep):
+    g = "G2" if cw else "G3"
+    r = run(f"G0 X0 Y0\n{g} X10 Y0 R{rval} F100\n")
+    assert ctr(r[1])[:2] == pytest.approx(center, abs=1e-6)
+    assert arc_sweep(r)[1] == pytest.approx(sweep)
+    c = np.array(ctr(r[1]))
+    assert np.hypot(*(c[:2])) == pytest.approx(abs(rval))
+
+
+def test_full_circle_and_helix():
+    r = run("G0 X10 Y0 Z0\nG3 X10 Y0 Z-2 I-10 J0 F100\n")
+    assert arc_sweep(r)[1] == pytest.approx(2 * math.pi)
+    assert move_lengths(r)[1] == pytest.approx(math.hypot(2 * math.pi * 10, 2))
+    assert xyz(r[1]) == [10, 0, -2]
+
+
+@pytest.mark.parametrize("plane,words,end,center", [
+    ("G18", "X10 Z0 I5 K0", [10, 0, 0], [5, 0, 0]),
+    ("G19", "Y10 Z0 J5 K0", [0, 10, 0], [0, 5, 0]),
+])
+def test_g18_g19_arcs(plane, words, end, center):
+    r = run(f"G0 X0 Y0 Z0\n{plane} G2 {words} F100\n")
+    assert xyz(r[1]) == end and ctr(r[1]) == center
+
+
+def test_g18_direction_matches_linuxcnc():
+    # G18 looks from +Y: CW from (0,0,0) around (5,0,0) passes through Z>0... check the midpoint
+    r = run("G0 X0 Y0 Z0\nG18 G2 X10 I5 F100\n")
+    assert r["kind"][1] == ARC_CW and r["plane"][1] == 1
+
+
+def test_arc_radius_mismatch_rejected():
+    with pytest.raises(GCodeError, match="radius") as e:
+        run("G0 X0 Y0\nG2 X10 Y0 I4 J0 F100\n")
+    assert e.value.location.line == 2
+
+
+def test_dwell_fanuc_and_linuxcnc():
+    assert run("G4 P500\n", dialect="fanuc")["dwell"][0] == pytest.approx(0.5)
+    assert run("G4 P1.5\n", dialect="fanuc")["dwell"][0] == pytest.approx(1.5)
+    assert run("G4 X2.\n", dialect="fanuc")["dwell"][0] == pytest.approx(2.0)
+    assert run("G4 P2\n", dialect="linuxcnc")["dwell"][0] == pytest.approx(2.0)
+
+
+def test_g81_g98_g99():
+    r = run("G90 G0 X0 Y0 Z10\nG98 G81 X5 Y5 Z-3 R2 F100\nG99 X6\nG80\n")
+    ends = [xyz(x) for x in r]
+    assert ends == [[0, 0, 10], [5, 5, 10], [5, 5, 2], [5, 5, -3], [5, 5, 10],  # G98: back to old Z 10
+                    [6, 5, 10], [6, 5, 2], [6, 5, -3], [6, 5, 2]]  # G99: back to R
+    assert [int(k) for k in r["kind"]][1:5] == [RAPID, RAPID, LINEAR, RAPID]
+
+
+def test_g83_peck_g98():
+    r = run("G90 G0 X0 Y0 Z10\nG98 G83 X1 Y1 Z-7 R1 Q3 F100\n")
+    z = [float(v) for v in r["z"][2:]]
+    # R=1: feed to -2, out to R, down to -2+0.254, feed -5, out, down -5+0.254, feed -7, out to 10
+    assert z == pytest.approx([1, -2, 1, -1.746, -5, 1, -4.746, -7, 10])
+    kinds = [int(k) for k in r["kind"][3:]]
+    assert kinds == [LINEAR, RAPID, RAPID, LINEAR, RAPID, RAPID, LINEAR, RAPID]
+
+
+def test_g83_g99_and_g73_g85_g89_g82():
+    r = run("G0 Z5\nG99 G83 X0 Z-4 R1 Q2.5 F50\n")
+    assert float(r["z"][-1]) == 1.0
+    r = run("G0 Z5\nG73 X0 Y0 Z-4 R1 Q2 F50\n")
+    # Fanuc's power-on retract mode is G98: back to the old Z (5)
+    assert [round(float(v), 3) for v in r["z"][2:]] == [1, -1, -0.746, -3, -2.746, -4, 5]
+    r = run("G0 Z5\nG73 X0 Y0 Z-4 R1 Q2 F50\n", dialect="linuxcnc")
+    assert float(r["z"][-1]) == 1.0  # LinuxCNC starts in G99
+    r = run("G0 Z5\nG85 X0 Y0 Z-4 R1 F50\n")
+    assert [int(k) for k in r["kind"][-3:]] == [LINEAR, LINEAR, RAPID]
+    r = run("G0 Z5\nG89 X0 Y0 Z-4 R1 P250 F50\n")
+    assert [int(k) for k in r["kind"][-4:]] == [LINEAR, DWELL, LINEAR, RAPID] and r["dwell"][-3] == 0.25
+    r = run("G0 Z5\nG82 X0 Y0 Z-4 R1 P1000 F50\n")
+    assert r["dwell"][-2] == 1.0
+
+
+def test_g91_canned_with_repeats():
+    # LinuxCNC crazy-paths number 4 in mm: R relative to old Z, Z relative to R, L repeats
+    r = run("G90 G0 X10 Y0 Z2\nG91 G98 G81 X1 Y1 Z-2 R-1 L2 F100\n")
+    ends = [xyz(x) for x in r[1:]]
+    assert ends == [[11, 1, 2], [11, 1, 1], [11, 1, -1], [11, 1, 2], [12, 2, 2], [12, 2, 1], [12, 2, -1], [12, 2, 2]]
+
+
+def test_work_offsets_and_tool_length():
+    s = dict(work_offsets={"G54": (100, 50, -300), "G55": (200, 50, -300)}, tool_lengths={1: 80.0})
+    r = run("G54 G0 X0 Y0\nT1 M6\nG43 H1 Z10\nG55 G0 X0\n", **s)
+    m = r[1]
+    assert r["tlo"][1] == 80.0 and r["oz"][1] == -300
+    assert float(m["z"] + m["oz"] + m["tlo"]) == pytest.approx(-210)
+    # G55: position expressed in the new frame; the move is 100 mm in machine X
+    assert float(r["x"][2] + r["ox"][2]) == pytest.approx(200)
+    assert float(r["sx"][2] + r["ox"][2]) == pytest.approx(100)
+
+
+def test_missing_tool_offset_is_an_error():
+    with pytest.raises(GCodeError, match="tool length offset") as e:
+        run("G43 H7 Z10\n", tool_lengths={1: 80.0})
+    assert (e.value.location.line, e.value.location.col) == (1, 5)
+
+
+def test_g28_and_g53():
+    s = dict(work_offsets={"G54": (0, 0, -400)}, home_g28=(0, 0, 0))
+    r = run("G0 X10 Y10 Z5\nG91 G28 Z0\nG90 G53 G0 X-50\n", **s)
+    assert xyz(r[1]) == [10, 10, 5]  # intermediate point (incremental 0)
+    assert xyz(r[2]) == [10, 10, 400]  # machine Z0 is 400 mm above work zero
+    assert xyz(r[3]) == [-50, 10, 400]
+
+
+def test_g61_g64_path_modes():
+    r = run("G1 X1 F10\nG61 X2\nG64 P0.05 X3\nG61.1 X4\nG64 X5\n")
+    assert list(r["path_mode"]) == [0, 1, 0, 2, 0]
+    assert r["path_tol"][2] == pytest.approx(0.05) and r["path_tol"][4] == 0
+
+
+def test_g95_feed_per_rev_and_g93_inverse_time():
+    r = run("S1000 M3\nG95 G1 X10 F0.1\n")
+    assert r["feed"][0] == pytest.approx(100.0)
+    r = run("G93 G1 X10 F2\n")
+    assert r["feed"][0] == pytest.approx(20.0)
+
+
+def test_m98_m99_subprogram_with_repeats():
+    prog = "O1\nG0 X0 Y0\nM98 P100 L2\nM30\nO100\nG91 G1 X1 F100\nG90\nM99\n"
+    r = run(prog)
+    assert [float(v) for v in r["x"]] == [0, 1, 2]
+    assert list(r["line"]) == [2, 6, 6]
+
+
+def test_coolant_and_spindle_stop():
+    r = run("M3 S100 M8\nG0 X1\nM5 M9\nG0 X2\n")
+    assert list(r["coolant"]) == [2, 0] and list(r["spindle_dir"]) == [1, 0]
+
+
+@pytest.mark.parametrize("text,match,line,col", [
+    ("G1 X1 F100 G0\n", "same modal group", 1, 12),
+    ("G1 X1 X2 F1\n", "twice", 1, 7),
+    ("G1 F100\nG1 X1 Q2\n", "not used", 2, 7),
+    ("G1 X1\n", "zero feed", 1, 1),
+    ("G2 X1 F1\n", "neither", 1, 1),
+    ("G41 D1\n", "geometry", 1, 1),
+    ("G1 X1 A5 F10\n", "rotary", 1, 7),
+    ("G99.5 X1\n", "unsupported G-code", 1, 1),
+    ("M123\n", "unsupported M-code", 1, 1),
+    ("X10\n", "without an active motion mode", 1, 1),
+    ("G1 X[1+2] F10\n", "expression", 1, 5),
+    ("#1=5\n", "macro", 1, 1),
+    ("G1 X1 (open\n", "not closed", 1, 7),
+    ("G1 X F10\n", "malformed", 1, 4),
+    ("IF [#1 GT 2] GOTO 5\n", "macro statement", 1, 1),
+    ("o100 sub\n", "O-word", 1, 1),
+    ("M98 P77\n", "not found", 1, 5),
+    ("G81 X1 Y1 Z-1 F10\n", "R \\(retract", 1, 1),
+    ("G0 Z5\nG83 X0 Z-4 R1 F50\n", "Q", 2, 1),
+])
+def test_errors_name_line_and_column(text, match, line, col):
+    with pytest.raises(GCodeError, match=match) as e:
+        run(text)
+    assert (e.value.location.line, e.value.location.col) == (line, col)
+
+
+def test_lenient_turns_unsupported_codes_into_warnings():
+    p = load_program(b"G1 X1 F10\nM123\nG5.1 Q1\n", InterpreterSettings(lenient=True), path="t.nc")
+    assert len(p.records) == 1 and len(p.warnings) == 2
+    assert "t.nc:2:1" in str(p.warnings[0])
+
+
+def test_lowercase_block_delete_comments_and_percent():
+    text = "%\n(header)\ng0 x1 ; comment\n/G0 X5\nN10 G1 X2 F10 (cut)\n%\nG0 X99\n"
+    r = run(text)
+    assert [float(v) for v in r["x"]] == [1, 5, 2]
+    r = run(text, skip_block_delete=True)
+    assert [float(v) for v in r["x"]] == [1, 2]
+
+
+def test_runaway_subprograms_end_with_an_error():
+    with pytest.raises(GCodeError, match="nesting"):
+        run("O1\nM98 P1\n")
+    with pytest.raises(GCodeError, match="does not terminate"):
+        run("M98 P100 L99999999\nM30\nO100\nG4 P1\nM99\n")
