@@ -414,7 +414,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             return n, E_AMBIGUOUS_R, widx[_R], li, err_vals, nwarn
         if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
-        if has[_Q] and not ignored and not ((mm == 830 or mm == 730) or g_path == 640 or m19):
+        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
         if has[_P] and not ignored and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):

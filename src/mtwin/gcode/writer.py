@@ -187,10 +187,10 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     changed_f = np.flatnonzero(is_feed & ~np.isclose(new_feed, rec["feed"], rtol=1e-12, atol=0))
     changed_s = np.flatnonzero(~np.isclose(new_spindle, rec["spindle"], rtol=1e-12, atol=0))
     f_lines = set(line0[changed_f].tolist()) | set(line0[changed_s].tolist())
-    for i in np.flatnonzero(is_feed):
+    # Every feed line gets a target once anything changes: a line that keeps its
+    # feed may still inherit a changed modal F and need its own word back.
+    for i in (np.flatnonzero(is_feed) if f_lines or splits else []):
         li = int(line0[i])
-        if li not in f_lines and i not in splits:
-            continue
         txt = st.feed(_feed_word(rec[i], new_feed[i], new_spindle[i], lengths[i]),
                       bool(rec[i]["flags"] & FL_F_INCH) and rec[i]["feed_mode"] != FEED_INVERSE_TIME)
         prev = f_target.get(li)
