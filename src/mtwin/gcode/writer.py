@@ -212,6 +212,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
         r = rec[i]
         if r["flags"] & (FL_CANNED | FL_SUB) or not r["flags"] & FL_FIRST_IN_LINE or r["turns"] > 0:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a canned-cycle, subprogram or multi-turn move")
+        if lengths[i] <= 0.0:
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a zero-length move")
         if (line0 == li).sum() != 1:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a line that produces several moves")
         ts = [float(t) for t in sp.ts]
