@@ -10,6 +10,7 @@ Heavy modules (numpy, numba kernels) are imported inside the commands so that
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import sys
@@ -47,6 +48,21 @@ def _fail(exc: BaseException) -> None:
         raise typer.Exit(exc.exit_code)
     err.print(f"[red]internal error:[/red] {type(exc).__name__}: {exc} (run with --traceback and report it)")
     raise typer.Exit(EXIT_INTERNAL)
+
+
+def _reports_errors(command):
+    """Turn every exception of a command into a message and an exit code (see ``_fail``)."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except typer.Exit:
+            raise
+        except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
+            _fail(exc)
+
+    return wrapper
 
 
 def _settings(twin, dialect, lenient, block_delete):
@@ -99,6 +115,7 @@ BlockDeleteOpt = typer.Option(None, "--block-delete/--no-block-delete",
 
 
 @app.command()
+@_reports_errors
 def parse(
     part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
     moves: bool = typer.Option(False, "--moves", help="Write the interpreted motion records as CSV."),
@@ -110,22 +127,17 @@ def parse(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Summarise a program: moves, tools, feeds, bounding box, lengths and nominal time."""
-    try:
-        from .gcode.summary import moves_csv, summarize
+    from .gcode.summary import moves_csv, summarize
 
-        prog = _load(part, _settings(twin, dialect, lenient, block_delete))
-        if moves:
-            write_output(moves_csv(prog).encode(), output or "-", [part])
-            return
-        summary = summarize(prog)
-        if json_out:
-            sys.stdout.write(json.dumps(summary.as_dict(), indent=2) + "\n")
-            return
-        _print_summary(summary)
-    except typer.Exit:
-        raise
-    except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
-        _fail(exc)
+    prog = _load(part, _settings(twin, dialect, lenient, block_delete))
+    if moves:
+        write_output(moves_csv(prog).encode(), output or "-", [part])
+        return
+    summary = summarize(prog)
+    if json_out:
+        sys.stdout.write(json.dumps(summary.as_dict(), indent=2) + "\n")
+        return
+    _print_summary(summary)
 
 
 def _print_summary(s) -> None:
@@ -150,6 +162,7 @@ def _print_summary(s) -> None:
 
 
 @app.command()
+@_reports_errors
 def scale(
     part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
     feed: float = typer.Option(1.0, "--feed", help="Feed factor (1.0 = unchanged)."),
@@ -163,21 +176,17 @@ def scale(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Bake a feed/spindle override into the program and clamp feeds; nothing else changes."""
-    try:
-        from .gcode.writer import scale_feeds
+    from .gcode.writer import scale_feeds
 
-        prog = _load(part, _settings(twin, dialect, lenient, block_delete))
-        data = scale_feeds(prog, feed, spindle, max_feed)
-        write_output(data, output, [part], in_place)
-        changed = sum(1 for a, b in zip(prog.data.splitlines(), data.splitlines()) if a != b)
-        err.print(f"wrote {output}: {changed} line(s) changed, geometry verified", soft_wrap=True)
-    except typer.Exit:
-        raise
-    except Exception as exc:  # noqa: BLE001
-        _fail(exc)
+    prog = _load(part, _settings(twin, dialect, lenient, block_delete))
+    data = scale_feeds(prog, feed, spindle, max_feed)
+    write_output(data, output, [part], in_place)
+    changed = sum(1 for a, b in zip(prog.data.splitlines(), data.splitlines()) if a != b)
+    err.print(f"wrote {output}: {changed} line(s) changed, geometry verified", soft_wrap=True)
 
 
 @app.command()
+@_reports_errors
 def verify(
     original: str = typer.Argument(..., help="Original program."),
     optimised: str = typer.Argument(..., help="Rewritten program."),
@@ -189,20 +198,14 @@ def verify(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Prove two programs cut the same path (ignoring F/S words and move splits). Exit 0 same, 1 different."""
-    try:
-        from .gcode.verify import compare
+    from .gcode.verify import compare
 
-        if not (tol > 0):
-            raise MtwinError("--tol must be positive")
-        settings = _settings(twin, dialect, lenient, block_delete)
-        a = _load(original, settings)
-        b = _load(optimised, settings)
-        diff = compare(a, b, tol)
-    except typer.Exit:
-        raise
-    except Exception as exc:  # noqa: BLE001
-        _fail(exc)
-        return
+    if not (tol > 0):
+        raise MtwinError("--tol must be positive")
+    settings = _settings(twin, dialect, lenient, block_delete)
+    a = _load(original, settings)
+    b = _load(optimised, settings)
+    diff = compare(a, b, tol)
     if json_out:
         res = {"same_path": diff is None, "tolerance": tol}
         if diff is not None:

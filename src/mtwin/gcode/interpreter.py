@@ -176,9 +176,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
             np.asarray(settings.home_g28, float), np.asarray(settings.home_g30, float),
             0 if dialect == "fanuc" else 1, settings.lenient, settings.skip_block_delete, max_steps,
             out, warn_code, warn_word)
-        if n <= cap or err not in (K.E_OK,):
-            if err != K.E_OK and n > cap:
-                pass  # the error is real; the overflow does not matter
+        if n <= cap or err != K.E_OK:  # an error is reported even if the buffer also overflowed
             break
         if n > 50_000_000:
             raise GCodeError("program expands to more than 50 million moves")

@@ -91,11 +91,8 @@ class _Writer:
         lx = self.lx
         nl = lx.n_lines
         self.word_of = {}  # (line, letter) -> word index
-        for letter in "FSXYZIJKRG":
-            ks = np.flatnonzero(lx.w_letter == ord(letter))
-            if letter == "G":
-                continue
-            for k in ks:
+        for letter in "FSXYZIJKR":
+            for k in np.flatnonzero(lx.w_letter == ord(letter)):
                 self.word_of[(int(lx.w_line[k]), letter)] = int(k)
         self.nl = nl
         data = lx.data
