@@ -26,6 +26,10 @@ from .errors import EXIT_CHECK_FAILED, MtwinError
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
+    # Plain click help: rendering help through rich costs ~80 ms of imports
+    # (rich.markdown, typer.rich_utils), which would put `mtwin --help` over
+    # its 0.3 s budget. Our own messages still go through rich on stderr.
+    rich_markup_mode=None,
     help="mtwin: G-code optimiser built on a digital twin of a CNC machine tool.",
     context_settings={"help_option_names": ["-h", "--help"]},
 )
