@@ -87,28 +87,9 @@ def _load(part: str, settings):
 
 def write_output(data: bytes, out: str, inputs: list[str], in_place: bool = False) -> None:
     """Write ``data`` to ``out`` atomically (temporary file + rename), or to stdout for ``-``."""
-    if out == "-":
-        sys.stdout.buffer.write(data)
-        sys.stdout.buffer.flush()
-        return
-    target = Path(out)
-    for src in inputs:
-        if src != "-" and Path(src).exists() and target.exists() and os.path.samefile(src, target) and not in_place:
-            raise MtwinError(f"refusing to overwrite the input {src} (use --in-place)")
-    directory = target.parent if str(target.parent) else Path(".")
-    if not directory.is_dir():
-        raise MtwinError(f"output directory {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        if target.exists():
-            os.chmod(tmp, target.stat().st_mode & 0o777)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from .io import write_bytes
+
+    write_bytes(data, out, inputs, in_place)
 
 
 TwinOpt = typer.Option(None, "--twin", help="Twin configuration file (TOML): work offsets, tool lengths, dialect.")

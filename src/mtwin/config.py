@@ -1,8 +1,8 @@
 """Twin configuration file (TOML): the parts the G-code front end reads.
 
 Precedence is CLI option > file > built-in default, resolved here and nowhere
-else.  Unknown keys and wrong types are errors that name the key.  Later issues
-add the machine (axes, servo, spindle) sections to the same file.
+else.  Unknown keys and wrong types are errors that name the key.  The machine
+sections (controller, axes, spindle, timing) are declared in ``twin/machine.py``.
 
 Example::
 
@@ -31,7 +31,7 @@ else:  # pragma: no cover
 
 from .errors import ConfigError
 
-_SECTIONS = {"interpreter", "work_offsets", "tool_lengths"}
+_SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "machine", "controller", "axes", "spindle", "timing"}
 _INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30"}
 
 
@@ -43,22 +43,39 @@ def _vec3(value, key):
     return tuple(float(v) for v in value)
 
 
-def load_twin_file(path: str | None) -> dict:
-    """Read and validate a twin TOML file; returns a plain dict of validated values."""
-    if path is None:
-        return {}
+def read_twin_toml(path: str) -> dict:
+    """Parse a twin TOML file and check its section names."""
     try:
         raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
         raise ConfigError(f"cannot read twin file {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: twin file is not UTF-8 text") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: invalid TOML: {exc}") from None
-    out: dict = {}
     for section, body in raw.items():
         if section not in _SECTIONS:
             raise ConfigError(f"{path}: unknown section [{section}] (known: {', '.join(sorted(_SECTIONS))})")
         if not isinstance(body, dict):
             raise ConfigError(f"{path}: [{section}] must be a table")
+    return raw
+
+
+def load_machine(path: str | None):
+    """The Machine of a twin file (the embedded default machine when path is None)."""
+    from .twin.machine import Machine, machine_from_dict
+
+    if path is None:
+        return Machine()
+    return machine_from_dict(read_twin_toml(path), str(path))
+
+
+def load_twin_file(path: str | None) -> dict:
+    """Read and validate the front-end sections of a twin TOML file (plain dict of values)."""
+    if path is None:
+        return {}
+    raw = read_twin_toml(path)
+    out: dict = {}
     interp = raw.get("interpreter", {})
     for key, value in interp.items():
         if key not in _INTERP_KEYS:

@@ -1,0 +1,225 @@
+"""Numba kernel of the servo-rate loop: profiler -> after-interpolation filter -> servo -> plant.
+
+One pass over the samples ``t_k = k·dt``.  Each sample's command comes from the
+closed-form profile of its segment (no integration, so no drift: the position at
+``t`` depends only on ``t`` and the plan), goes through the per-axis acc/dec filter
+after interpolation, then through the cascaded position-P / velocity-PI loop of
+each axis into the feed-drive plant ``M·ẍ = F − F_friction(ẋ) − F_gravity − F_d``.
+Statistics (peak following error, peak torque) are taken at the full rate; the
+time series are stored every ``every``-th sample.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+from ._plankernel import ramp_eval
+
+FILTER_NONE, FILTER_LINEAR, FILTER_BELL, FILTER_EXP = 0, 1, 2, 3
+
+# servo parameter columns, per axis
+SV_KPP, SV_WV, SV_WI, SV_FF, SV_MASS, SV_FPT, SV_FMAX, SV_FCP, SV_FCN, SV_FSP, SV_FSN, SV_VS, SV_B, SV_FG = range(14)
+N_SV = 14
+_V_STICK = 1e-9  # mm/s: below this an axis is at rest for the friction model
+
+
+@njit
+def segment_distance(prof, i, tau):
+    """Distance along segment i and path speed, ``tau`` seconds after its start."""
+    vin = prof[i, 0]
+    vp = prof[i, 1]
+    tju = prof[i, 3]
+    tau_u = prof[i, 4]
+    t_up = 2.0 * tju + tau_u
+    if tau <= t_up:
+        return ramp_eval(vin, 1.0, tju, tau_u, prof[i, 5], tau)
+    d_up = 0.5 * (vin + vp) * t_up
+    tau -= t_up
+    cruise = prof[i, 6]
+    if tau <= cruise:
+        return d_up + vp * tau, vp
+    tjd = prof[i, 7]
+    tad = prof[i, 8]
+    t_dn = 2.0 * tjd + tad
+    tau -= cruise
+    if tau >= t_dn:
+        return d_up + vp * cruise + 0.5 * (vp + prof[i, 2]) * t_dn, prof[i, 2]
+    s, v = ramp_eval(vp, -1.0, tjd, tad, prof[i, 9], tau)
+    return d_up + vp * cruise + s, v
+
+
+@njit
+def segment_point(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, i, s, out):
+    """Point at distance s along segment i, written into out[0:3]; the end point exactly at s >= L."""
+    if kind[i] == 2 or s >= length[i]:
+        for k in range(3):
+            out[k] = p1[i, k]
+        return
+    if s <= 0.0:
+        for k in range(3):
+            out[k] = p0[i, k]
+        return
+    if kind[i] == 0:
+        f = s / length[i]
+        for k in range(3):
+            # interpolate between the exact end points: no accumulated rounding
+            out[k] = p0[i, k] + (p1[i, k] - p0[i, k]) * f
+        return
+    f = s / length[i]
+    a = theta[i] * f
+    r = r0[i] + (r1[i] - r0[i]) * f
+    ca = math.cos(a)
+    sa = math.sin(a)
+    for k in range(3):
+        out[k] = c[i, k] + r * (ca * e1[i, k] + sa * e2[i, k]) + h[i, k] * f
+
+
+@njit
+def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur,
+             dt, n_samples, every, filt, nfilt, tfilt, sv, fd, x0):
+    """Simulate n_samples servo periods.  Returns stored series and full-rate statistics."""
+    n_out = (n_samples + every - 1) // every
+    t_out = np.empty(n_out)
+    line_out = np.empty(n_out, np.int32)
+    cmd = np.empty((n_out, 3), np.float32)
+    act = np.empty((n_out, 3), np.float32)
+    vel = np.empty((n_out, 3), np.float32)
+    trq = np.empty((n_out, 3), np.float32)
+    err = np.empty((n_out, 3), np.float32)
+    pathv = np.empty(n_out, np.float32)  # interpolator path speed, mm/s
+    max_err = np.zeros(3)
+    max_trq = np.zeros(3)
+    nseg = len(kind)
+    # after-interpolation filter state: ring buffers (linear: one FIR, bell: two in cascade)
+    nbuf = max(nfilt, 1)
+    ring1 = np.empty((nbuf, 3))
+    ring2 = np.empty((nbuf, 3))
+    sum1 = np.zeros(3)
+    sum2 = np.zeros(3)
+    for j in range(nbuf):
+        for k in range(3):
+            ring1[j, k] = x0[k]
+            ring2[j, k] = x0[k]
+    for k in range(3):
+        sum1[k] = x0[k] * nbuf
+        sum2[k] = x0[k] * nbuf
+    alpha = 1.0 - math.exp(-dt / tfilt) if tfilt > 0.0 else 1.0
+    yexp = x0.copy()
+    raw = np.empty(3)
+    xc = np.empty(3)
+    xc_prev = x0.copy()
+    x = x0.copy()
+    v = np.zeros(3)
+    integ = np.zeros(3)
+    for k in range(3):
+        # an axis holding a weight at the start already has it in its integrator
+        gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
+        if gain > 0.0:
+            integ[k] = sv[k, SV_FG] / gain
+    has_fd = fd.shape[0] > 0
+    i = 0
+    o = 0
+    for kstep in range(n_samples):
+        t = kstep * dt
+        while i < nseg - 1 and t >= t_start[i] + dur[i]:
+            i += 1
+        tau = t - t_start[i]
+        if kind[i] == 2:
+            s, vp = 0.0, 0.0
+        else:
+            s, vp = segment_distance(prof, i, tau)
+        segment_point(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, i, s, raw)
+        # ---- acc/dec after interpolation, per axis
+        pos = kstep % nbuf
+        if filt == 1 or filt == 2:
+            for k in range(3):
+                sum1[k] += raw[k] - ring1[pos, k]
+                ring1[pos, k] = raw[k]
+            if pos == nbuf - 1:  # re-sum once per window so rounding never accumulates
+                for k in range(3):
+                    acc = 0.0
+                    for j in range(nbuf):
+                        acc += ring1[j, k]
+                    sum1[k] = acc
+            for k in range(3):
+                xc[k] = sum1[k] / nbuf
+            if filt == 2:
+                for k in range(3):
+                    sum2[k] += xc[k] - ring2[pos, k]
+                    ring2[pos, k] = xc[k]
+                if pos == nbuf - 1:
+                    for k in range(3):
+                        acc = 0.0
+                        for j in range(nbuf):
+                            acc += ring2[j, k]
+                        sum2[k] = acc
+                for k in range(3):
+                    xc[k] = sum2[k] / nbuf
+        elif filt == 3:
+            for k in range(3):
+                yexp[k] += alpha * (raw[k] - yexp[k])
+                xc[k] = yexp[k]
+        else:
+            for k in range(3):
+                xc[k] = raw[k]
+        # ---- servo loop and feed-drive plant, per axis
+        for k in range(3):
+            m = sv[k, SV_MASS]
+            e = xc[k] - x[k]
+            vref = sv[k, SV_KPP] * e + sv[k, SV_FF] * (xc[k] - xc_prev[k]) / dt
+            ev = vref - v[k]
+            integ[k] += ev * dt
+            f = m * sv[k, SV_WV] * (ev + sv[k, SV_WI] * integ[k]) * 1e-3  # N (mm/s^2 -> m/s^2)
+            fmax = sv[k, SV_FMAX]
+            if f > fmax:
+                f = fmax
+            elif f < -fmax:
+                f = -fmax
+            fapp = f - sv[k, SV_FG]
+            if has_fd:
+                fapp -= fd[kstep, k]
+            vk = v[k]
+            if kstep % every == 0:
+                cmd[o, k] = xc[k]
+                act[o, k] = x[k]
+                err[o, k] = e
+                vel[o, k] = vk
+                trq[o, k] = f / sv[k, SV_FPT]
+            if abs(vk) < _V_STICK:
+                fs = sv[k, SV_FSP] if fapp > 0.0 else sv[k, SV_FSN]
+                if abs(fapp) <= fs:
+                    vnew = 0.0
+                else:
+                    sgn = 1.0 if fapp > 0.0 else -1.0
+                    vnew = (fapp - sgn * fs) / m * 1e3 * dt
+            else:
+                if vk > 0.0:
+                    fc, fs = sv[k, SV_FCP], sv[k, SV_FSP]
+                    sgn = 1.0
+                else:
+                    fc, fs = sv[k, SV_FCN], sv[k, SV_FSN]
+                    sgn = -1.0
+                r = vk / sv[k, SV_VS]
+                ff = sgn * (fc + (fs - fc) * math.exp(-r * r)) + sv[k, SV_B] * vk * 1e-3
+                vnew = vk + (fapp - ff) / m * 1e3 * dt
+                if vnew * vk < 0.0:
+                    # friction cannot reverse the motion: the axis stops (and sticks unless the
+                    # drive force alone breaks it away next period)
+                    vnew = 0.0
+            x[k] += 0.5 * (vk + vnew) * dt
+            v[k] = vnew
+            ae = abs(e)
+            if ae > max_err[k]:
+                max_err[k] = ae
+            tq = f / sv[k, SV_FPT]
+            if abs(tq) > max_trq[k]:
+                max_trq[k] = abs(tq)
+            xc_prev[k] = xc[k]
+        if kstep % every == 0:
+            t_out[o] = t
+            line_out[o] = line[i]
+            pathv[o] = vp
+            o += 1
+    return t_out, line_out, cmd, act, err, vel, trq, pathv, max_err, max_trq

@@ -1,0 +1,362 @@
+"""The NCK: from motion records to a timed, velocity-planned path (a :class:`Plan`).
+
+Stages, in the order a controller runs them:
+
+1. segments from records, and pauses for dwell, tool change and spindle run-up;
+2. per-segment limits: programmed feed, axis velocity and acceleration projected on
+   the move, arc centripetal acceleration, the shortest block time;
+3. corners: LinuxCNC-style blend arcs (path changes inside the G64 tolerance), or
+   corner speeds by the allowable velocity change (Fanuc) or junction deviation (Grbl);
+   exact stops for G61/G9, rapids and pauses;
+4. look-ahead passes over a window of blocks;
+5. S-curve (or trapezoidal) timing of every segment.
+
+Everything per segment is a numpy array; the heavy loops are the kernels in
+``_plankernel``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..gcode import records as R
+from . import _plankernel as K
+from .path import (ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, CATEGORY_NAMES, LINE, PAUSE, SEG_DTYPE,
+                   check_feeds, check_travel, motion_segments)
+
+STYLE_CODES = {"fanuc": K.STYLE_FANUC, "linuxcnc": K.STYLE_LINUXCNC, "grbl": K.STYLE_GRBL}
+_MIN_LENGTH = 1e-9  # mm: moves shorter than this are dropped (a nanometre is below any servo)
+
+
+@dataclass
+class Plan:
+    """A planned program: segments with their timing, ready for the servo-rate loop."""
+
+    seg: np.ndarray  # SEG_DTYPE
+    prof: np.ndarray  # (n, 10) per-segment S-curve parameters, see _plankernel.segment_timing
+    dur: np.ndarray  # (n,) s, motion + hold, or pause time
+    hold: np.ndarray  # (n,) s, in-position wait after a stop (after-interpolation filter drain)
+    t_start: np.ndarray  # (n,) s
+    start_point: np.ndarray  # (3,) mm, where the program starts
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def total_time(self) -> float:
+        return float(self.t_start[-1] + self.dur[-1]) if len(self.dur) else 0.0
+
+    def category_times(self) -> dict[str, float]:
+        """Seconds per category (rapid, cutting, dwell, tool_change, spindle_wait)."""
+        out = {}
+        for code, name in enumerate(CATEGORY_NAMES):
+            out[name] = float(self.dur[self.seg["cat"] == code].sum())
+        return out
+
+
+def _axis_limits(machine):
+    vel = np.array([ax.max_velocity / 60.0 for ax in machine.axes])
+    acc = np.array([ax.max_acceleration for ax in machine.axes])
+    return vel, acc
+
+
+def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
+    """Fill vmax (mm/s) and amax (mm/s², tangential) of every motion segment.
+
+    ``linuxcnc``: circles get half the acceleration as their tangential limit whatever
+    their speed (LinuxCNC 2.9's tpGetScaledAccel) instead of what the centripetal part
+    leaves over."""
+    c = machine.controller
+    vel, acc = _axis_limits(machine)
+    n = len(seg)
+    vmax = np.full(n, np.inf)
+    amax = np.full(n, np.inf)
+    line = seg["kind"] == LINE
+    u = np.abs(seg["u0"])
+    with np.errstate(divide="ignore"):
+        vline = np.min(np.where(u > 1e-12, vel / np.maximum(u, 1e-300), np.inf), axis=1)
+        aline = np.min(np.where(u > 1e-12, acc / np.maximum(u, 1e-300), np.inf), axis=1)
+    vmax[line] = vline[line]
+    amax[line] = aline[line]
+    arc = seg["kind"] == ARC
+    if arc.any():
+        a = seg[arc]
+        in_plane = (np.abs(a["e1"]) + np.abs(a["e2"])) > 1e-12
+        v_arc = np.min(np.where(in_plane, vel, np.inf), axis=1)
+        a_arc = np.min(np.where(in_plane, acc, np.inf), axis=1)
+        # helical rise: the normal axis moves at rise/L of the path speed
+        rise = np.abs(a["h"])
+        frac = np.where(rise > 0, rise / np.maximum(a["length"], 1e-300)[:, None], 0.0)
+        with np.errstate(divide="ignore"):
+            v_arc = np.minimum(v_arc, np.min(np.where(frac > 1e-12, vel / np.maximum(frac, 1e-300), np.inf), axis=1))
+            a_arc = np.minimum(a_arc, np.min(np.where(frac > 1e-12, acc / np.maximum(frac, 1e-300), np.inf), axis=1))
+        vmax[arc] = v_arc
+        amax[arc] = a_arc
+    if c.max_path_velocity > 0:
+        vmax = np.minimum(vmax, c.max_path_velocity / 60.0)
+    if c.max_path_acceleration > 0:
+        amax = np.minimum(amax, c.max_path_acceleration)
+    feed = seg["feed"]
+    vmax = np.where((seg["rapid"] == 0) & (feed > 0), np.minimum(vmax, feed), vmax)
+    if arc.any():
+        # centripetal limit: v²/r <= a·√(1 − 0.5²) and the tangential acceleration left over
+        # (LinuxCNC's split of the acceleration budget on circles; the total stays <= a)
+        r = np.minimum(seg["r0"], seg["r1"])[arc]
+        a_axis = amax[arc]
+        v_cut = np.sqrt(K._ACC_RATIO_NORMAL * a_axis * r)
+        v = vmax[arc]
+        a_n = v * v / np.maximum(r, 1e-300)
+        ratio = np.where(a_n > K._ACC_RATIO_NORMAL * a_axis, K._ACC_RATIO_TAN,
+                         np.sqrt(np.clip(1.0 - (a_n / a_axis) ** 2, 0.0, 1.0)))
+        vmax[arc] = np.minimum(v, v_cut)
+        amax[arc] = a_axis * (K._ACC_RATIO_TAN if linuxcnc else ratio)
+    if c.min_block_time > 0:
+        vmax = np.minimum(vmax, seg["length"] / c.min_block_time)
+    seg["vmax"] = vmax
+    seg["amax"] = amax
+
+
+def _pauses(rec: np.ndarray, machine, warnings: list[str]):
+    """(record index, category, duration) of the pauses before each record, and dwells."""
+    out = []
+    sp = machine.spindle
+    clamped = False
+    tools = rec["tool"]
+    target = rec["spindle_dir"].astype(float) * np.minimum(rec["spindle"], sp.max_speed)
+    if (rec["spindle"] > sp.max_speed).any():
+        clamped = True
+    change_tool = np.nonzero(tools != np.concatenate(([0], tools[:-1])))[0]
+    change_speed = np.nonzero(target != np.concatenate(([0.0], target[:-1])))[0]
+    for i in change_tool:
+        if machine.timing.tool_change > 0:
+            out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change))
+    if sp.wait_for_speed:
+        prev = np.concatenate(([0.0], target[:-1]))
+        for i in change_speed:
+            dt = abs(target[i] - prev[i]) / sp.acceleration
+            if dt > 0:
+                out.append((int(i), 1, CAT_SPINDLE, dt))
+    for i in np.nonzero(rec["kind"] == R.DWELL)[0]:
+        if rec["dwell"][i] > 0:
+            out.append((int(i), 2, CAT_DWELL, float(rec["dwell"][i])))
+    if clamped:
+        warnings.append(f"spindle speeds above the machine's {sp.max_speed:g} rpm are clamped to it")
+    return out
+
+
+def _assemble(rec: np.ndarray, moves: np.ndarray, pauses) -> np.ndarray:
+    """Merge motion segments and pauses in program order."""
+    ps = np.zeros(len(pauses), SEG_DTYPE)
+    keys_p = np.zeros(len(pauses))
+    for j, (i, sub, cat, d) in enumerate(pauses):
+        ps[j]["kind"] = PAUSE
+        ps[j]["cat"] = cat
+        ps[j]["rec"] = i
+        ps[j]["line"] = rec["line"][i]
+        ps[j]["duration"] = d
+        keys_p[j] = 4 * i + sub
+    keys_m = 4 * moves["rec"].astype(float) + 3
+    allseg = np.concatenate([moves, ps])
+    order = np.argsort(np.concatenate([keys_m, keys_p]), kind="stable")
+    out = allseg[order]
+    # pauses stand at the position reached so far
+    ends = np.zeros((len(out), 3))
+    last = None
+    for j in range(len(out)):
+        if out[j]["kind"] == PAUSE:
+            if last is None:
+                r = rec[out[j]["rec"]]
+                last = np.array([r["sx"], r["sy"], r["sz"]])
+            out[j]["p0"] = last
+            out[j]["p1"] = last
+        else:
+            last = out[j]["p1"].copy()
+        ends[j] = last
+    return out
+
+
+def _insert_blends(seg: np.ndarray, jclass: np.ndarray, machine):
+    """Blend arcs at the line-line corners classed J_BLEND; corners where no blend fits
+    become parabolic.  Returns the new segment table and its junction classes."""
+    vel, acc = _axis_limits(machine)
+    trim, radius, vplan, phi, aplane = K.linuxcnc_blends(
+        seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64), seg["path_mode"].astype(np.int64),
+        jclass != K.J_BLEND, seg["tol"], seg["p0"], seg["p1"], np.ascontiguousarray(seg["u0"]), seg["length"],
+        seg["vmax"], np.where(seg["rapid"] == 1, 0.0, seg["feed"]), acc, vel)
+    jclass = jclass.copy()
+    jclass[(jclass == K.J_BLEND) & (trim <= 0)] = K.J_PARABOLIC
+    corners = np.nonzero(trim > 0)[0]
+    jclass[corners] = K.J_TANGENT
+    if not len(corners):
+        return seg, jclass
+    # trim the lines
+    seg = seg.copy()
+    before = np.concatenate(([0.0], trim[:-1]))
+    lines = seg["kind"] == LINE
+    u = seg["u0"]
+    seg["p0"][lines] = seg["p0"][lines] + u[lines] * before[lines][:, None]
+    seg["p1"][lines] = seg["p1"][lines] - u[lines] * trim[lines][:, None]
+    seg["length"][lines] = np.maximum(seg["length"][lines] - before[lines] - trim[lines], 0.0)
+    # the blend arcs
+    b = np.zeros(len(corners), SEG_DTYPE)
+    i = corners
+    u1, u2 = u[i], u[i + 1]
+    corner = seg["p1"][i] + u1 * trim[i][:, None]
+    theta = 0.5 * (np.pi - phi[i])
+    nrm = u2 - u1
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    center = corner + nrm * (radius[i] / np.sin(theta))[:, None]
+    start = corner - u1 * trim[i][:, None]
+    e1 = start - center
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    b["kind"] = ARC
+    b["blend"] = 1
+    b["cat"] = seg["cat"][i + 1]
+    b["rapid"] = seg["rapid"][i + 1]
+    b["rec"] = seg["rec"][i + 1]
+    b["line"] = seg["line"][i + 1]
+    b["p0"] = start
+    b["p1"] = corner + u2 * trim[i][:, None]
+    b["u0"], b["u1"] = u1, u2
+    b["c"], b["e1"], b["e2"] = center, e1, u1
+    b["r0"] = b["r1"] = radius[i]
+    b["theta"] = phi[i]
+    b["length"] = radius[i] * phi[i]
+    b["feed"] = np.maximum(seg["feed"][i], seg["feed"][i + 1])
+    b["vmax"] = vplan[i]
+    b["amax"] = aplane[i] * K._ACC_RATIO_TAN
+    mbt = machine.controller.min_block_time
+    if mbt > 0:
+        b["vmax"] = np.minimum(b["vmax"], b["length"] / mbt)
+    out = np.concatenate([seg, b])
+    jc = np.concatenate([jclass, np.full(len(b), K.J_TANGENT)])
+    key = np.concatenate([np.arange(len(seg), dtype=float), corners + 0.5])
+    order = np.argsort(key, kind="stable")
+    out, jc = out[order], jc[order]
+    # lines eaten completely by their blends disappear; the path stays continuous
+    keep = (out["kind"] != LINE) | (out["length"] > _MIN_LENGTH)
+    out, jc = out[keep], jc[keep]
+    # What is left of a line between two blends is "consumed" into the blend when it would
+    # take fewer than ARC_BLEND_GAP_CYCLES (4) servo periods at the blend speed (LinuxCNC's
+    # blendCheckConsume): it runs as part of the blend, not as a block of its own.  Other
+    # trimmed lines are re-limited by the shortest block time.
+    ln = out["kind"] == LINE
+    nxt_blend = np.zeros(len(out), bool)
+    nxt_blend[:-1] = out["blend"][1:] == 1
+    prv_blend = np.zeros(len(out), bool)
+    prv_blend[1:] = out["blend"][:-1] == 1
+    v_next = np.zeros(len(out))
+    v_next[:-1] = out["vmax"][1:]
+    v_prev = np.zeros(len(out))
+    v_prev[1:] = out["vmax"][:-1]
+    v_blend = np.maximum(np.where(nxt_blend, v_next, 0.0), np.where(prv_blend, v_prev, 0.0))
+    gap = 4 * machine.controller.servo_period
+    consumed = ln & (nxt_blend | prv_blend) & (out["length"] < gap * v_blend)
+    if mbt > 0:
+        lim = ln & ~consumed
+        out["vmax"][lim] = np.minimum(out["vmax"][lim], out["length"][lim] / mbt)
+    return out, jc
+
+
+def _linuxcnc_corners(seg: np.ndarray, machine):
+    """LinuxCNC 2.9 term conditions: tangent (with kink), blend arc, parabolic blend or stop;
+    the acceleration factors they imply (tpGetScaledAccel); junction speeds."""
+    c = machine.controller
+    vel, acc = _axis_limits(machine)
+    is_pause = seg["kind"] == PAUSE
+    feed = np.where(seg["rapid"] == 1, 0.0, seg["feed"])
+    jc, fa_end, fa_next = K.linuxcnc_classify(
+        seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64), seg["path_mode"].astype(np.int64),
+        is_pause, np.ascontiguousarray(seg["u1"]), np.ascontiguousarray(seg["u0"]), seg["vmax"], feed, acc,
+        c.servo_period)
+    # acceleration factors of the original segments: own term condition, blend_prev, and the
+    # 90 % that LinuxCNC 2.9 was measured to use on exact-path (G61, canned-cycle) moves
+    prev = np.concatenate(([1.0], fa_next[:-1]))
+    exact = np.where(seg["path_mode"] == 1, 0.9, 1.0)
+    seg = seg.copy()
+    seg["amax"] = seg["amax"] * fa_end * prev * exact
+    arc = seg["kind"] == ARC
+    if arc.any():
+        # circles are limited with the acceleration they get from the previous junction
+        r = np.minimum(seg["r0"], seg["r1"])[arc]
+        a_base = seg["amax"][arc] / (fa_end[arc] * K._ACC_RATIO_TAN)
+        seg["vmax"][arc] = np.minimum(seg["vmax"][arc], np.sqrt(K._ACC_RATIO_NORMAL * a_base * r))
+    seg, jc = _insert_blends(seg, jc, machine)
+    n = len(seg)
+    vj = np.zeros(n)
+    v_next = np.concatenate((seg["vmax"][1:], [0.0]))
+    tang = jc == K.J_TANGENT
+    vj[tang] = np.minimum(seg["vmax"][tang], v_next[tang])
+    for i in np.nonzero(jc == K.J_PARABOLIC)[0]:
+        cosang = float(np.dot(seg["u1"][i], seg["u0"][i + 1]))
+        cos_half = math.cos(0.5 * math.acos(max(-1.0, min(1.0, -cosang))))
+        f1 = seg["feed"][i] if seg["feed"][i] > 0 and not seg["rapid"][i] else np.inf
+        f2 = seg["feed"][i + 1] if seg["feed"][i + 1] > 0 and not seg["rapid"][i + 1] else np.inf
+        vj[i] = K.parabolic_blend_speed(seg["length"][i], seg["length"][i + 1], min(seg["vmax"][i], f1),
+                                        min(seg["vmax"][i + 1], f2), seg["amax"][i], seg["amax"][i + 1],
+                                        min(seg["tol"][i], seg["tol"][i + 1]), cos_half)
+    return seg, vj
+
+
+def _filter_hold(c) -> tuple[int, float]:
+    """(filter code, drain time) of the after-interpolation filter."""
+    from ._runkernel import FILTER_BELL, FILTER_EXP, FILTER_LINEAR, FILTER_NONE
+
+    if c.after_filter == "none" or c.after_time <= 0:
+        return FILTER_NONE, 0.0
+    n = max(1, int(round(c.after_time / c.servo_period)))
+    if c.after_filter == "linear":
+        return FILTER_LINEAR, n * c.servo_period
+    if c.after_filter == "bell":
+        return FILTER_BELL, 2 * max(1, n // 2) * c.servo_period
+    # exponential: in position after 5 time constants (0.7 % of the last step left)
+    return FILTER_EXP, 5.0 * c.after_time
+
+
+def plan_program(program, machine) -> Plan:
+    """Plan a program on a machine: geometry, limits, corners, look-ahead, timing."""
+    rec = program.records
+    warnings: list[str] = []
+    c = machine.controller
+    motion = rec["kind"] != R.DWELL
+    moves = motion_segments(rec)
+    check_feeds(rec, moves, program.path)
+    check_travel(rec, moves, machine, program.path)
+    moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
+    pauses = _pauses(rec, machine, warnings)
+    seg = _assemble(rec, moves, pauses)
+    if len(rec):
+        start = np.array([rec["sx"][0], rec["sy"][0], rec["sz"][0]])
+    else:
+        start = np.zeros(3)
+    if not len(seg):
+        return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), start, warnings)
+    style = STYLE_CODES[c.style]
+    if seg["kind"].size:
+        canned = (rec["flags"][seg["rec"]] & R.FL_CANNED) != 0
+        # drilling cycles position with an exact stop at every point (LinuxCNC runs them
+        # in exact-path mode)
+        seg["path_mode"][canned & (seg["kind"] != PAUSE)] = 1 if style == K.STYLE_LINUXCNC else 2
+    _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
+    is_pause = seg["kind"] == PAUSE
+    _, acc = _axis_limits(machine)
+    filt, drain = _filter_hold(c)
+    if style == K.STYLE_LINUXCNC:
+        seg, vj = _linuxcnc_corners(seg, machine)
+        is_pause = seg["kind"] == PAUSE
+    else:
+        vj = K.corner_limits(style, np.ascontiguousarray(seg["u1"]), np.ascontiguousarray(seg["u0"]), is_pause,
+                             seg["rapid"].astype(np.int64), seg["path_mode"].astype(np.int64),
+                             seg["kind"].astype(np.int64), seg["tol"], seg["vmax"], acc,
+                             c.corner_velocity / 60.0, c.junction_deviation, drain if filt else 0.0,
+                             c.exact_stop_rapids)
+    tb = c.bell_time if c.before_shape == "bell" else 0.0
+    acc_seg = np.where(is_pause, 1.0, seg["amax"])
+    length = np.where(is_pause, 0.0, seg["length"])
+    ve = K.lookahead(vj, length, acc_seg, tb, c.lookahead)
+    stop = (vj <= 0.0) & ~is_pause
+    hold = np.where(stop, drain, 0.0)
+    prof, dur = K.segment_timing(length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
+                                 seg["duration"])
+    t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
+    return Plan(seg, prof, dur, hold, t_start, start, warnings)

@@ -1,0 +1,119 @@
+"""The simulated trace: time series in the measurement format, and its summary.
+
+Column names and units are those of ``MEASUREMENT_FORMAT.md`` (version 1), so a
+simulated trace can be read back as a measurement.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+AXES = ("x", "y", "z")
+
+
+@dataclass
+class Summary:
+    """What `mtwin simulate` reports: times in s, following error in mm, torque in N·m."""
+
+    cycle_time: float
+    cutting_time: float
+    rapid_time: float
+    dwell_time: float
+    tool_change_time: float
+    spindle_wait_time: float
+    motion_time: float  # first to last commanded movement (LinuxCNC's cycle-time definition)
+    max_following_error: dict[str, float]
+    max_torque: dict[str, float]
+    per_tool: dict[int, dict[str, float]]
+    samples: int
+    servo_period: float
+    machine: str
+    style: str
+    warnings: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        d = dict(self.__dict__)
+        d["per_tool"] = {str(k): v for k, v in self.per_tool.items()}
+        return d
+
+
+@dataclass
+class Trace:
+    """Time series of one simulation (stored every ``every``-th servo period)."""
+
+    t: np.ndarray  # s
+    line: np.ndarray  # 1-based program line being executed
+    cmd: np.ndarray  # (n, 3) mm, commanded position after acc/dec filtering
+    act: np.ndarray  # (n, 3) mm, actual position
+    err: np.ndarray  # (n, 3) mm, following error = cmd - act
+    vel: np.ndarray  # (n, 3) mm/s, actual axis velocity
+    torque: np.ndarray  # (n, 3) N·m, motor torque command
+    path_speed: np.ndarray  # (n,) mm/s, interpolator path speed (before filters)
+    torque_constant: np.ndarray  # (3,) N·m/A
+    summary: Summary
+    every: int = 1
+    program: str = ""
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def feed(self) -> np.ndarray:
+        """Actual path feed, mm/min."""
+        return np.linalg.norm(self.vel.astype(np.float64), axis=1) * 60.0
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The trace as measurement-format columns (name -> array)."""
+        cols: dict[str, np.ndarray] = {"t": self.t, "line": self.line}
+        for k, a in enumerate(AXES):
+            cols[a] = self.act[:, k]
+        for k, a in enumerate(AXES):
+            cols[f"{a}_cmd"] = self.cmd[:, k]
+        for k, a in enumerate(AXES):
+            cols[f"{a}_err"] = self.err[:, k]
+        for k, a in enumerate(AXES):
+            cols[f"{a}_vel"] = self.vel[:, k]
+        cols["feed"] = self.feed
+        for k, a in enumerate(AXES):
+            cols[f"{a}_torque"] = self.torque[:, k]
+        for k, a in enumerate(AXES):
+            cols[f"{a}_current"] = self.torque[:, k] / self.torque_constant[k]
+        return cols
+
+    def write(self, path: str | os.PathLike, metadata: dict[str, str] | None = None) -> None:
+        """Write CSV (or Parquet when the name ends in .parquet) atomically."""
+        from ..io import atomic_output
+
+        path = os.fspath(path)
+        cols = self.columns()
+        if path.endswith(".parquet"):
+            try:
+                import pyarrow as pa
+                import pyarrow.parquet as pq
+            except ImportError:
+                from ..errors import MtwinError
+
+                raise MtwinError("writing .parquet needs pyarrow (pip install pyarrow); use .csv") from None
+            table = pa.table({k: np.asarray(v) for k, v in cols.items()})
+            with atomic_output(path, binary=True) as fh:
+                pq.write_table(table, fh)
+            return
+        meta = {"format": "mtwin-measurement 1", "source": "mtwin simulate", **(metadata or {})}
+        with atomic_output(path) as fh:
+            for k, v in meta.items():
+                fh.write(f"# {k}: {v}\n")
+            fh.write(",".join(cols) + "\n")
+            fmts = []
+            for name in cols:
+                if name == "line":
+                    fmts.append("%d")
+                elif name == "t":
+                    fmts.append("%.6f")
+                elif name.endswith("_err"):
+                    fmts.append("%.7f")
+                else:
+                    fmts.append("%.6g")
+            data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()])
+            np.savetxt(fh, data, fmt=fmts, delimiter=",")

@@ -1,0 +1,287 @@
+"""The machine part of the twin file: controller, feed axes, spindle, machine times.
+
+Each parameter is declared once, as a dataclass field whose metadata carries its
+unit, its check and one line of documentation.  Parsing, validation, the
+embedded default machine (``mtwin config show``) and ``docs/configuration.md``
+all come from these declarations, so they cannot disagree.
+
+Default values describe a three-axis vertical machining centre like the one in the
+reference (11 kW, 8,000 rpm spindle, Fanuc-style control).  Tags as in
+``PHYSICS.md``: [S] from a cited source, [E] an estimate inside the sourced range.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields, replace
+
+from ..errors import ConfigError
+from ..units import UnitError, convert
+
+STYLES = ("fanuc", "linuxcnc", "grbl")
+BEFORE_SHAPES = ("bell", "linear")
+AFTER_FILTERS = ("linear", "bell", "exponential", "none")
+AXES = ("x", "y", "z")
+
+
+def P(default, unit: str, doc: str, check: str = "positive", choices: tuple = ()):
+    """A parameter: default, unit ('' = dimensionless, 'bool', 'str', 'int'), doc, check."""
+    return field(default=default, metadata={"unit": unit, "doc": doc, "check": check, "choices": choices})
+
+
+@dataclass(frozen=True)
+class Controller:
+    style: str = P("fanuc", "str", "planner style: fanuc | linuxcnc | grbl", "choice", STYLES)
+    servo_period: float = P(0.001, "s", "interpolation and servo period [S: 1 ms, LinuxCNC; Fanuc ~1 ms]")
+    lookahead: int = P(40, "int", "look-ahead window in blocks [S: Fanuc AI contour up to 40]")
+    min_block_time: float = P(0.001, "s", "shortest time a block may take (block processing rate) [E]", "nonneg")
+    max_path_velocity: float = P(0.0, "mm/min", "path (vector) velocity limit for all moves, 0 = axis limits only", "nonneg")
+    max_path_acceleration: float = P(0.0, "mm/s^2", "path acceleration limit, 0 = axis limits only", "nonneg")
+    before_shape: str = P("bell", "str", "acc/dec before interpolation: bell (jerk-limited) | linear", "choice", BEFORE_SHAPES)
+    bell_time: float = P(0.032, "s", "bell time constant tb (jerk = a/tb) [S: 16-64 ms]", "nonneg")
+    after_filter: str = P("linear", "str", "per-axis acc/dec after interpolation: linear | bell | exponential | none",
+                          "choice", AFTER_FILTERS)
+    after_time: float = P(0.008, "s", "after-interpolation time constant T1 [S: 8-64 ms]", "nonneg")
+    corner_velocity: float = P(400.0, "mm/min",
+                               "fanuc: allowable velocity change per axis at a corner [E]")
+    junction_deviation: float = P(0.01, "mm", "grbl: junction deviation [S: Grbl default 0.01 mm]")
+    exact_stop_rapids: bool = P(True, "bool", "decelerate to a stop at the end of every rapid (in-position check)", "bool")
+
+
+@dataclass(frozen=True)
+class Friction:
+    coulomb_pos: float = P(150.0, "N", "Coulomb friction moving +  [E: 50-300 N]", "nonneg")
+    coulomb_neg: float = P(150.0, "N", "Coulomb friction moving -", "nonneg")
+    static_pos: float = P(195.0, "N", "static (breakaway) friction moving +  [E: 1.1-1.5 x Coulomb]", "nonneg")
+    static_neg: float = P(195.0, "N", "static (breakaway) friction moving -", "nonneg")
+    stribeck_velocity: float = P(1.0, "mm/s", "Stribeck velocity vs [E: 0.1-5 mm/s]")
+    viscous: float = P(500.0, "N*s/m", "viscous friction B [E: 100-2000 N*s/m]", "nonneg")
+
+
+@dataclass(frozen=True)
+class Servo:
+    kpp: float = P(40.0, "1/s", "position loop gain Kv [S: 30-50 1/s general VMCs; example 40]")
+    velocity_bandwidth: float = P(240.0, "rad/s", "velocity loop proportional bandwidth (Kvp = M*w) [S: example 240 rad/s]")
+    velocity_integral: float = P(60.0, "rad/s", "velocity loop integral corner frequency Kvi [S: example 60 rad/s]", "nonneg")
+    feedforward: float = P(0.0, "", "velocity feed-forward ratio alpha, 0..1", "unit_interval")
+    s_pp: float = P(1.0, "", "scale factor on the position gain (reference S_pp)")
+    s_vp: float = P(1.0, "", "scale factor on the velocity proportional gain (S_vp)")
+    s_vi: float = P(1.0, "", "scale factor on the velocity integral gain (S_vi)", "nonneg")
+
+
+@dataclass(frozen=True)
+class Axis:
+    max_velocity: float = P(36000.0, "mm/min", "rapid / maximum axis velocity [S: 30-40 m/min]")
+    max_acceleration: float = P(3000.0, "mm/s^2", "maximum axis acceleration [E: 1-5 m/s^2]")
+    min_travel: float = P(-400.0, "mm", "lower travel limit, machine coordinates", "finite")
+    max_travel: float = P(400.0, "mm", "upper travel limit, machine coordinates", "finite")
+    mass: float = P(300.0, "kg", "moving mass carried by the axis [S: table 100-500 kg]")
+    rotor_inertia: float = P(0.0012, "kg*m^2", "motor rotor + coupling + screw inertia [E]", "nonneg")
+    screw_lead: float = P(10.0, "mm", "ball-screw lead [S: 10-20 mm]")
+    efficiency: float = P(0.9, "", "ball-screw efficiency eta [E: 0.9]", "unit_interval_open")
+    torque_constant: float = P(1.0, "N*m/A", "motor torque constant Kt [S: ~1 N*m/A]")
+    max_torque: float = P(20.0, "N*m", "motor torque limit [E]")
+    gravity: bool = P(False, "bool", "vertical axis carrying its mass against gravity (no counterbalance)", "bool")
+    friction: Friction = field(default_factory=Friction)
+    servo: Servo = field(default_factory=Servo)
+
+    # Derived quantities used by the kernels (SI-ish: kg, N, mm).
+    @property
+    def equivalent_mass(self) -> float:
+        """Mass seen at the table, kg: M + J*(2*pi/l)^2."""
+        lead_m = self.screw_lead * 1e-3
+        return self.mass + self.rotor_inertia * (2 * math.pi / lead_m) ** 2
+
+    @property
+    def force_per_torque(self) -> float:
+        """Axial force per motor torque, N/(N*m): 2*pi*eta/l."""
+        return 2 * math.pi * self.efficiency / (self.screw_lead * 1e-3)
+
+
+@dataclass(frozen=True)
+class Spindle:
+    max_speed: float = P(8000.0, "rpm", "maximum spindle speed [S: reference VMC 8,000 rpm]")
+    rated_power: float = P(11000.0, "W", "rated spindle power [S: reference VMC 11 kW]")
+    acceleration: float = P(4000.0, "rpm/s", "run-up / braking rate [E]")
+    wait_for_speed: bool = P(True, "bool", "feed moves wait until the spindle is at speed after M3/M4/S", "bool")
+
+
+@dataclass(frozen=True)
+class Timing:
+    tool_change: float = P(4.0, "s", "tool change, chip to chip [S: 1.5-4 s]", "nonneg")
+
+
+_AXIS_DEFAULTS = {
+    "x": Axis(),
+    "y": Axis(mass=500.0, min_travel=-250.0, max_travel=250.0),
+    "z": Axis(max_velocity=30000.0, max_acceleration=2500.0, min_travel=-400.0, max_travel=100.0, mass=200.0),
+}
+
+
+@dataclass(frozen=True)
+class Machine:
+    name: str = "mtwin default VMC: 3 axes, 11 kW / 8,000 rpm spindle, Fanuc-style control"
+    controller: Controller = field(default_factory=Controller)
+    x: Axis = field(default_factory=lambda: _AXIS_DEFAULTS["x"])
+    y: Axis = field(default_factory=lambda: _AXIS_DEFAULTS["y"])
+    z: Axis = field(default_factory=lambda: _AXIS_DEFAULTS["z"])
+    spindle: Spindle = field(default_factory=Spindle)
+    timing: Timing = field(default_factory=Timing)
+
+    @property
+    def axes(self) -> tuple[Axis, Axis, Axis]:
+        return (self.x, self.y, self.z)
+
+
+MACHINE_SECTIONS = ("machine", "controller", "axes", "spindle", "timing")
+
+
+def _check(value, meta, key):
+    unit, check = meta["unit"], meta["check"]
+    if unit == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key}: expected true or false, got {value!r}")
+        return value
+    if unit == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"{key}: expected a string, got {value!r}")
+        if check == "choice" and value not in meta["choices"]:
+            raise ConfigError(f"{key}: {value!r} is not one of {', '.join(meta['choices'])}")
+        return value
+    if unit == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{key}: expected an integer, got {value!r}")
+        if value < 1:
+            raise ConfigError(f"{key}: must be at least 1, got {value}")
+        return value
+    try:
+        x = convert(value, unit or "1", key)
+    except UnitError as exc:
+        raise ConfigError(str(exc)) from None
+    bad = {
+        "positive": x <= 0,
+        "nonneg": x < 0,
+        "unit_interval": not 0 <= x <= 1,
+        "unit_interval_open": not 0 < x <= 1,
+        "finite": False,
+    }[check]
+    if bad:
+        want = {"positive": "> 0", "nonneg": ">= 0", "unit_interval": "between 0 and 1",
+                "unit_interval_open": "in (0, 1]"}[check]
+        shown = f"{value}" if not isinstance(value, str) else repr(value)
+        raise ConfigError(f"{key}: must be {want}{' ' + unit if unit and check != 'unit_interval' else ''}, got {shown}")
+    return x
+
+
+def _parse_into(obj, table: dict, prefix: str, where: str):
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}: [{prefix}] must be a table")
+    known = {f.name: f for f in fields(obj)}
+    changes = {}
+    for key, value in table.items():
+        f = known.get(key)
+        full = f"{prefix}.{key}"
+        if f is None:
+            raise ConfigError(f"{where}: unknown key {full} (known: {', '.join(known)})")
+        if dataclasses.is_dataclass(f.default_factory() if f.default_factory is not dataclasses.MISSING else None):
+            changes[key] = _parse_into(getattr(obj, key), value, full, where)
+        else:
+            try:
+                changes[key] = _check(value, f.metadata, full)
+            except ConfigError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
+    return replace(obj, **changes)
+
+
+def machine_from_dict(raw: dict, where: str = "twin file") -> Machine:
+    """Build a Machine from the machine sections of a parsed twin file (other sections ignored)."""
+    m = Machine()
+    changes: dict = {}
+    if "machine" in raw:
+        body = raw["machine"]
+        if not isinstance(body, dict) or set(body) - {"name"}:
+            raise ConfigError(f"{where}: [machine] takes only 'name'")
+        if "name" in body:
+            changes["name"] = str(body["name"])
+    for sec in ("controller", "spindle", "timing"):
+        if sec in raw:
+            changes[sec] = _parse_into(getattr(m, sec), raw[sec], sec, where)
+    axes = raw.get("axes", {})
+    if not isinstance(axes, dict):
+        raise ConfigError(f"{where}: [axes] must be a table of [axes.x], [axes.y], [axes.z]")
+    for name, body in axes.items():
+        if name not in AXES:
+            raise ConfigError(f"{where}: unknown axis axes.{name} (x, y, z)")
+        changes[name] = _parse_into(getattr(m, name), body, f"axes.{name}", where)
+    m = replace(m, **changes)
+    validate_machine(m, where)
+    return m
+
+
+def validate_machine(m: Machine, where: str = "twin file") -> None:
+    """Checks that involve more than one parameter."""
+    c = m.controller
+    if c.servo_period > 0.01:
+        raise ConfigError(f"{where}: controller.servo_period: {c.servo_period} s is longer than 10 ms")
+    for name, ax in zip(AXES, m.axes):
+        if ax.min_travel >= ax.max_travel:
+            raise ConfigError(f"{where}: axes.{name}: min_travel must be below max_travel")
+        s = ax.servo
+        # The discrete velocity loop is stable for w*dt < 2; keep a wide margin.
+        if s.velocity_bandwidth * s.s_vp * c.servo_period > 1.0:
+            raise ConfigError(f"{where}: axes.{name}.servo.velocity_bandwidth: {s.velocity_bandwidth * s.s_vp:g} rad/s "
+                              f"is too high for a {c.servo_period * 1e3:g} ms servo period (limit {1 / c.servo_period:g})")
+        if s.kpp * s.s_pp >= s.velocity_bandwidth * s.s_vp:
+            raise ConfigError(f"{where}: axes.{name}.servo.kpp must be below the velocity loop bandwidth")
+        if ax.max_torque * ax.force_per_torque < ax.equivalent_mass * ax.max_acceleration * 1e-3:
+            raise ConfigError(f"{where}: axes.{name}.max_torque: {ax.max_torque} N*m cannot give "
+                              f"{ax.max_acceleration} mm/s^2 to {ax.equivalent_mass:.0f} kg (equivalent mass)")
+
+
+def _fmt(value, unit) -> str:
+    if unit == "bool":
+        return "true" if value else "false"
+    if unit == "str":
+        return f'"{value}"'
+    if unit == "int":
+        return str(int(value))
+    return repr(float(value)) if not float(value).is_integer() else f"{float(value):.1f}"
+
+
+def _table_lines(obj, header: str) -> list[str]:
+    lines = [f"[{header}]"]
+    nested = []
+    width = max(len(f.name) for f in fields(obj))
+    for f in fields(obj):
+        value = getattr(obj, f.name)
+        if dataclasses.is_dataclass(value):
+            nested.append((f.name, value))
+            continue
+        meta = f.metadata
+        unit = meta["unit"] if meta["unit"] not in ("bool", "str", "int", "") else ""
+        left = f"{f.name.ljust(width)} = {_fmt(value, meta['unit'])}"
+        lines.append(f"{left.ljust(width + 14)} # {('[' + unit + '] ') if unit else ''}{meta['doc']}")
+    for name, value in nested:
+        lines.append("")
+        lines += _table_lines(value, f"{header}.{name}")
+    return lines
+
+
+def machine_toml(m: Machine | None = None) -> str:
+    """The machine as a commented TOML document (what ``mtwin config show`` prints)."""
+    m = m or Machine()
+    out = [
+        "# mtwin twin file: the machine the program runs on.",
+        "# Numbers are in the unit in brackets; a string with a unit is converted (\"30 m/min\").",
+        "# Tags: [S] value from a source cited in PHYSICS.md, [E] estimate within the sourced range.",
+        "",
+        "[machine]",
+        f'name = "{m.name}"',
+        "",
+    ]
+    out += _table_lines(m.controller, "controller") + [""]
+    for name, ax in zip(AXES, m.axes):
+        out += _table_lines(ax, f"axes.{name}") + [""]
+    out += _table_lines(m.spindle, "spindle") + [""]
+    out += _table_lines(m.timing, "timing")
+    return "\n".join(out) + "\n"
