@@ -203,6 +203,134 @@ def verify(
     raise typer.Exit(EXIT_CHECK_FAILED)
 
 
+PlannerOpt = typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | linuxcnc | grbl.")
+
+
+@app.command()
+@_reports_errors
+def simulate(
+    part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
+    output: Optional[str] = typer.Option(None, "-o", "--output",
+                                         help="Write the trace (measurement format): .csv, .parquet, or '-'."),
+    every: Optional[int] = typer.Option(None, "--every", help="Keep every N-th servo sample in the trace."),
+    decimate: Optional[float] = typer.Option(None, "--decimate",
+                                             help="Trace sample rate in Hz (e.g. 100); alternative to --every."),
+    json_out: bool = typer.Option(False, "--json", help="Summary as JSON on stdout."),
+    planner: Optional[str] = PlannerOpt,
+    twin: Optional[str] = TwinOpt,
+    dialect: Optional[str] = DialectOpt,
+    lenient: bool = LenientOpt,
+    block_delete: Optional[bool] = BlockDeleteOpt,
+):
+    """Run a program through the twin: cycle time, following errors, motor torques, trace."""
+    from .config import interpreter_settings, load_machine
+    from .twin import Twin
+
+    machine = load_machine(twin)
+    if planner is not None:
+        from dataclasses import replace
+
+        from .twin.machine import STYLES
+
+        if planner not in STYLES:
+            raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {planner!r}")
+        machine = replace(machine, controller=replace(machine.controller, style=planner))
+    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
+    tw = Twin(machine, settings, twin)
+    dt = machine.controller.servo_period
+    if every is not None and decimate is not None:
+        raise MtwinError("give --every or --decimate, not both")
+    if decimate is not None:
+        if not decimate > 0:
+            raise MtwinError(f"--decimate must be a positive rate in Hz, got {decimate:g}")
+        every = max(1, int(round(1.0 / (decimate * dt))))
+    every = every or 1
+    if every < 1:
+        raise MtwinError(f"--every must be at least 1, got {every}")
+    prog = _load(part, settings)
+    plan = tw.plan(prog)
+    from .motion.simulate import simulate_plan
+
+    n = int(plan.total_time / dt) + 1
+    if n > 300_000 and not json_out:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                      TimeRemainingColumn(), console=err, transient=True) as bar:
+            task = bar.add_task("sim", total=n)
+            trace = simulate_plan(tw, prog, plan, every=every, progress=lambda k, total: bar.update(task, completed=k))
+    else:
+        trace = simulate_plan(tw, prog, plan, every=every)
+    s = trace.summary
+    for w in s.warnings:
+        err.print(f"[yellow]warning: {w}[/yellow]", soft_wrap=True)
+    if output:
+        from . import __version__
+
+        trace.write(output, {"source": f"mtwin {__version__} simulate", "program": prog.path,
+                             "machine": machine.name, "planner": machine.controller.style,
+                             "servo_period_s": f"{dt:g}", "every": str(every)})
+    if json_out:
+        d = s.as_dict()
+        d["program"] = prog.path
+        d["trace"] = output
+        sys.stdout.write(json.dumps(d, indent=2) + "\n")
+        return
+    _print_simulation(prog.path, s, output)
+
+
+def _print_simulation(path: str, s, output) -> None:
+    from rich.table import Table
+
+    t = Table(title=f"{path} on {s.machine} ({s.style} planner)", show_header=False, title_justify="left")
+    t.add_column(style="bold")
+    t.add_column()
+    t.add_row("cycle time", f"{s.cycle_time:,.3f} s  ({_hms(s.cycle_time)})")
+    parts = [("cutting", s.cutting_time), ("rapid", s.rapid_time), ("dwell", s.dwell_time),
+             ("tool change", s.tool_change_time), ("spindle run-up", s.spindle_wait_time)]
+    t.add_row("  of which", ", ".join(f"{k} {v:,.3f} s" for k, v in parts if v > 0) or "-")
+    t.add_row("max following error", "  ".join(f"{a.upper()} {v * 1000:,.1f} µm" for a, v in s.max_following_error.items()))
+    t.add_row("max motor torque", "  ".join(f"{a.upper()} {v:,.2f} N·m" for a, v in s.max_torque.items()))
+    for tool, d in sorted(s.per_tool.items()):
+        t.add_row(f"tool T{tool}", f"cutting {d['cutting_time']:,.2f} s over {d['cutting_length']:,.1f} mm, "
+                                   f"rapid {d['rapid_time']:,.2f} s")
+    t.add_row("servo samples", f"{s.samples:,} at {s.servo_period * 1000:g} ms")
+    if output:
+        t.add_row("trace", str(output))
+    err.print(t)
+
+
+def _hms(seconds: float) -> str:
+    m, sec = divmod(seconds, 60.0)
+    h, m = divmod(int(m), 60)
+    return f"{h}:{m:02d}:{sec:06.3f}"
+
+
+config_app = typer.Typer(help="Twin configuration files.", no_args_is_help=True, rich_markup_mode=None)
+app.add_typer(config_app, name="config")
+
+
+@config_app.command("show")
+@_reports_errors
+def config_show(twin: Optional[str] = TwinOpt):
+    """Print the twin file (the embedded default machine, or --twin FILE with defaults filled in)."""
+    from .config import load_machine, load_twin_file
+    from .twin.machine import machine_toml
+
+    sys.stdout.write(machine_toml(load_machine(twin), load_twin_file(twin)))
+
+
+@config_app.command("check")
+@_reports_errors
+def config_check(path: str = typer.Argument(..., help="Twin file to validate.")):
+    """Validate a twin file: exit 0 if it is valid, 2 with a message naming the key if not."""
+    from .config import load_machine, load_twin_file
+
+    load_twin_file(path)
+    m = load_machine(path)
+    err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
+
+
 def main() -> None:
     try:
         app()

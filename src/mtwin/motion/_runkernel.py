@@ -76,52 +76,62 @@ def segment_point(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, i, s, ou
         out[k] = c[i, k] + r * (ca * e1[i, k] + sa * e2[i, k]) + h[i, k] * f
 
 
+class State:
+    """Mutable state of the servo-rate loop, so a run can be done in chunks (progress bar)."""
+
+    def __init__(self, nbuf: int, x0: np.ndarray, sv: np.ndarray):
+        self.ring1 = np.repeat(x0[None, :], nbuf, axis=0).astype(np.float64)
+        self.ring2 = self.ring1.copy()
+        self.sums = np.zeros((2, 3))
+        self.sums[0] = x0 * nbuf
+        self.sums[1] = x0 * nbuf
+        # yexp, xc_prev, x, v, integ
+        self.axes = np.zeros((5, 3))
+        self.axes[0] = x0
+        self.axes[1] = x0
+        self.axes[2] = x0
+        for k in range(3):
+            # an axis holding a weight at the start already has it in its integrator
+            gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
+            if gain > 0.0:
+                self.axes[4, k] = sv[k, SV_FG] / gain
+        self.seg = np.zeros(1, np.int64)
+        self.max_err = np.zeros(3)
+        self.max_trq = np.zeros(3)
+
+
+def allocate_outputs(n_samples: int, every: int):
+    n_out = (n_samples + every - 1) // every
+    # commanded positions stay float64 so that they can be differentiated (accelerations);
+    # the other channels are stored as float32 (7 significant digits) to halve the memory
+    return (np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
+            np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32),
+            np.empty((n_out, 3), np.float32), np.empty(n_out, np.float32))
+
+
 @njit
 def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur,
-             dt, n_samples, every, filt, nfilt, tfilt, sv, fd, x0):
-    """Simulate n_samples servo periods.  Returns stored series and full-rate statistics."""
-    n_out = (n_samples + every - 1) // every
-    t_out = np.empty(n_out)
-    line_out = np.empty(n_out, np.int32)
-    cmd = np.empty((n_out, 3), np.float32)
-    act = np.empty((n_out, 3), np.float32)
-    vel = np.empty((n_out, 3), np.float32)
-    trq = np.empty((n_out, 3), np.float32)
-    err = np.empty((n_out, 3), np.float32)
-    pathv = np.empty(n_out, np.float32)  # interpolator path speed, mm/s
-    max_err = np.zeros(3)
-    max_trq = np.zeros(3)
+             dt, k0, k1, every, filt, nfilt, tfilt, sv, fd,
+             ring1, ring2, sums, axes, segp, max_err, max_trq,
+             t_out, line_out, cmd, act, err, vel, trq, pathv):
+    """Simulate servo periods k0 <= k < k1, continuing from the state arrays (updated in
+    place); stored samples go to the output arrays at index k // every."""
     nseg = len(kind)
-    # after-interpolation filter state: ring buffers (linear: one FIR, bell: two in cascade)
-    nbuf = max(nfilt, 1)
-    ring1 = np.empty((nbuf, 3))
-    ring2 = np.empty((nbuf, 3))
-    sum1 = np.zeros(3)
-    sum2 = np.zeros(3)
-    for j in range(nbuf):
-        for k in range(3):
-            ring1[j, k] = x0[k]
-            ring2[j, k] = x0[k]
-    for k in range(3):
-        sum1[k] = x0[k] * nbuf
-        sum2[k] = x0[k] * nbuf
+    nbuf = ring1.shape[0]
+    sum1 = sums[0]
+    sum2 = sums[1]
+    yexp = axes[0]
+    xc_prev = axes[1]
+    x = axes[2]
+    v = axes[3]
+    integ = axes[4]
     alpha = 1.0 - math.exp(-dt / tfilt) if tfilt > 0.0 else 1.0
-    yexp = x0.copy()
     raw = np.empty(3)
     xc = np.empty(3)
-    xc_prev = x0.copy()
-    x = x0.copy()
-    v = np.zeros(3)
-    integ = np.zeros(3)
-    for k in range(3):
-        # an axis holding a weight at the start already has it in its integrator
-        gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
-        if gain > 0.0:
-            integ[k] = sv[k, SV_FG] / gain
     has_fd = fd.shape[0] > 0
-    i = 0
-    o = 0
-    for kstep in range(n_samples):
+    i = segp[0]
+    for kstep in range(k0, k1):
+        o = kstep // every
         t = kstep * dt
         while i < nseg - 1 and t >= t_start[i] + dur[i]:
             i += 1
@@ -221,5 +231,4 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             t_out[o] = t
             line_out[o] = line[i]
             pathv[o] = vp
-            o += 1
-    return t_out, line_out, cmd, act, err, vel, trq, pathv, max_err, max_trq
+    segp[0] = i

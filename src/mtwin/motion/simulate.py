@@ -76,8 +76,6 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         fd = np.ascontiguousarray(disturbance, dtype=np.float64)
         if fd.shape != (n_samples, 3):
             raise MtwinError(f"disturbance must have shape ({n_samples}, 3), got {fd.shape}")
-    if not len(seg):
-        seg_arrays = None
     x0 = plan.start_point.astype(np.float64)
     sv = servo_table(machine)
     if len(seg):
@@ -92,10 +90,21 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         z = np.zeros(1)
         args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
                 z, np.zeros((1, 10)), np.ones(1))
-    out = RK.run_twin(*args, dt, n_samples, every, filt, nfilt, c.after_time, sv, fd, x0)
-    t, line, cmd, act, err, vel, trq, pathv, max_err, max_trq = out
-    if progress is not None:
-        progress(n_samples, n_samples)
+    state = RK.State(nfilt, x0, sv)
+    outs = RK.allocate_outputs(n_samples, every)
+    chunk = n_samples if progress is None else max(_CHUNK, every)
+    chunk -= chunk % every  # chunks start on stored samples
+    k = 0
+    while k < n_samples:
+        k1 = min(n_samples, k + chunk)
+        RK.run_twin(*args, dt, k, k1, every, filt, nfilt, c.after_time, sv, fd,
+                    state.ring1, state.ring2, state.sums, state.axes, state.seg, state.max_err, state.max_trq,
+                    *outs)
+        k = k1
+        if progress is not None:
+            progress(k, n_samples)
+    t, line, cmd, act, err, vel, trq, pathv = outs
+    max_err, max_trq = state.max_err, state.max_trq
     if not (np.isfinite(max_err).all() and np.isfinite(max_trq).all()):
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
     cats = plan.category_times()

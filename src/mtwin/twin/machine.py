@@ -267,9 +267,12 @@ def _table_lines(obj, header: str) -> list[str]:
     return lines
 
 
-def machine_toml(m: Machine | None = None) -> str:
-    """The machine as a commented TOML document (what ``mtwin config show`` prints)."""
+def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
+    """The twin file as a commented TOML document (what ``mtwin config show`` prints).
+
+    ``front``: the validated interpreter sections (``config.load_twin_file``)."""
     m = m or Machine()
+    front = front or {}
     out = [
         "# mtwin twin file: the machine the program runs on.",
         "# Numbers are in the unit in brackets; a string with a unit is converted (\"30 m/min\").",
@@ -278,7 +281,26 @@ def machine_toml(m: Machine | None = None) -> str:
         "[machine]",
         f'name = "{m.name}"',
         "",
+        "[interpreter]",
+        f'dialect = "{front.get("dialect", "auto")}"          # auto (.ngc -> linuxcnc, else fanuc) | fanuc | linuxcnc',
+        f'block_delete = {"true" if front.get("skip_block_delete") else "false"}         # true: skip lines starting with /',
     ]
+    for key in ("home_g28", "home_g30"):
+        v = front.get(key, (0.0, 0.0, 0.0))
+        out.append(f"{key} = [{', '.join(repr(float(x)) for x in v)}]   # machine coordinates, mm")
+    out += ["", "[work_offsets]                # machine coordinates of each work zero, mm (missing = 0)"]
+    offsets = front.get("work_offsets", {})
+    if offsets:
+        out += [f"{k} = [{', '.join(repr(float(x)) for x in v)}]" for k, v in offsets.items()]
+    else:
+        out.append("# G54 = [-400.0, -200.0, -350.0]")
+    out += ["", "[tool_lengths]                # tool (H) number -> length offset, mm (absent: all 0)"]
+    tools = front.get("tool_lengths", {})
+    if tools:
+        out += [f"{k} = {float(v)!r}" for k, v in sorted(tools.items())]
+    else:
+        out.append("# 1 = 95.2")
+    out.append("")
     out += _table_lines(m.controller, "controller") + [""]
     for name, ax in zip(AXES, m.axes):
         out += _table_lines(ax, f"axes.{name}") + [""]
