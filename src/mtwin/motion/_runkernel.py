@@ -85,17 +85,18 @@ class State:
         self.sums = np.zeros((2, 3))
         self.sums[0] = x0 * nbuf
         self.sums[1] = x0 * nbuf
-        # yexp, xc_prev, x, v, integ
-        self.axes = np.zeros((5, 3))
+        # yexp, xc_prev, x, v, integ, previous raw command
+        self.axes = np.zeros((6, 3))
         self.axes[0] = x0
         self.axes[1] = x0
         self.axes[2] = x0
+        self.axes[5] = x0
         for k in range(3):
             # an axis holding a weight at the start already has it in its integrator
             gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
             if gain > 0.0:
                 self.axes[4, k] = sv[k, SV_FG] / gain
-        self.seg = np.zeros(1, np.int64)
+        self.seg = np.zeros(2, np.int64)  # current segment, samples the raw command stood still
         self.max_err = np.zeros(3)
         self.max_trq = np.zeros(3)
 
@@ -125,6 +126,9 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     x = axes[2]
     v = axes[3]
     integ = axes[4]
+    rawprev = axes[5]
+    # samples after which a standing command has passed through the filter completely
+    settle = nbuf if filt == 1 else 2 * nbuf
     alpha = 1.0 - math.exp(-dt / tfilt) if tfilt > 0.0 else 1.0
     raw = np.empty(3)
     xc = np.empty(3)
@@ -141,6 +145,12 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
         else:
             s, vp = segment_distance(prof, i, tau)
         segment_point(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, i, s, raw)
+        moved = False
+        for k in range(3):
+            if raw[k] != rawprev[k]:
+                moved = True
+            rawprev[k] = raw[k]
+        segp[1] = 0 if moved else segp[1] + 1
         # ---- acc/dec after interpolation, per axis
         pos = kstep % nbuf
         if filt == 1 or filt == 2:
@@ -174,6 +184,18 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
         else:
             for k in range(3):
                 xc[k] = raw[k]
+        # a command that has stood still long enough has left the filter exactly (a running
+        # sum or an exponential never returns the input value to the last bit by itself)
+        if filt != 0 and segp[1] >= settle:
+            done = True
+            if filt == 3:
+                for k in range(3):
+                    if abs(xc[k] - raw[k]) > 1e-9:
+                        done = False
+            if done:
+                for k in range(3):
+                    xc[k] = raw[k]
+                    yexp[k] = raw[k]
         # ---- servo loop and feed-drive plant, per axis
         for k in range(3):
             m = sv[k, SV_MASS]

@@ -67,7 +67,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         nfilt = max(1, nfilt // 2)
     seg = plan.seg
     total = plan.total_time
-    n_samples = int(math.floor(total / dt + 1e-9)) + 1
+    # the last sample falls on or after the end of the plan, so the command ends exactly on
+    # the last programmed point
+    n_samples = int(math.ceil(total / dt - 1e-9)) + 1
     if n_samples > 500_000_000:
         raise MtwinError(f"program runs {total / 3600:.1f} h: more than 500 million servo samples")
     if disturbance is None:

@@ -1,0 +1,223 @@
+"""Motion twin against closed forms: profile times, servo lag, corners, tolerances, arcs."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from mtwin.twin import Twin
+from mtwin.twin.machine import Machine
+
+
+def make_twin(style="fanuc", **controller) -> Twin:
+    m = Machine()
+    c = replace(m.controller, style=style, **controller)
+    # no machine time outside motion unless a test asks for it
+    m = replace(m, controller=c, timing=replace(m.timing, tool_change=0.0),
+                spindle=replace(m.spindle, wait_for_speed=False))
+    return Twin(m)
+
+
+def run(twin: Twin, text: str, every: int = 1):
+    prog = twin.load(text.encode(), path="test.nc")
+    return prog, twin.plan(prog), twin.simulate(prog, every=every)
+
+
+def cmd_velocity(trace) -> np.ndarray:
+    dt = trace.summary.servo_period * trace.every
+    return np.diff(trace.cmd, axis=0) / dt
+
+
+# ---------------------------------------------------------------- profile times
+
+
+@pytest.mark.parametrize("tb", [0.0, 0.02, 0.064])
+def test_long_line_time_matches_trapezoid_and_scurve(tb):
+    # 300 mm at 100 mm/s, a = 3000 mm/s², jerk J = a/tb along X.  Closed form of the
+    # jerk-limited rest-to-rest move: T = L/v + v/a + a/J when v >= a²/J (the acceleration
+    # limit is reached), else T = L/v + 2·sqrt(v/J); tb = 0 is the trapezoid L/v + v/a.
+    tw = make_twin(before_shape="bell" if tb else "linear", bell_time=tb, after_filter="none")
+    _, plan, _ = run(tw, "G21 G90 G94 G1 X300 F6000\nM30\n")
+    L, v, a = 300.0, 100.0, 3000.0
+    if tb == 0 or v >= a * tb:
+        expected = L / v + v / a + tb
+    else:
+        expected = L / v + 2 * math.sqrt(v * tb / a)
+    assert plan.total_time == pytest.approx(expected, rel=1e-3)
+
+
+def test_short_line_triangle_profile():
+    # 2 mm with a = 3000 mm/s², no jerk limit: never reaches F, T = 2*sqrt(L/a)
+    tw = make_twin(before_shape="linear", after_filter="none")
+    _, plan, trace = run(tw, "G21 G90 G94 G1 X2 F6000\nM30\n")
+    assert plan.total_time == pytest.approx(2 * math.sqrt(2.0 / 3000.0), rel=1e-3)
+    assert trace.path_speed.max() < 100.0
+
+
+def test_scurve_respects_acceleration_and_jerk():
+    tw = make_twin(before_shape="bell", bell_time=0.032, after_filter="none")
+    _, _, trace = run(tw, "G21 G90 G94 G1 X200 F9000\nM30\n")
+    v = cmd_velocity(trace)[:, 0]
+    a = np.diff(v) / 0.001
+    j = np.diff(a) / 0.001
+    assert np.abs(a).max() <= 3000.0 * 1.01
+    assert np.abs(j).max() <= 3000.0 / 0.032 * 1.05
+
+
+def test_profile_ends_exactly_on_the_programmed_point():
+    # many short moves in a row: the command must end exactly on the last point
+    lines = ["G21 G90 G94 G64 F3000"] + [f"G1 X{0.037 * k:.4f} Y{0.1 * (k % 7):.4f}" for k in range(1, 3000)] + ["M30"]
+    tw = make_twin(after_filter="none")
+    prog, plan, trace = run(tw, "\n".join(lines) + "\n")
+    assert tuple(trace.cmd[-1]) == (prog.records["x"][-1], prog.records["y"][-1], prog.records["z"][-1])
+
+
+# ---------------------------------------------------------------- servo loop
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.5])
+def test_steady_state_following_error_is_v_over_kp(alpha):
+    m = Machine()
+    x = replace(m.x, servo=replace(m.x.servo, feedforward=alpha))
+    tw = make_twin(after_filter="none")
+    tw = Twin(replace(tw.machine, x=x))
+    _, plan, trace = run(tw, "G21 G90 G94 G1 X300 F3000\nM30\n")
+    v = 50.0
+    mid = (trace.t > 2.0) & (trace.t < 5.0)  # cruise, long after the ramp
+    e = trace.err[mid, 0].astype(float)
+    assert e.mean() == pytest.approx((1 - alpha) * v / 40.0, rel=0.01)
+    assert np.ptp(e) < 0.01 * v / 40.0
+
+
+def test_torque_balances_friction_at_constant_speed():
+    # at constant speed the drive force equals Coulomb + viscous friction: T = F*l/(2*pi*eta)
+    tw = make_twin(after_filter="none")
+    _, _, trace = run(tw, "G21 G90 G94 G1 X300 F3000\nM30\n")
+    mid = (trace.t > 2.0) & (trace.t < 5.0)
+    ax = tw.machine.x
+    f = ax.friction.coulomb_pos + ax.friction.viscous * 0.05  # 50 mm/s = 0.05 m/s
+    assert trace.torque[mid, 0].mean() == pytest.approx(f / ax.force_per_torque, rel=0.01)
+
+
+def test_gravity_axis_holds_position_at_rest():
+    m = Machine()
+    z = replace(m.z, gravity=True)
+    tw = Twin(replace(make_twin().machine, z=z))
+    _, _, trace = run(tw, "G21 G90 G94 G4 P1000\nG1 X1 F600\nM30\n")
+    assert np.abs(trace.err[:, 2]).max() < 1e-6
+    g_torque = z.mass * 9.80665 / z.force_per_torque
+    assert trace.torque[:, 2].mean() == pytest.approx(g_torque, rel=1e-3)
+
+
+# ---------------------------------------------------------------- corners
+
+
+@pytest.mark.parametrize("style", ["fanuc", "linuxcnc", "grbl"])
+def test_g61_corner_stops(style):
+    tw = make_twin(style)
+    _, _, trace = run(tw, "G21 G90 G94 G61 G1 X50 F3000\nG1 Y50\nM30\n")
+    # the sample closest to the corner: the command stands still there
+    d = np.linalg.norm(trace.cmd[:, :2] - [50.0, 0.0], axis=1)
+    k = int(np.argmin(d))
+    assert d[k] < 1e-9
+    v = np.linalg.norm(cmd_velocity(trace), axis=1)
+    assert v[max(k - 1, 0)] < 1.0 and v[k] < 1.0
+
+
+def _distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    best = np.full(len(points), np.inf)
+    for a, b in zip(poly[:-1], poly[1:]):
+        ab = b - a
+        t = np.clip(((points - a) @ ab) / (ab @ ab), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * ab), axis=1))
+    return best
+
+
+@pytest.mark.parametrize("style", ["linuxcnc", "fanuc"])
+@pytest.mark.parametrize("tol", [0.005, 0.05, 0.5])
+def test_g64_p_path_deviation_never_exceeds_p(style, tol):
+    pts = [(0, 0), (40, 0), (40, 30), (10, 5), (60, 5), (20, 40), (0, 0)]
+    body = "\n".join(f"G1 X{x} Y{y}" for x, y in pts[1:])
+    # linuxcnc bounds its blend arcs by P (it has no filter after interpolation); fanuc
+    # limits the corner speed so that its after-interpolation filter stays within P
+    tw = make_twin(style, after_filter="none") if style == "linuxcnc" else make_twin(style)
+    _, _, trace = run(tw, f"G21 G90 G94 G64 P{tol} F6000\n{body}\nM30\n")
+    dev = _distance_to_polyline(trace.cmd[:, :2], np.array(pts, float))
+    assert dev.max() <= tol * (1 + 1e-6) + 1e-9
+    # and the corners are really blended (the path leaves the corner points)
+    if style == "linuxcnc":
+        assert dev.max() > 0.2 * tol
+
+
+@pytest.mark.parametrize("style,shape", [("fanuc", "bell"), ("linuxcnc", "linear"), ("grbl", "linear")])
+@pytest.mark.parametrize("radius,feed", [(2.0, 6000), (5.0, 6000), (50.0, 20000)])
+def test_arcs_never_exceed_the_configured_acceleration(style, shape, radius, feed):
+    tw = make_twin(style, before_shape=shape)
+    text = f"G21 G90 G94 G0 X{radius} Y0\nG3 X{radius} Y0 I{-radius} J0 F{feed}\nG3 X{-radius} Y0 I{-radius} J0\nM30\n"
+    _, _, trace = run(tw, text)
+    dt = 0.001
+    acc = np.diff(trace.cmd, n=2, axis=0) / dt**2
+    # per-axis limits of the default machine are 3000 mm/s² for X and Y
+    assert np.abs(acc[:, :2]).max() <= 3000.0 * 1.001
+    feed_moves = trace.line[1:-1] == 2
+    assert np.linalg.norm(acc[feed_moves, :2], axis=1).max() <= 3000.0 * 1.001
+
+
+def test_fanuc_corner_speed_follows_allowable_velocity_change():
+    # 90° corner, no tolerance: the speed at the corner is V_allow / max|du| = 400 mm/min
+    tw = make_twin("fanuc", after_filter="none", before_shape="linear")
+    _, plan, _ = run(tw, "G21 G90 G94 G64 G1 X50 F3000\nG1 Y50\nM30\n")
+    assert plan.prof[0, 2] == pytest.approx(400.0 / 60.0, rel=1e-9)
+
+
+def test_grbl_junction_deviation_speed():
+    # v² = a·δ·sin(θ/2)/(1 − sin(θ/2)) with θ the angle between the moves (90°)
+    tw = make_twin("grbl", after_filter="none", before_shape="linear")
+    _, plan, _ = run(tw, "G21 G90 G94 G1 X50 F3000\nG1 Y50\nM30\n")
+    s = math.sin(math.pi / 4)
+    a = 3000.0 * math.sqrt(2)  # acceleration along the junction direction (1,-1)/√2... limited per axis
+    assert plan.prof[0, 2] == pytest.approx(math.sqrt(a * 0.01 * s / (1 - s)), rel=1e-9)
+
+
+# ---------------------------------------------------------------- degenerate input
+
+
+@pytest.mark.parametrize("style", ["fanuc", "linuxcnc", "grbl"])
+def test_zero_length_and_sub_micron_moves(style):
+    text = ("G21 G90 G94 G1 X10 F3000\nG1 X10\nG1 X10.0000001\nG1 X10.0000002 Y0.0000001\n"
+            "G2 X10.0000002 Y0.0000001 I0.01 J0\nG1 X20\nG1 X20 Y0\nG0 X20\nM30\n")
+    tw = make_twin(style)
+    prog, plan, trace = run(tw, text)
+    assert np.isfinite(plan.dur).all() and plan.total_time < 5.0
+    for arr in (trace.cmd, trace.act, trace.err, trace.torque):
+        assert np.isfinite(arr).all()
+    assert trace.cmd[-1, 0] == 20.0
+
+
+def test_empty_program_simulates():
+    tw = make_twin()
+    _, plan, trace = run(tw, "G21 G90\nM30\n")
+    assert plan.total_time == 0.0 and len(trace) == 1
+
+
+def test_chunked_run_equals_single_run():
+    tw = make_twin()
+    prog = tw.load(b"G21 G90 G94 G1 X30 Y20 F3000\nG2 X50 Y0 I10 J-10\nG0 Z5\nM30\n", path="t.nc")
+    a = tw.simulate(prog)
+    b = tw.simulate(prog, every=3, progress=lambda k, n: None)
+    assert np.array_equal(a.cmd[::3], b.cmd)
+    assert np.array_equal(a.err[::3], b.err)
+    assert a.summary.max_following_error == b.summary.max_following_error
+
+
+def test_machine_time_outside_motion():
+    m = Machine()
+    tw = Twin(m)
+    prog = tw.load(b"G21 G90 G94 T1 M6\nS4000 M3\nG4 P1500\nG1 X10 F600\nT2 M6\nG0 Z10\nM30\n", path="t.nc")
+    plan = tw.plan(prog)
+    cats = plan.category_times()
+    assert cats["tool_change"] == pytest.approx(2 * m.timing.tool_change)
+    assert cats["spindle_wait"] == pytest.approx(4000 / m.spindle.acceleration)
+    assert cats["dwell"] == pytest.approx(1.5)
