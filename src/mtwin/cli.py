@@ -244,7 +244,8 @@ def simulate(
         if not decimate > 0:
             raise MtwinError(f"--decimate must be a positive rate in Hz, got {decimate:g}")
         every = max(1, int(round(1.0 / (decimate * dt))))
-    every = every or 1
+    if every is None:
+        every = 1
     if every < 1:
         raise MtwinError(f"--every must be at least 1, got {every}")
     prog = _load(part, settings)

@@ -99,7 +99,7 @@ def load_twin_file(path: str | None) -> dict:
         offsets[key.upper()] = _vec3(value, f"{path}: work_offsets.{key}")
     if offsets:
         out["work_offsets"] = offsets
-    if "tool_lengths" in raw:
+    if raw.get("tool_lengths"):  # an empty table is the same as none (every length 0)
         tools = {}
         for key, value in raw["tool_lengths"].items():
             if not key.isdigit():

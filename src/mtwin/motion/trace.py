@@ -111,8 +111,8 @@ class Trace:
                     fmts.append("%d")
                 elif name == "t":
                     fmts.append("%.6f")
-                elif name.endswith("_err"):
-                    fmts.append("%.7f")
+                elif name.endswith("_err") or name in AXES or name.endswith("_cmd"):
+                    fmts.append("%.6f")  # positions to the nanometre
                 else:
                     fmts.append("%.6g")
             data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()])

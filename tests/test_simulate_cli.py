@@ -1,0 +1,130 @@
+"""`mtwin simulate` and `mtwin config`: JSON keys, trace files, reproducibility, clear errors."""
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from conftest import SAMPLES
+from test_cli import mtwin
+
+SAMPLE_PROGRAMS = sorted(p.name for p in SAMPLES.glob("*.nc"))
+MEASUREMENT_COLUMNS = ["t", "line", "x", "y", "z", "x_cmd", "y_cmd", "z_cmd", "x_err", "y_err", "z_err",
+                       "x_vel", "y_vel", "z_vel", "feed", "x_torque", "y_torque", "z_torque",
+                       "x_current", "y_current", "z_current"]
+
+
+@pytest.mark.parametrize("name", SAMPLE_PROGRAMS)
+def test_simulate_json_is_complete_and_reproducible(name):
+    runs = [mtwin("simulate", str(SAMPLES / name), "--json") for _ in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr.decode()
+    a, b = (json.loads(r.stdout) for r in runs)
+    for key in ("cycle_time", "cutting_time", "rapid_time", "dwell_time"):
+        assert isinstance(a[key], float) and a[key] >= 0
+    for key in ("max_following_error", "max_torque"):
+        assert set(a[key]) == {"x", "y", "z"}
+    assert round(a["cycle_time"], 3) == round(b["cycle_time"], 3)
+    parts = a["cutting_time"] + a["rapid_time"] + a["dwell_time"] + a["tool_change_time"] + a["spindle_wait_time"]
+    assert parts == pytest.approx(a["cycle_time"], rel=1e-9)
+    print(f"{name}: cycle time {a['cycle_time']:.3f} s")
+
+
+def test_simulate_table_on_stderr():
+    r = mtwin("simulate", str(SAMPLES / "contour.nc"))
+    assert r.returncode == 0
+    assert r.stdout == b""
+    text = r.stderr.decode()
+    assert "cycle time" in text and "max following error" in text and "tool T2" in text
+
+
+def test_trace_csv_follows_the_measurement_format(tmp_path):
+    out = tmp_path / "trace.csv"
+    r = mtwin("simulate", str(SAMPLES / "contour.nc"), "-o", str(out), "--every", "10")
+    assert r.returncode == 0, r.stderr.decode()
+    lines = out.read_text().splitlines()
+    meta = [ln for ln in lines if ln.startswith("#")]
+    assert meta[0] == "# format: mtwin-measurement 1"
+    header = lines[len(meta)].split(",")
+    assert header == MEASUREMENT_COLUMNS
+    data = np.loadtxt(out, delimiter=",", comments="#", skiprows=len(meta) + 1)
+    assert np.all(np.diff(data[:, 0]) == pytest.approx(0.01))
+    col = {n: data[:, i] for i, n in enumerate(header)}
+    for a in "xyz":
+        assert np.allclose(col[f"{a}_cmd"] - col[a], col[f"{a}_err"], atol=2e-5)
+    j = json.loads(mtwin("simulate", str(SAMPLES / "contour.nc"), "--json").stdout)
+    assert len(data) == (j["samples"] + 9) // 10
+    # --decimate 100 Hz is the same as --every 10 at a 1 ms servo period
+    out2 = tmp_path / "trace2.csv"
+    assert mtwin("simulate", str(SAMPLES / "contour.nc"), "-o", str(out2), "--decimate", "100").returncode == 0
+    assert out2.read_text() == out.read_text()
+
+
+def test_config_show_round_trips_and_checks(tmp_path):
+    r = mtwin("config", "show")
+    assert r.returncode == 0
+    f = tmp_path / "m.toml"
+    f.write_bytes(r.stdout)
+    assert mtwin("config", "check", str(f)).returncode == 0
+    # the printed file reproduces the default machine exactly
+    a = json.loads(mtwin("simulate", str(SAMPLES / "pocket.nc"), "--json").stdout)
+    b = json.loads(mtwin("simulate", str(SAMPLES / "pocket.nc"), "--json", "--twin", str(f)).stdout)
+    assert a["cycle_time"] == b["cycle_time"]
+
+
+@pytest.mark.parametrize("edit,key", [
+    (("mass             = 300.0", "mass = -5.0"), "axes.x.mass"),
+    (("max_acceleration = 3000.0", "max_acceleration = 0.0"), "axes.x.max_acceleration"),
+    (("max_acceleration = 3000.0", 'max_acceleration = "3 m/s"'), "axes.x.max_acceleration"),
+    (("max_acceleration = 3000.0", 'max_acceleration = "3 furlongs"'), "axes.x.max_acceleration"),
+    (("kpp                = 40.0", "kpp = 40.0\nkp_typo = 1.0"), "axes.x.servo.kp_typo"),
+    (('style                 = "fanuc"', 'style = "haas"'), "controller.style"),
+    (("servo_period          = 0.001", "servo_period = 0.5"), "controller.servo_period"),
+])
+def test_bad_configuration_names_the_key(tmp_path, edit, key):
+    text = mtwin("config", "show").stdout.decode()
+    old, new = edit
+    assert old in text
+    f = tmp_path / "bad.toml"
+    f.write_text(text.replace(old, new, 1))
+    for args in (("config", "check", str(f)), ("simulate", str(SAMPLES / "pocket.nc"), "--twin", str(f))):
+        r = mtwin(*args)
+        assert r.returncode == 2
+        assert key in r.stderr.decode()
+
+
+def test_feed_zero_is_an_error_with_its_line(tmp_path):
+    f = tmp_path / "f0.nc"
+    f.write_text("G21 G90 G94\nG0 X10\nG1 X20 F0\nM30\n")
+    r = mtwin("simulate", str(f))
+    assert r.returncode == 2
+    assert re.search(r"f0\.nc:3:\d+: .*feed", r.stderr.decode())
+
+
+def test_move_beyond_travel_is_an_error_naming_axis_and_line(tmp_path):
+    f = tmp_path / "far.nc"
+    f.write_text("G21 G90 G94\nG0 X10\nG1 Y300 F1000\nM30\n")
+    r = mtwin("simulate", str(f))
+    assert r.returncode == 2
+    msg = r.stderr.decode()
+    assert "far.nc:3:" in msg and "axis Y" in msg and "axes.y.max_travel" in msg
+    # an arc whose bulge leaves the travel, though its end points do not
+    f.write_text("G21 G90 G94\nG0 X390 Y0\nG2 X390 Y0 I6 J0 F1000\nM30\n")
+    r = mtwin("simulate", str(f))
+    assert r.returncode == 2 and "far.nc:3:" in r.stderr.decode()
+
+
+def test_planner_override_and_bad_options():
+    ok = mtwin("simulate", str(SAMPLES / "pocket.nc"), "--planner", "grbl", "--json")
+    assert ok.returncode == 0 and json.loads(ok.stdout)["style"] == "grbl"
+    for args in (("--planner", "haas"), ("--every", "0"), ("--decimate", "-5"), ("--every", "2", "--decimate", "5")):
+        r = mtwin("simulate", str(SAMPLES / "pocket.nc"), *args)
+        assert r.returncode == 2, args
+
+
+def test_simulate_reads_stdin():
+    data = (SAMPLES / "contour.nc").read_bytes()
+    r = mtwin("simulate", "-", "--json", stdin=data)
+    assert r.returncode == 0 and json.loads(r.stdout)["cycle_time"] > 0
