@@ -7,7 +7,8 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["load_program", "InterpreterSettings", "Program", "rewrite", "verify", "summarize", "scale_feeds"]
+__all__ = ["load_program", "InterpreterSettings", "Program", "rewrite", "verify", "summarize", "scale_feeds",
+           "Twin", "Machine"]
 
 
 def __getattr__(name):
@@ -20,6 +21,12 @@ def __getattr__(name):
     if name == "verify":
         from .gcode.verify import verify
         return verify
+    if name == "Twin":
+        from .twin import Twin
+        return Twin
+    if name == "Machine":
+        from .twin.machine import Machine
+        return Machine
     if name == "summarize":
         from .gcode.summary import summarize
         return summarize

@@ -96,7 +96,9 @@ class State:
             gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
             if gain > 0.0:
                 self.axes[4, k] = sv[k, SV_FG] / gain
-        self.seg = np.zeros(2, np.int64)  # current segment, samples the raw command stood still
+        # current segment, samples the raw command stood still, first and last sample at which
+        # the (filtered) command moved
+        self.seg = np.array([0, 0, -1, -1], np.int64)
         self.max_err = np.zeros(3)
         self.max_trq = np.zeros(3)
 
@@ -196,6 +198,12 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 for k in range(3):
                     xc[k] = raw[k]
                     yexp[k] = raw[k]
+        for k in range(3):
+            if xc[k] != xc_prev[k]:
+                if segp[2] < 0:
+                    segp[2] = kstep
+                segp[3] = kstep
+                break
         # ---- servo loop and feed-drive plant, per axis
         for k in range(3):
             m = sv[k, SV_MASS]
@@ -234,7 +242,9 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     fc, fs = sv[k, SV_FCN], sv[k, SV_FSN]
                     sgn = -1.0
                 r = vk / sv[k, SV_VS]
-                ff = sgn * (fc + (fs - fc) * math.exp(-r * r)) + sv[k, SV_B] * vk * 1e-3
+                # the Stribeck term has vanished (< 1e-16) beyond 6 Stribeck velocities
+                strb = (fs - fc) * math.exp(-r * r) if abs(r) < 6.0 else 0.0
+                ff = sgn * (fc + strb) + sv[k, SV_B] * vk * 1e-3
                 vnew = vk + (fapp - ff) / m * 1e3 * dt
                 if vnew * vk < 0.0:
                     # friction cannot reverse the motion: the axis stops (and sticks unless the

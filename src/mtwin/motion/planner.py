@@ -159,19 +159,17 @@ def _assemble(rec: np.ndarray, moves: np.ndarray, pauses) -> np.ndarray:
     allseg = np.concatenate([moves, ps])
     order = np.argsort(np.concatenate([keys_m, keys_p]), kind="stable")
     out = allseg[order]
-    # pauses stand at the position reached so far
-    ends = np.zeros((len(out), 3))
-    last = None
-    for j in range(len(out)):
-        if out[j]["kind"] == PAUSE:
-            if last is None:
-                r = rec[out[j]["rec"]]
-                last = np.array([r["sx"], r["sy"], r["sz"]])
-            out[j]["p0"] = last
-            out[j]["p1"] = last
-        else:
-            last = out[j]["p1"].copy()
-        ends[j] = last
+    # pauses stand at the position reached so far: the end of the last motion before them,
+    # or the start of the record they belong to when no motion came first
+    pause = out["kind"] == PAUSE
+    if pause.any():
+        idx = np.where(~pause, np.arange(len(out)), -1)
+        last = np.maximum.accumulate(idx)
+        r = rec[out["rec"]]
+        start = np.stack([r["sx"], r["sy"], r["sz"]], axis=1)
+        pos = np.where((last >= 0)[:, None], out["p1"][np.maximum(last, 0)], start)
+        out["p0"][pause] = pos[pause]
+        out["p1"][pause] = pos[pause]
     return out
 
 

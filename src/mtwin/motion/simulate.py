@@ -110,8 +110,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     if not (np.isfinite(max_err).all() and np.isfinite(max_trq).all()):
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
     cats = plan.category_times()
-    moving = np.nonzero(np.any(np.diff(cmd.astype(np.float64), axis=0) != 0.0, axis=1))[0]
-    motion_time = float((moving[-1] - moving[0] + 1) * dt * every) if len(moving) else 0.0
+    first, last = int(state.seg[2]), int(state.seg[3])
+    # first to last sample at which the command moved (LinuxCNC's recorder counts the same way)
+    motion_time = float((last - first + 1) * dt) if first >= 0 else 0.0
     summary = Summary(
         cycle_time=plan.total_time,
         cutting_time=cats["cutting"],
