@@ -77,7 +77,7 @@ _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
 _N, _O, _P, _Q, _R, _S, _T, _U, _V, _W, _X, _Y, _Z = range(13, 26)
 
 # state indices (float)
-SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO = 0, 1, 2, 3
+SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL = 0, 1, 2, 3, 4
 # state indices (int)
 SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS = range(8)
 
@@ -120,6 +120,7 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.spindle = st[SF_SPINDLE]
         r.dwell = dwell
         r.path_tol = st[SF_PATH_TOL]
+        r.cam_tol = st[SF_CAM_TOL]
         r.tlo = st[SF_TLO]
         w = si[SI_WCS]
         r.ox = wcs_off[w, 0]
@@ -165,7 +166,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     err_vals = np.zeros(4)
     wcs_off = wcs_init.copy()
 
-    st = np.zeros(4)
+    st = np.zeros(5)
     si = np.zeros(8, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
@@ -499,12 +500,16 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         if g_path == 610:
             si[SI_PATH_MODE] = 1
             st[SF_PATH_TOL] = 0.0
+            st[SF_CAM_TOL] = 0.0
         elif g_path == 611:
             si[SI_PATH_MODE] = 2
             st[SF_PATH_TOL] = 0.0
+            st[SF_CAM_TOL] = 0.0
         elif g_path == 640:
             si[SI_PATH_MODE] = 0
             st[SF_PATH_TOL] = val[_P] * scale if has[_P] else 0.0
+            # LinuxCNC's naive-CAM (collinear merge) tolerance: Q, or P when Q is absent
+            st[SF_CAM_TOL] = val[_Q] * scale if has[_Q] else st[SF_PATH_TOL]
         # 13. distance modes
         if g_dist >= 0:
             incremental = g_dist == 1

@@ -57,6 +57,7 @@ MOVE_DTYPE = np.dtype(
         ("path_tol", np.float64),  # G64 P tolerance, mm (0 = none)
         ("tlo", np.float64),  # active tool length offset, mm
         ("ox", np.float64), ("oy", np.float64), ("oz", np.float64),  # work offset, mm
+        ("cam_tol", np.float64),  # G64 Q (naive-CAM merge) tolerance, mm; P when Q is absent
     ]
 )
 

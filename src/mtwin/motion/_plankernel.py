@@ -374,3 +374,58 @@ def parabolic_blend_speed(L1, L2, v1, v2, a1, a2, tol, cos_half):
         vb1 = min(vb1, vt)
         vb2 = min(vb2, vt)
     return min(vb1, vb2)
+
+
+_NAIVECAM_MAX_POINTS = 100  # emccanon.cc: a chain is flushed after 100 points
+
+
+@njit
+def naive_cam_merge(kind, rapid, path_mode, is_pause, feed, cam_tol, p0, p1):
+    """LinuxCNC's naive-CAM detector (emccanon.cc): consecutive G1 lines are merged into one
+    while every intermediate point stays within the Q tolerance of the straight line from
+    the chain's start to the newest point.  Returns (keep, start): keep[i] is False for
+    lines absorbed into a later one, and start[i] is the start point of each kept line."""
+    n = len(kind)
+    keep = np.ones(n, np.bool_)
+    start = p0.copy()
+    i = 0
+    while i < n:
+        if kind[i] != 0 or rapid[i] or is_pause[i] or path_mode[i] != 0 or cam_tol[i] <= 0.0:
+            i += 1
+            continue
+        s = i  # chain start segment; the chain holds the end points of s .. j-1
+        j = i + 1
+        while j < n and j - s < _NAIVECAM_MAX_POINTS:
+            if kind[j] != 0 or rapid[j] or is_pause[j] or path_mode[j] != 0 or cam_tol[j] != cam_tol[s] \
+                    or feed[j] != feed[s]:
+                break
+            tol = cam_tol[s]
+            m0 = p1[j, 0] - p0[s, 0]
+            m1 = p1[j, 1] - p0[s, 1]
+            m2 = p1[j, 2] - p0[s, 2]
+            mm = m0 * m0 + m1 * m1 + m2 * m2
+            if mm == 0.0:
+                break
+            ok = True
+            for q in range(s, j):
+                d0 = p1[q, 0] - p0[s, 0]
+                d1 = p1[q, 1] - p0[s, 1]
+                d2 = p1[q, 2] - p0[s, 2]
+                t = (d0 * m0 + d1 * m1 + d2 * m2) / mm
+                t = min(1.0, max(0.0, t))
+                e0 = d0 - t * m0
+                e1 = d1 - t * m1
+                e2 = d2 - t * m2
+                if e0 * e0 + e1 * e1 + e2 * e2 > tol * tol:
+                    ok = False
+                    break
+            if not ok:
+                break
+            j += 1
+        # segments s .. j-1 become one line from p0[s] to p1[j-1]
+        for q in range(s, j - 1):
+            keep[q] = False
+        for k in range(3):
+            start[j - 1, k] = p0[s, k]
+        i = j
+    return keep, start

@@ -296,6 +296,26 @@ def _linuxcnc_corners(seg: np.ndarray, machine):
     return seg, vj
 
 
+def _naive_cam(seg: np.ndarray, rec: np.ndarray) -> np.ndarray:
+    """LinuxCNC merges nearly collinear G1 moves (G64 P… Q…) before planning."""
+    keep, start = K.naive_cam_merge(seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64),
+                                    seg["path_mode"].astype(np.int64), seg["kind"] == PAUSE, seg["feed"],
+                                    rec["cam_tol"][seg["rec"]], np.ascontiguousarray(seg["p0"]),
+                                    np.ascontiguousarray(seg["p1"]))
+    if keep.all():
+        return seg
+    seg = seg.copy()
+    merged = ~np.all(start == seg["p0"], axis=1)
+    seg["p0"] = start
+    d = seg["p1"][merged] - start[merged]
+    length = np.linalg.norm(d, axis=1)
+    seg["length"][merged] = length
+    u = d / length[:, None]
+    seg["u0"][merged] = u
+    seg["u1"][merged] = u
+    return seg[keep]
+
+
 def _filter_hold(c) -> tuple[int, float]:
     """(filter code, drain time) of the after-interpolation filter."""
     from ._runkernel import FILTER_BELL, FILTER_EXP, FILTER_LINEAR, FILTER_NONE
@@ -335,6 +355,8 @@ def plan_program(program, machine) -> Plan:
         # drilling cycles position with an exact stop at every point (LinuxCNC runs them
         # in exact-path mode)
         seg["path_mode"][canned & (seg["kind"] != PAUSE)] = 1 if style == K.STYLE_LINUXCNC else 2
+    if style == K.STYLE_LINUXCNC:
+        seg = _naive_cam(seg, rec)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
     is_pause = seg["kind"] == PAUSE
     _, acc = _axis_limits(machine)
