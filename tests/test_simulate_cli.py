@@ -128,3 +128,10 @@ def test_simulate_reads_stdin():
     data = (SAMPLES / "contour.nc").read_bytes()
     r = mtwin("simulate", "-", "--json", stdin=data)
     assert r.returncode == 0 and json.loads(r.stdout)["cycle_time"] > 0
+
+
+def test_configuration_doc_shows_the_current_default_machine():
+    from conftest import ROOT
+    from mtwin.twin.machine import machine_toml
+
+    assert machine_toml().rstrip() in (ROOT / "docs" / "configuration.md").read_text()
