@@ -72,6 +72,12 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     n_samples = int(math.ceil(total / dt - 1e-9)) + 1
     if n_samples > 500_000_000:
         raise MtwinError(f"program runs {total / 3600:.1f} h: more than 500 million servo samples")
+    bytes_per_sample = 92  # t, line, cmd (float64), act/err/vel/torque/path speed (float32)
+    need = (n_samples // every + 1) * bytes_per_sample
+    if need > 4e9:
+        suggest = int(math.ceil(need / 1e9)) * every
+        raise MtwinError(f"a trace of {total / 3600:.1f} h at every {every} servo sample(s) needs {need / 1e9:.1f} GB; "
+                         f"keep fewer samples (--every {suggest} or --decimate)")
     if disturbance is None:
         fd = np.zeros((0, 3))
     else:
