@@ -79,7 +79,7 @@ def segment_point(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, i, s, ou
 class State:
     """Mutable state of the servo-rate loop, so a run can be done in chunks (progress bar)."""
 
-    def __init__(self, nbuf: int, x0: np.ndarray, sv: np.ndarray):
+    def __init__(self, nbuf: int, x0: np.ndarray, sv: np.ndarray, nseg: int):
         self.ring1 = np.repeat(x0[None, :], nbuf, axis=0).astype(np.float64)
         self.ring2 = self.ring1.copy()
         self.sums = np.zeros((2, 3))
@@ -97,14 +97,15 @@ class State:
             if gain > 0.0:
                 self.axes[4, k] = sv[k, SV_FG] / gain
         # current segment, samples the raw command stood still, first and last sample at which
-        # the (filtered) command moved
-        self.seg = np.array([0, 0, -1, -1], np.int64)
+        # the (filtered) command moved, last stop passed in position, finished flag, samples run
+        self.seg = np.array([0, 0, -1, -1, -1, 0, 0], np.int64)
+        self.clock = np.zeros(1)  # interpolator time, s
+        self.wait = np.zeros(max(nseg, 1))  # in-position wait at the end of each segment, s
         self.max_err = np.zeros(3)
         self.max_trq = np.zeros(3)
 
 
-def allocate_outputs(n_samples: int, every: int):
-    n_out = (n_samples + every - 1) // every
+def allocate_outputs(n_out: int):
     # commanded positions stay float64 so that they can be differentiated (accelerations);
     # the other channels are stored as float32 (7 significant digits) to halve the memory
     return (np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
@@ -113,12 +114,17 @@ def allocate_outputs(n_samples: int, every: int):
 
 
 @njit
-def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur,
-             dt, k0, k1, every, filt, nfilt, tfilt, sv, fd,
-             ring1, ring2, sums, axes, segp, max_err, max_trq,
+def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur, stop_end,
+             dt, k0, k1, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd,
+             ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
              t_out, line_out, cmd, act, err, vel, trq, pathv):
-    """Simulate servo periods k0 <= k < k1, continuing from the state arrays (updated in
-    place); stored samples go to the output arrays at index k // every."""
+    """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
+    position), continuing from the state arrays (updated in place).  Sample k is stored at
+    index k // every when k is a multiple of ``every``; the last sample is always stored.
+
+    Two clocks: wall time ``k·dt`` and the interpolator's time, which stands still at the end
+    of an exact-stop segment until every axis is within ``in_position`` of the command (the
+    in-position check of a real control; 0 disables it).  Returns the number of samples run."""
     nseg = len(kind)
     nbuf = ring1.shape[0]
     sum1 = sums[0]
@@ -134,14 +140,15 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     alpha = 1.0 - math.exp(-dt / tfilt) if tfilt > 0.0 else 1.0
     raw = np.empty(3)
     xc = np.empty(3)
-    has_fd = fd.shape[0] > 0
+    nfd = fd.shape[0]
+    t_end = t_start[nseg - 1] + dur[nseg - 1]
     i = segp[0]
-    for kstep in range(k0, k1):
-        o = kstep // every
-        t = kstep * dt
-        while i < nseg - 1 and t >= t_start[i] + dur[i]:
+    kstep = k0
+    while kstep < k1:
+        ti = clock[0]
+        while i < nseg - 1 and ti > t_start[i] + dur[i]:
             i += 1
-        tau = t - t_start[i]
+        tau = ti - t_start[i]
         if kind[i] == 2:
             s, vp = 0.0, 0.0
         else:
@@ -198,6 +205,31 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 for k in range(3):
                     xc[k] = raw[k]
                     yexp[k] = raw[k]
+        # ---- interpolator clock: advance, or stand at an exact stop until in position
+        last = i == nseg - 1
+        end_i = t_start[i] + dur[i]
+        next_ti = ti + dt
+        if stop_end[i] and segp[4] < i and ti + dt > end_i:
+            if ti < end_i:
+                # arrive exactly on the stop point next period; the rest of this one is idle
+                next_ti = end_i
+                wait[i] += dt - (end_i - ti)
+            else:
+                ok = True
+                if in_position > 0.0:
+                    for k in range(3):
+                        if abs(raw[k] - x[k]) > in_position or xc[k] != raw[k]:
+                            ok = False
+                if ok:
+                    segp[4] = i
+                else:
+                    next_ti = end_i
+                    wait[i] += dt
+                    if wait[i] > max_wait:
+                        segp[5] = 2  # the axes do not settle: reported by the caller
+        finished = last and ti >= end_i and (segp[4] >= i or not stop_end[i])
+        store = kstep % every == 0 or finished or segp[5] == 2
+        o = (kstep + every - 1) // every if not kstep % every == 0 else kstep // every
         for k in range(3):
             if xc[k] != xc_prev[k]:
                 if segp[2] < 0:
@@ -213,15 +245,15 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             integ[k] += ev * dt
             f = m * sv[k, SV_WV] * (ev + sv[k, SV_WI] * integ[k]) * 1e-3  # N (mm/s^2 -> m/s^2)
             fmax = sv[k, SV_FMAX]
-            if f > fmax:
-                f = fmax
-            elif f < -fmax:
-                f = -fmax
+            if f > fmax or f < -fmax:
+                f = fmax if f > 0.0 else -fmax
+                if ev * f > 0.0:
+                    integ[k] -= ev * dt  # anti-windup: no integration into the torque limit
             fapp = f - sv[k, SV_FG]
-            if has_fd:
+            if kstep < nfd:
                 fapp -= fd[kstep, k]
             vk = v[k]
-            if kstep % every == 0:
+            if store:
                 cmd[o, k] = xc[k]
                 act[o, k] = x[k]
                 err[o, k] = e
@@ -259,8 +291,15 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             if abs(tq) > max_trq[k]:
                 max_trq[k] = abs(tq)
             xc_prev[k] = xc[k]
-        if kstep % every == 0:
-            t_out[o] = t
+        if store:
+            t_out[o] = kstep * dt
             line_out[o] = line[i]
             pathv[o] = vp
+        clock[0] = next_ti
+        kstep += 1
+        if finished or segp[5] == 2:
+            segp[5] = max(segp[5], 1)
+            break
     segp[0] = i
+    segp[6] = kstep
+    return kstep

@@ -39,6 +39,7 @@ class Plan:
     dur: np.ndarray  # (n,) s, motion + hold, or pause time
     hold: np.ndarray  # (n,) s, in-position wait after a stop (after-interpolation filter drain)
     t_start: np.ndarray  # (n,) s
+    stop_end: np.ndarray  # (n,) bool: the segment ends in an exact stop (in-position check)
     start_point: np.ndarray  # (3,) mm, where the program starts
     warnings: list[str] = field(default_factory=list)
 
@@ -46,11 +47,13 @@ class Plan:
     def total_time(self) -> float:
         return float(self.t_start[-1] + self.dur[-1]) if len(self.dur) else 0.0
 
-    def category_times(self) -> dict[str, float]:
-        """Seconds per category (rapid, cutting, dwell, tool_change, spindle_wait)."""
+    def category_times(self, wait: np.ndarray | None = None) -> dict[str, float]:
+        """Seconds per category (rapid, cutting, dwell, tool_change, spindle_wait); ``wait``:
+        in-position waits per segment from a simulation, counted with their segment."""
+        d = self.dur if wait is None else self.dur + wait
         out = {}
         for code, name in enumerate(CATEGORY_NAMES):
-            out[name] = float(self.dur[self.seg["cat"] == code].sum())
+            out[name] = float(d[self.seg["cat"] == code].sum())
         return out
 
 
@@ -348,7 +351,8 @@ def plan_program(program, machine) -> Plan:
     else:
         start = np.zeros(3)
     if not len(seg):
-        return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), start, warnings)
+        return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), start,
+                    warnings)
     style = STYLE_CODES[c.style]
     if seg["kind"].size:
         canned = (rec["flags"][seg["rec"]] & R.FL_CANNED) != 0
@@ -379,4 +383,4 @@ def plan_program(program, machine) -> Plan:
     prof, dur = K.segment_timing(length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
-    return Plan(seg, prof, dur, hold, t_start, start, warnings)
+    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings)

@@ -13,6 +13,8 @@ from .trace import AXES, Summary, Trace
 _G = 9.80665
 # Samples per kernel call when a progress callback is given (about 20 s of machining)
 _CHUNK = 20_000
+# longest in-position wait at one exact stop before the simulation gives up, s
+_MAX_WAIT = 10.0
 
 
 def servo_table(machine) -> np.ndarray:
@@ -36,7 +38,7 @@ def servo_table(machine) -> np.ndarray:
     return sv
 
 
-def _per_tool(program, plan) -> dict[int, dict[str, float]]:
+def _per_tool(program, plan, wait) -> dict[int, dict[str, float]]:
     rec = program.records
     seg = plan.seg
     if not len(seg):
@@ -46,8 +48,8 @@ def _per_tool(program, plan) -> dict[int, dict[str, float]]:
     for t in np.unique(tools):
         m = tools == t
         out[int(t)] = {
-            "cutting_time": float(plan.dur[m & (seg["cat"] == CAT_CUT)].sum()),
-            "rapid_time": float(plan.dur[m & (seg["cat"] == CAT_RAPID)].sum()),
+            "cutting_time": float((plan.dur + wait)[m & (seg["cat"] == CAT_CUT)].sum()),
+            "rapid_time": float((plan.dur + wait)[m & (seg["cat"] == CAT_RAPID)].sum()),
             "cutting_length": float(seg["length"][m & (seg["cat"] == CAT_CUT)].sum()),
         }
     return out
@@ -67,13 +69,16 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         nfilt = max(1, nfilt // 2)
     seg = plan.seg
     total = plan.total_time
-    # the last sample falls on or after the end of the plan, so the command ends exactly on
-    # the last programmed point
-    n_samples = int(math.ceil(total / dt - 1e-9)) + 1
-    if n_samples > 500_000_000:
+    n_stops = int(plan.stop_end.sum())
+    # samples of the plan itself; the in-position waits at exact stops add to it as they
+    # happen (estimated here, the output grows if they take longer)
+    n_plan = int(math.ceil(total / dt - 1e-9)) + 1
+    wait_guess = 0.25 if c.in_position > 0 else 0.0
+    n_est = n_plan + int(n_stops * wait_guess / dt)
+    if n_plan > 500_000_000:
         raise MtwinError(f"program runs {total / 3600:.1f} h: more than 500 million servo samples")
     bytes_per_sample = 92  # t, line, cmd (float64), act/err/vel/torque/path speed (float32)
-    need = (n_samples // every + 1) * bytes_per_sample
+    need = (n_plan // every + 1) * bytes_per_sample
     if need > 4e9:
         suggest = int(math.ceil(need / 1e9)) * every
         raise MtwinError(f"a trace of {total / 3600:.1f} h at every {every} servo sample(s) needs {need / 1e9:.1f} GB; "
@@ -82,8 +87,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         fd = np.zeros((0, 3))
     else:
         fd = np.ascontiguousarray(disturbance, dtype=np.float64)
-        if fd.shape != (n_samples, 3):
-            raise MtwinError(f"disturbance must have shape ({n_samples}, 3), got {fd.shape}")
+        if fd.ndim != 2 or fd.shape[1] != 3:
+            raise MtwinError(f"disturbance must have shape (samples, 3), got {fd.shape}")
     x0 = plan.start_point.astype(np.float64)
     sv = servo_table(machine)
     if len(seg):
@@ -91,36 +96,47 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                 np.ascontiguousarray(seg["u0"]), np.ascontiguousarray(seg["c"]), np.ascontiguousarray(seg["e1"]),
                 np.ascontiguousarray(seg["e2"]), np.ascontiguousarray(seg["h"]), seg["r0"].copy(),
                 seg["r1"].copy(), seg["theta"].copy(), seg["length"].copy(), seg["line"].copy(),
-                plan.t_start, plan.prof, plan.dur)
+                plan.t_start, plan.prof, plan.dur, plan.stop_end)
     else:
         z3 = np.zeros((1, 3))
         z3[0] = x0
         z = np.zeros(1)
         args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
-                z, np.zeros((1, 10)), np.ones(1))
-    state = RK.State(nfilt, x0, sv)
-    outs = RK.allocate_outputs(n_samples, every)
-    chunk = n_samples if progress is None else max(_CHUNK, every)
+                z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
+    state = RK.State(nfilt, x0, sv, len(seg))
+    cap = (n_est + every - 1) // every + 1
+    outs = RK.allocate_outputs(cap)
+    chunk = max(_CHUNK, every) if progress is not None else max(n_est, every)
     chunk -= chunk % every  # chunks start on stored samples
     k = 0
-    while k < n_samples:
-        k1 = min(n_samples, k + chunk)
-        RK.run_twin(*args, dt, k, k1, every, filt, nfilt, c.after_time, sv, fd,
-                    state.ring1, state.ring2, state.sums, state.axes, state.seg, state.max_err, state.max_trq,
-                    *outs)
-        k = k1
+    while state.seg[5] == 0:
+        k1 = k + chunk
+        need_slots = k1 // every + 2
+        if need_slots > cap:  # the waits took longer than estimated: grow the outputs
+            cap = max(need_slots, int(cap * 1.25))
+            outs = tuple(np.concatenate([a, np.empty((cap - len(a),) + a.shape[1:], a.dtype)]) for a in outs)
+        k = RK.run_twin(*args, dt, k, k1, every, filt, nfilt, c.after_time, c.in_position, _MAX_WAIT, sv, fd,
+                        state.ring1, state.ring2, state.sums, state.axes, state.seg, state.clock, state.wait,
+                        state.max_err, state.max_trq, *outs)
         if progress is not None:
-            progress(k, n_samples)
-    t, line, cmd, act, err, vel, trq, pathv = outs
+            progress(min(k, n_est), n_est)
+    if state.seg[5] == 2:
+        i = int(state.seg[0])
+        raise MtwinError(f"{program.path}:{int(seg['line'][i])}: the axes do not come within "
+                         f"controller.in_position = {c.in_position:g} mm of the command in {_MAX_WAIT:g} s "
+                         f"(servo gains, friction or gravity in the twin file)")
+    n_samples = k
+    n_out = (n_samples - 1) // every + 1 + (1 if (n_samples - 1) % every else 0)
+    t, line, cmd, act, err, vel, trq, pathv = (a[:n_out] for a in outs)
     max_err, max_trq = state.max_err, state.max_trq
     if not (np.isfinite(max_err).all() and np.isfinite(max_trq).all()):
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
-    cats = plan.category_times()
+    cats = plan.category_times(state.wait[:len(seg)])
     first, last = int(state.seg[2]), int(state.seg[3])
     # first to last sample at which the command moved (LinuxCNC's recorder counts the same way)
     motion_time = float((last - first + 1) * dt) if first >= 0 else 0.0
     summary = Summary(
-        cycle_time=plan.total_time,
+        cycle_time=sum(cats.values()),
         cutting_time=cats["cutting"],
         rapid_time=cats["rapid"],
         dwell_time=cats["dwell"],
@@ -129,11 +145,12 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         motion_time=motion_time,
         max_following_error={a: float(v) for a, v in zip(AXES, max_err)},
         max_torque={a: float(v) for a, v in zip(AXES, max_trq)},
-        per_tool=_per_tool(program, plan),
+        per_tool=_per_tool(program, plan, state.wait[:len(seg)]),
         samples=n_samples,
         servo_period=dt,
         machine=machine.name,
         style=c.style,
+        in_position_wait=float(state.wait[:len(seg)].sum()),
         warnings=list(plan.warnings),
     )
     kt = np.array([ax.torque_constant for ax in machine.axes])

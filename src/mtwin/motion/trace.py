@@ -31,6 +31,7 @@ class Summary:
     servo_period: float
     machine: str
     style: str
+    in_position_wait: float = 0.0  # s, waits at exact stops for the axes (part of the categories)
     warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:

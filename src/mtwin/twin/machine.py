@@ -46,6 +46,8 @@ class Controller:
                                "fanuc: allowable velocity change per axis at a corner [E]")
     junction_deviation: float = P(0.01, "mm", "grbl: junction deviation [S: Grbl default 0.01 mm]")
     exact_stop_rapids: bool = P(True, "bool", "decelerate to a stop at the end of every rapid (in-position check)", "bool")
+    in_position: float = P(0.02, "mm", "in-position width: at an exact stop the next block waits until every "
+                           "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg")
 
 
 @dataclass(frozen=True)
