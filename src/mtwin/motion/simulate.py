@@ -104,7 +104,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
                 z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
     state = RK.State(nfilt, x0, sv, len(seg))
-    cap = (n_est + every - 1) // every + 1
+    cap = n_est // every + 3
     outs = RK.allocate_outputs(cap)
     chunk = max(_CHUNK, every) if progress is not None else max(n_est, every)
     chunk -= chunk % every  # chunks start on stored samples
