@@ -136,3 +136,13 @@ def test_configuration_doc_shows_the_current_default_machine():
     from mtwin.twin.machine import machine_toml
 
     assert machine_toml().rstrip() in (ROOT / "docs" / "configuration.md").read_text()
+
+
+def test_trace_parquet_when_pyarrow_is_installed(tmp_path):
+    pq = pytest.importorskip("pyarrow.parquet")
+    out = tmp_path / "trace.parquet"
+    r = mtwin("simulate", str(SAMPLES / "contour.nc"), "-o", str(out), "--every", "50")
+    assert r.returncode == 0, r.stderr.decode()
+    table = pq.read_table(out)
+    assert table.column_names == MEASUREMENT_COLUMNS
+    assert table.num_rows > 100
