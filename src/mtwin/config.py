@@ -31,7 +31,8 @@ else:  # pragma: no cover
 
 from .errors import ConfigError
 
-_SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "machine", "controller", "axes", "spindle", "timing"}
+_SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "machine", "controller", "axes", "spindle", "timing",
+             "tools", "materials", "cutting"}
 _INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30"}
 
 
@@ -68,6 +69,15 @@ def load_machine(path: str | None):
     if path is None:
         return Machine()
     return machine_from_dict(read_twin_toml(path), str(path))
+
+
+def load_cutting(path: str | None):
+    """Tools, materials and stock settings of a twin file (the built-in defaults when None)."""
+    from .cutting.library import cutting_from_dict
+
+    if path is None:
+        return cutting_from_dict({})
+    return cutting_from_dict(read_twin_toml(path), str(path))
 
 
 def load_twin_file(path: str | None) -> dict:

@@ -110,14 +110,24 @@ def allocate_outputs(n_out: int):
     # the other channels are stored as float32 (7 significant digits) to halve the memory
     return (np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
             np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32),
-            np.empty((n_out, 3), np.float32), np.empty(n_out, np.float32))
+            np.empty((n_out, 3), np.float32), np.empty(n_out, np.float32),
+            np.zeros((n_out, 3), np.float32), np.zeros((n_out, 7), np.float32))
+
+
+# cut_out columns
+C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
+# cstats entries
+CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
+    CS_SPINDLE_STOPPED, CS_MRR = range(10)
 
 
 @njit
 def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur, stop_end,
              dt, k0, k1, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd,
              ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
-             t_out, line_out, cmd, act, err, vel, trq, pathv):
+             t_out, line_out, cmd, act, err, vel, trq, pathv,
+             eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, hand, spin_cmd, spin_acc, loss,
+             spin, cstats, force_out, cut_out):
     """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
     position), continuing from the state arrays (updated in place).  Sample k is stored at
     index k // every when k is a multiple of ``every``; the last sample is always stored.
@@ -141,6 +151,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     raw = np.empty(3)
     xc = np.empty(3)
     nfd = fd.shape[0]
+    has_cut = eng_sums.shape[0] > 0
+    ftool = np.zeros(3)
     t_end = t_start[nseg - 1] + dur[nseg - 1]
     i = segp[0]
     kstep = k0
@@ -236,6 +248,87 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     segp[2] = kstep
                 segp[3] = kstep
                 break
+        # ---- spindle and cutting load (forces act on the tool; the drives feel them)
+        target = spin_cmd[i]
+        dn = spin_acc * dt
+        if spin[0] < target - dn:
+            spin[0] += dn
+        elif spin[0] > target + dn:
+            spin[0] -= dn
+        else:
+            spin[0] = target
+        ftool[0] = 0.0
+        ftool[1] = 0.0
+        ftool[2] = 0.0
+        torque_sp = 0.0
+        p_cut = 0.0
+        mrr = 0.0
+        hmax = 0.0
+        ae = 0.0
+        ap = 0.0
+        if has_cut and eng_count[i] > 0 and kind[i] != 2:
+            cnt = eng_count[i]
+            mi = int(s / length[i] * cnt) if length[i] > 0.0 else 0
+            if mi >= cnt:
+                mi = cnt - 1
+            m_ = eng_first[i] + mi
+            va = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            nrps = abs(spin[0]) / 60.0
+            fl = tools[seg_tool[i], 2]
+            S = eng_sums[m_]
+            if eng_q[m_, 0] > 0.0 or S[17] > 0.0:
+                if nrps <= 0.0:
+                    cstats[8] = 1.0  # cutting with the spindle stopped
+                    fz_ = 0.0
+                else:
+                    fz_ = va / (fl * nrps)  # feed per tooth from the actual speeds, mm
+                fxl = fz_ * (kc[0] * S[0] + kc[1] * S[1] + kc[2] * S[2]) + kc[3] * S[9] + kc[4] * S[10] + kc[5] * S[11]
+                fyl = fz_ * (kc[0] * S[3] + kc[1] * S[4] + kc[2] * S[5]) + kc[3] * S[12] + kc[4] * S[13] + kc[5] * S[14]
+                fzl = fz_ * (kc[1] * S[6] + kc[2] * S[7]) + kc[4] * S[15] + kc[5] * S[16]
+                if nrps <= 0.0:
+                    fxl = 0.0
+                    fyl = 0.0
+                    fzl = 0.0
+                torque_sp = (fz_ * kc[0] * S[8] + kc[3] * S[17]) * 1e-3 if nrps > 0.0 else 0.0  # N*m
+                dxv = eng_q[m_, 4]
+                dyv = eng_q[m_, 5]
+                yxv = -dyv * hand[i]
+                yyv = dxv * hand[i]
+                ftool[0] = fxl * dxv + fyl * yxv
+                ftool[1] = fxl * dyv + fyl * yyv
+                ftool[2] = fzl
+                p_cut = torque_sp * 2.0 * math.pi * nrps
+                mrr = va * eng_q[m_, 0]
+                hmax = fz_ * eng_q[m_, 3]
+                ae = eng_q[m_, 1]
+                ap = eng_q[m_, 2]
+        n_abs = abs(spin[0])
+        p_sp = p_cut + (loss[0] + loss[1] * n_abs + loss[2] * n_abs * n_abs if n_abs > 0.0 else 0.0)
+        load = math.sqrt(ftool[0] * ftool[0] + ftool[1] * ftool[1])
+        if load > cstats[0]:
+            cstats[0] = load
+            cstats[1] = line[i]
+        if p_sp > cstats[2]:
+            cstats[2] = p_sp
+            cstats[3] = line[i]
+        if p_cut > 0.0:
+            cstats[4] += p_cut * dt
+            cstats[5] += dt
+        if torque_sp > cstats[6]:
+            cstats[6] = torque_sp
+            cstats[7] = line[i]
+        if mrr > cstats[9]:
+            cstats[9] = mrr
+        if store:
+            for k in range(3):
+                force_out[o, k] = ftool[k]
+            cut_out[o, 0] = spin[0]
+            cut_out[o, 1] = torque_sp
+            cut_out[o, 2] = p_sp
+            cut_out[o, 3] = ae
+            cut_out[o, 4] = ap
+            cut_out[o, 5] = mrr
+            cut_out[o, 6] = hmax
         # ---- servo loop and feed-drive plant, per axis
         for k in range(3):
             m = sv[k, SV_MASS]
@@ -252,6 +345,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             fapp = f - sv[k, SV_FG]
             if kstep < nfd:
                 fapp -= fd[kstep, k]
+            # the force the process puts on the tool acts on the axis carrying it
+            fapp += ftool[k]
             vk = v[k]
             if store:
                 cmd[o, k] = xc[k]

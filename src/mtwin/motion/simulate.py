@@ -8,7 +8,7 @@ import numpy as np
 from ..errors import MtwinError
 from . import _runkernel as RK
 from .path import CAT_CUT, CAT_RAPID, PAUSE
-from .trace import AXES, Summary, Trace
+from .trace import AXES, CuttingSummary, Summary, Trace
 
 _G = 9.80665
 # Samples per kernel call when a progress callback is given (about 20 s of machining)
@@ -55,7 +55,34 @@ def _per_tool(program, plan, wait) -> dict[int, dict[str, float]]:
     return out
 
 
-def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None) -> Trace:
+def _cutting_args(twin, program, plan, stock, enabled: bool):
+    """Engagement arrays and coefficients for the kernel (empty arrays: no cutting model)."""
+    seg = plan.seg
+    nseg = max(len(seg), 1)
+    m = twin.machine
+    rec = program.records
+    spin_cmd = np.zeros(nseg)
+    hand = np.ones(nseg)
+    if len(seg):
+        r = rec[seg["rec"]]
+        spin_cmd[:] = r["spindle_dir"] * np.minimum(r["spindle"], m.spindle.max_speed)
+        hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
+    cut = twin.cutting
+    if not enabled or not len(seg):
+        z = np.zeros(nseg, np.int64)
+        return None, (z, z, np.zeros((0, 18)), np.zeros((0, 6)), z, np.zeros((1, 3)), np.zeros(6), hand,
+                      spin_cmd, m.spindle.acceleration, np.zeros(3))
+    from ..cutting.engagement import engagement_for
+
+    eng = engagement_for(plan, program, cut, stock)
+    mat = cut.material
+    kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
+    return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, hand, spin_cmd,
+                 m.spindle.acceleration, np.array(cut.spindle_loss))
+
+
+def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
+                  stock=None) -> Trace:
     machine = twin.machine
     c = machine.controller
     if every < 1:
@@ -103,6 +130,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         z = np.zeros(1)
         args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
                 z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
+    eng, cut_args = _cutting_args(twin, program, plan, stock, cutting)
+    spin = np.zeros(1)
+    cstats = np.zeros(12)
     state = RK.State(nfilt, x0, sv, len(seg))
     cap = n_est // every + 3
     outs = RK.allocate_outputs(cap)
@@ -117,7 +147,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             outs = tuple(np.concatenate([a, np.empty((cap - len(a),) + a.shape[1:], a.dtype)]) for a in outs)
         k = RK.run_twin(*args, dt, k, k1, every, filt, nfilt, c.after_time, c.in_position, _MAX_WAIT, sv, fd,
                         state.ring1, state.ring2, state.sums, state.axes, state.seg, state.clock, state.wait,
-                        state.max_err, state.max_trq, *outs)
+                        state.max_err, state.max_trq, *outs[:8], *cut_args, spin, cstats, *outs[8:])
         if progress is not None:
             progress(min(k, n_est), n_est)
     if state.seg[5] == 2:
@@ -127,11 +157,18 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                          f"(servo gains, friction or gravity in the twin file)")
     n_samples = k
     n_out = (n_samples - 1) // every + 1 + (1 if (n_samples - 1) % every else 0)
-    t, line, cmd, act, err, vel, trq, pathv = (a[:n_out] for a in outs)
+    t, line, cmd, act, err, vel, trq, pathv, force, cut = (a[:n_out] for a in outs)
     max_err, max_trq = state.max_err, state.max_trq
     if not (np.isfinite(max_err).all() and np.isfinite(max_trq).all()):
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
     cats = plan.category_times(state.wait[:len(seg)])
+    warnings = list(plan.warnings)
+    if cstats[RK.CS_SPINDLE_STOPPED]:
+        warnings.append("feed moves cut the stock with the spindle stopped (no M3/M4 or S0): their forces are not modelled")
+    rated = machine.spindle.rated_power
+    if cstats[RK.CS_POWER] > rated:
+        warnings.append(f"spindle power reaches {cstats[RK.CS_POWER]:,.0f} W at line {int(cstats[RK.CS_POWER_LINE])}, "
+                        f"above the spindle's rated {rated:,.0f} W")
     first, last = int(state.seg[2]), int(state.seg[3])
     # first to last sample at which the command moved (LinuxCNC's recorder counts the same way)
     motion_time = float((last - first + 1) * dt) if first >= 0 else 0.0
@@ -151,7 +188,20 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         machine=machine.name,
         style=c.style,
         in_position_wait=float(state.wait[:len(seg)].sum()),
-        warnings=list(plan.warnings),
+        warnings=warnings,
     )
+    if eng is not None:
+        cut_time = cstats[RK.CS_CUT_TIME]
+        summary.cutting = CuttingSummary(
+            peak_load=float(cstats[RK.CS_LOAD]), peak_load_line=int(cstats[RK.CS_LOAD_LINE]),
+            peak_power=float(cstats[RK.CS_POWER]), peak_power_line=int(cstats[RK.CS_POWER_LINE]),
+            mean_cutting_power=float(cstats[RK.CS_ENERGY] / cut_time) if cut_time > 0 else 0.0,
+            peak_spindle_torque=float(cstats[RK.CS_TORQUE]), peak_spindle_torque_line=int(cstats[RK.CS_TORQUE_LINE]),
+            cutting_energy=float(cstats[RK.CS_ENERGY]), engaged_time=float(cut_time),
+            peak_mrr=float(cstats[RK.CS_MRR]), material=twin.cutting.material_name,
+            stock=list(eng.stock.box), stock_source=eng.stock.source, resolution=eng.stock.resolution,
+            engagement_steps=eng.steps, engagement_seconds=eng.seconds,
+            defaults=list(twin.cutting.defaults_used))
     kt = np.array([ax.torque_constant for ax in machine.axes])
-    return Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path)
+    return Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
+                 force if eng is not None else None, cut if eng is not None else None, eng)

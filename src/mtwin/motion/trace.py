@@ -14,6 +14,30 @@ AXES = ("x", "y", "z")
 
 
 @dataclass
+class CuttingSummary:
+    """Cutting-load results: forces in N (on the tool, XY resultant = the reference's cutting
+    load), power in W, torque in N·m, lines are 1-based program lines."""
+
+    peak_load: float
+    peak_load_line: int
+    peak_power: float
+    peak_power_line: int
+    mean_cutting_power: float  # over the samples where the tool cuts
+    peak_spindle_torque: float
+    peak_spindle_torque_line: int
+    cutting_energy: float  # J
+    engaged_time: float  # s with the tool in the material
+    peak_mrr: float  # mm³/s
+    material: str
+    stock: list[float]
+    stock_source: str
+    resolution: float
+    engagement_steps: int
+    engagement_seconds: float
+    defaults: list[str]
+
+
+@dataclass
 class Summary:
     """What `mtwin simulate` reports: times in s, following error in mm, torque in N·m."""
 
@@ -33,10 +57,16 @@ class Summary:
     style: str
     in_position_wait: float = 0.0  # s, waits at exact stops for the axes (part of the categories)
     warnings: list[str] = field(default_factory=list)
+    cutting: CuttingSummary | None = None
 
     def as_dict(self) -> dict:
         d = dict(self.__dict__)
         d["per_tool"] = {str(k): v for k, v in self.per_tool.items()}
+        c = d.pop("cutting")
+        if c is not None:
+            d.update({k: v for k, v in c.__dict__.items() if k in (
+                "peak_load", "peak_load_line", "peak_power", "mean_cutting_power", "peak_spindle_torque")})
+            d["cutting"] = dict(c.__dict__)
         return d
 
 
@@ -56,6 +86,9 @@ class Trace:
     summary: Summary
     every: int = 1
     program: str = ""
+    force: np.ndarray | None = None  # (n, 3) N, cutting force on the tool, machine axes
+    cut: np.ndarray | None = None  # (n, 7) spindle speed, torque, power, ae, ap, mrr, h_max
+    engagement: object = None  # the cutting.engagement.Engagement used (stock, steps)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -81,6 +114,13 @@ class Trace:
             cols[f"{a}_torque"] = self.torque[:, k]
         for k, a in enumerate(AXES):
             cols[f"{a}_current"] = self.torque[:, k] / self.torque_constant[k]
+        if self.cut is not None:
+            for k, name in enumerate(("spindle_speed", "spindle_torque", "spindle_power")):
+                cols[name] = self.cut[:, k]
+            for k, a in enumerate(AXES):
+                cols[f"f{a}"] = self.force[:, k]
+            for k, name in enumerate(("ae", "ap", "mrr", "h_max"), start=3):
+                cols[name] = self.cut[:, k]
         return cols
 
     def write(self, path: str | os.PathLike, metadata: dict[str, str] | None = None) -> None:
@@ -114,6 +154,8 @@ class Trace:
                     fmts.append("%.6f")
                 elif name.endswith("_err") or name in AXES or name.endswith("_cmd"):
                     fmts.append("%.6f")  # positions to the nanometre
+                elif name == "h_max":
+                    fmts.append("%.6g")
                 else:
                     fmts.append("%.6g")
             data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()])

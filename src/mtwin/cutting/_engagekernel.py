@@ -1,0 +1,329 @@
+"""Numba kernels of the cutting-load twin: tool engagement on a Z-map stock, and its removal.
+
+Engagement is geometry only.  At every step along the path the cutting edge (angular bins
+φ around the tool, slices along it) is tested against the stock left by earlier moves, and
+the result is reduced to *force sums*: per direction factor g and force component, the sum
+over engaged edge elements of ``g·w·db`` (multiplied by the feed per tooth f and a cutting
+coefficient at run time) and of ``g·dS`` (multiplied by an edge coefficient).  With
+``h = f·w`` the chip thickness, the revolution-averaged force is then
+``F = Σ_c K_c·f·S_c + Σ_e K_e·S_e`` — so new F and S values, or another material, never
+need the stock again.
+
+Conventions (PHYSICS.md §1): feed direction x̂ (horizontal part of the motion), ŷ to its left
+for M3 (to its right for M4), tooth angle φ clockwise from +ŷ; κ the angle between the tool
+axis and the edge normal (90° on the cylinder, 0 at the bottom).  Edge force on the tool:
+tangential −Ft·(cosφ x̂ − sinφ ŷ), radial −Fr·(sinκ d − cosκ ẑ), axial +Fa·(cosκ d + sinκ ẑ),
+d = sinφ x̂ + cosφ ŷ; so on the cylinder Fz = +Fa as in PHYSICS.md.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+
+# force-sum columns: (component, coefficient) pairs; C = cutting (× f), E = edge
+# x: t r a | y: t r a | z: r a | torque: t
+N_SUMS = 18
+SX_TC, SX_RC, SX_AC, SY_TC, SY_RC, SY_AC, SZ_RC, SZ_AC, ST_TC = range(9)
+SX_TE, SX_RE, SX_AE, SY_TE, SY_RE, SY_AE, SZ_RE, SZ_AE, ST_TE = range(9, 18)
+# per-step scalars
+Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY = range(6)
+N_Q = 6
+
+SLICE_BOTTOM, SLICE_SIDE = 0, 1
+
+
+def slice_table(radius: float, nose: float, flute_length: float, grid: float):
+    """Edge elements of a tool: (kind, kappa, r, z_lo, z_hi, d_rho) per slice.
+
+    Bottom elements (κ = 0) lie along the flat part of the end face (ρ from 0 to R − nose);
+    nose slices follow the corner (bull) or the ball; the last slice is the cylinder from the
+    top of the nose to the end of the flutes."""
+    rows = []
+    flat = radius - nose
+    if flat > 1e-12:
+        nb = max(4, min(24, int(math.ceil(flat / max(grid, 1e-3)))))
+        d = flat / nb
+        for k in range(nb):
+            rows.append((SLICE_BOTTOM, 0.0, (k + 0.5) * d, 0.0, 0.0, d))
+    if nose > 1e-12:
+        nn = max(4, min(16, int(math.ceil(nose / max(grid, 1e-3) * 0.5))))
+        # equal steps in κ resolve the tip of a ball better than equal steps in z
+        dk = 0.5 * math.pi / nn
+        for k in range(nn):
+            k0, k1 = k * dk, (k + 1) * dk
+            kap = 0.5 * (k0 + k1)
+            z_lo = nose * (1.0 - math.cos(k0))
+            z_hi = nose * (1.0 - math.cos(k1))
+            r = flat + nose * math.sin(kap)
+            rows.append((SLICE_SIDE, kap, r, z_lo, z_hi, 0.0))
+    rows.append((SLICE_SIDE, 0.5 * math.pi, radius, nose, flute_length, 0.0))
+    a = np.array(rows, dtype=np.float64)
+    return a[:, 0].astype(np.int64), a[:, 1].copy(), a[:, 2].copy(), a[:, 3].copy(), a[:, 4].copy(), a[:, 5].copy()
+
+
+@njit
+def _height(H, x0, y0, dx, nx, ny, x, y):
+    i = int(math.floor((x - x0) / dx))
+    j = int(math.floor((y - y0) / dx))
+    if i < 0 or j < 0 or i >= nx or j >= ny:
+        return -1e300
+    return H[j, i]
+
+
+@njit
+def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
+                skind, skap, sr, szlo, szhi, sdrho, sums, q):
+    """Engagement of the tool with its tip at (cx, cy, cz) moving along unit u; fills the force
+    sums (revolution averages: × flutes/2π per radian of φ) and the scalars q."""
+    ny, nx = H.shape
+    uh = math.sqrt(ux * ux + uy * uy)
+    if uh > 1e-9:
+        xx, xy = ux / uh, uy / uh
+    else:
+        xx, xy = 1.0, 0.0
+    # ŷ: left of the feed for a clockwise (M3) spindle, right for M4
+    yx, yy = -xy * hand, xx * hand
+    dphi = 2.0 * math.pi / nbins
+    scale = flutes / (2.0 * math.pi) * dphi
+    for k in range(N_SUMS):
+        sums[k] = 0.0
+    area = 0.0
+    wmax = 0.0
+    ap = 0.0
+    cmin = 2.0
+    cmax = -2.0
+    nsl = len(skind)
+    for b in range(nbins):
+        phi = (b + 0.5) * dphi
+        sp = math.sin(phi)
+        cp = math.cos(phi)
+        dxv = sp * xx + cp * yx
+        dyv = sp * xy + cp * yy
+        depth = 0.0
+        for l in range(nsl):
+            kap = skap[l]
+            sk = math.sin(kap)
+            ck = math.cos(kap)
+            w = uh * sk * sp - uz * ck
+            if w <= 1e-12:
+                continue
+            r = sr[l]
+            hgt = _height(H, x0, y0, dx, nx, ny, cx + r * dxv, cy + r * dyv)
+            if skind[l] == SLICE_BOTTOM:
+                if hgt <= cz:
+                    continue
+                db = sdrho[l]
+            else:
+                lo = cz + szlo[l]
+                eng = min(hgt, cz + szhi[l]) - lo
+                if eng <= 0.0:
+                    continue
+                db = eng / sk
+                depth = max(depth, min(hgt, cz + szhi[l]) - cz)
+            wc = w * db * scale
+            we = db * scale
+            sums[SX_TC] += -cp * wc
+            sums[SX_RC] += -sk * sp * wc
+            sums[SX_AC] += ck * sp * wc
+            sums[SY_TC] += sp * wc
+            sums[SY_RC] += -sk * cp * wc
+            sums[SY_AC] += ck * cp * wc
+            sums[SZ_RC] += ck * wc
+            sums[SZ_AC] += sk * wc
+            sums[ST_TC] += r * wc
+            sums[SX_TE] += -cp * we
+            sums[SX_RE] += -sk * sp * we
+            sums[SX_AE] += ck * sp * we
+            sums[SY_TE] += sp * we
+            sums[SY_RE] += -sk * cp * we
+            sums[SY_AE] += ck * cp * we
+            sums[SZ_RE] += ck * we
+            sums[SZ_AE] += sk * we
+            sums[ST_TE] += r * we
+            # projected area of the engaged edge on the plane normal to the motion (MRR = v·A)
+            area += w * r * dphi * db
+            if w > wmax:
+                wmax = w
+            if cp < cmin:
+                cmin = cp
+            if cp > cmax:
+                cmax = cp
+        if depth > ap:
+            ap = depth
+    q[Q_AREA] = area
+    q[Q_AE] = (cmax - cmin) * sr[nsl - 1] if cmax >= cmin else 0.0
+    q[Q_AP] = ap
+    q[Q_WMAX] = wmax
+    q[Q_DX] = xx
+    q[Q_DY] = xy
+
+
+@njit
+def _bottom_profile(d, radius, nose):
+    """Height of the tool's lower surface above its tip at horizontal distance d from the axis."""
+    flat = radius - nose
+    if d <= flat:
+        return 0.0
+    e = d - flat
+    if e >= nose:
+        return nose
+    return nose - math.sqrt(max(0.0, nose * nose - e * e))
+
+
+@njit
+def remove_line(H, x0, y0, dx, ax, ay, az, bx, by, bz, radius, nose):
+    """Lower the Z-map to the swept lower surface of the tool moving from A to B (tips).
+    Returns the number of cells changed."""
+    ny, nx = H.shape
+    zlo = min(az, bz)
+    i0 = max(0, int(math.floor((min(ax, bx) - radius - x0) / dx)))
+    i1 = min(nx - 1, int(math.floor((max(ax, bx) + radius - x0) / dx)))
+    j0 = max(0, int(math.floor((min(ay, by) - radius - y0) / dx)))
+    j1 = min(ny - 1, int(math.floor((max(ay, by) + radius - y0) / dx)))
+    mx, my, mz = bx - ax, by - ay, bz - az
+    mm = mx * mx + my * my
+    changed = 0
+    r2 = radius * radius
+    for j in range(j0, j1 + 1):
+        py = y0 + (j + 0.5) * dx
+        for i in range(i0, i1 + 1):
+            h = H[j, i]
+            if h <= zlo:
+                continue  # nothing above the lowest point of the tool here
+            px = x0 + (i + 0.5) * dx
+            # parameter interval where the cell is under the tool: |p - c(t)| <= R
+            qx, qy = px - ax, py - ay
+            if mm > 0.0:
+                tc = (qx * mx + qy * my) / mm
+                ex, ey = qx - tc * mx, qy - tc * my
+                d2 = ex * ex + ey * ey
+                if d2 > r2:
+                    continue
+                half = math.sqrt((r2 - d2) / mm)
+                t1 = max(0.0, tc - half)
+                t2 = min(1.0, tc + half)
+                if t1 > t2:
+                    continue
+            else:
+                d2 = qx * qx + qy * qy
+                if d2 > r2:
+                    continue
+                t1, t2 = 0.0, 1.0
+            if nose <= 0.0:
+                # flat bottom: the lowest tip height over the interval, at one of its ends
+                surf = min(az + mz * t1, az + mz * t2)
+            elif mm == 0.0:
+                # vertical move: the lowest position, at the cell's fixed distance
+                surf = zlo + _bottom_profile(math.sqrt(d2), radius, nose)
+            elif mz == 0.0:
+                # level move: deepest where the axis passes closest
+                tb = min(max(tc, t1), t2)
+                surf = az + _bottom_profile(math.sqrt((qx - tb * mx) ** 2 + (qy - tb * my) ** 2), radius, nose)
+            else:
+                # ramp: z(t) + b(d(t)) is convex in t (d convex, b convex increasing):
+                # golden-section search for its minimum
+                lo_t, hi_t = t1, t2
+                for _ in range(40):
+                    m1 = lo_t + 0.381966 * (hi_t - lo_t)
+                    m2 = hi_t - 0.381966 * (hi_t - lo_t)
+                    f1 = az + mz * m1 + _bottom_profile(math.sqrt((qx - m1 * mx) ** 2 + (qy - m1 * my) ** 2),
+                                                        radius, nose)
+                    f2 = az + mz * m2 + _bottom_profile(math.sqrt((qx - m2 * mx) ** 2 + (qy - m2 * my) ** 2),
+                                                        radius, nose)
+                    if f1 < f2:
+                        hi_t = m2
+                    else:
+                        lo_t = m1
+                tb = 0.5 * (lo_t + hi_t)
+                surf = az + mz * tb + _bottom_profile(math.sqrt((qx - tb * mx) ** 2 + (qy - tb * my) ** 2),
+                                                      radius, nose)
+            if surf < h:
+                H[j, i] = surf
+                changed += 1
+    return changed
+
+
+@njit
+def segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, s, pt, tg):
+    """Point and unit tangent at distance s along a line or arc segment."""
+    L = length[i]
+    f = min(max(s / L, 0.0), 1.0) if L > 0.0 else 0.0
+    if kind[i] == 0:
+        for k in range(3):
+            pt[k] = p0[i, k] + (p1[i, k] - p0[i, k]) * f
+            tg[k] = (p1[i, k] - p0[i, k]) / L if L > 0.0 else 0.0
+        return
+    a = theta[i] * f
+    r = r0[i] + (r1[i] - r0[i]) * f
+    ca = math.cos(a)
+    sa = math.sin(a)
+    dr = (r1[i] - r0[i]) / theta[i] if theta[i] > 0.0 else 0.0
+    nrm = 0.0
+    for k in range(3):
+        pt[k] = c[i, k] + r * (ca * e1[i, k] + sa * e2[i, k]) + h[i, k] * f
+        tg[k] = r * (-sa * e1[i, k] + ca * e2[i, k]) + dr * (ca * e1[i, k] + sa * e2[i, k]) \
+            + (h[i, k] / theta[i] if theta[i] > 0.0 else 0.0)
+        nrm += tg[k] * tg[k]
+    nrm = math.sqrt(nrm)
+    for k in range(3):
+        tg[k] /= nrm if nrm > 0.0 else 1.0
+
+
+@njit
+def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, length, tool_index,
+                hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, step, nbins,
+                first, count, sums, q):
+    """Walk every segment in order: engagement at each step (midpoints of ``step``-long pieces)
+    against the stock as left by earlier segments, then the segment's swept volume is removed.
+
+    ``cuts[i]``: 1 feed move (engaged and removed), 0 rapid or pause (skipped here).
+    ``tools[t]``: radius, nose radius, flutes of tool index t; its slices are
+    ``slices_start[t] .. slices_start[t+1]``.  Fills first/count per segment and the per-step
+    sums and scalars; returns the number of steps and of changed cells."""
+    nseg = len(kind)
+    n = 0
+    cells = 0
+    pt = np.empty(3)
+    tg = np.empty(3)
+    pa = np.empty(3)
+    pb = np.empty(3)
+    for i in range(nseg):
+        first[i] = n
+        count[i] = 0
+        if kind[i] == 2 or cuts[i] == 0 or length[i] <= 0.0:
+            continue
+        t = tool_index[i]
+        radius = tools[t, 0]
+        nose = tools[t, 1]
+        flutes = tools[t, 2]
+        s0 = slices_start[t]
+        s1 = slices_start[t + 1]
+        L = length[i]
+        m = max(1, int(math.ceil(L / step)))
+        for k in range(m):
+            s = (k + 0.5) * L / m
+            segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, s, pt, tg)
+            engage_step(H, x0, y0, dx, pt[0], pt[1], pt[2], tg[0], tg[1], tg[2], hand[i], nbins, flutes,
+                        skind[s0:s1], skap[s0:s1], sr[s0:s1], szlo[s0:s1], szhi[s0:s1], sdrho[s0:s1],
+                        sums[n], q[n])
+            n += 1
+        count[i] = m
+        # remove the swept volume: lines at once, arcs as chords short enough that the chord
+        # error stays below a quarter of a cell
+        if kind[i] == 0:
+            cells += remove_line(H, x0, y0, dx, p0[i, 0], p0[i, 1], p0[i, 2], p1[i, 0], p1[i, 1], p1[i, 2],
+                                 radius, nose)
+        else:
+            rad = max(r0[i], r1[i])
+            chord = math.sqrt(2.0 * rad * dx) if rad > 0.0 else L
+            nc = max(1, int(math.ceil(L / max(chord, 1e-6))))
+            segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, 0.0, pa, tg)
+            for k in range(1, nc + 1):
+                segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, L * k / nc, pb, tg)
+                cells += remove_line(H, x0, y0, dx, pa[0], pa[1], pa[2], pb[0], pb[1], pb[2], radius, nose)
+                for kk in range(3):
+                    pa[kk] = pb[kk]
+    return n, cells

@@ -1,0 +1,218 @@
+"""Stock and engagement along a planned path, computed once and reused.
+
+``engagement_for(plan, program, cutting)`` returns an :class:`Engagement`: per path step the
+force sums of ``_engagekernel`` (independent of F, S and the material) and the Z-map after
+the last cut.  It is cached on the path geometry, the tools, the stock and the resolution,
+so a re-simulation with new F and S values — what the optimiser does thousands of times —
+never touches the stock.  ``COMPUTATIONS`` counts real computations (a test watches it).
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, GCodeError, SourceLocation
+from ..motion.path import ARC, LINE, PAUSE
+from . import _engagekernel as EK
+from .library import Cutting, parse_box
+
+COMPUTATIONS = 0
+_CACHE: dict[str, "Engagement"] = {}
+_CACHE_MAX = 4
+MAX_CELLS = 60_000_000  # 240 MB of float32 heights
+N_BINS = 180  # 2° angular bins (PHYSICS.md §2: 1-2°)
+
+
+@dataclass
+class Stock:
+    box: tuple[float, ...]  # xmin, ymin, zmin, xmax, ymax, zmax (mm, work coordinates)
+    resolution: float  # mm
+    heights: np.ndarray  # (ny, nx) float32, top of the remaining material per cell
+    source: str  # where the box came from
+
+    @property
+    def origin(self) -> tuple[float, float]:
+        return self.box[0], self.box[1]
+
+
+@dataclass
+class Engagement:
+    first: np.ndarray  # (nseg,) first step of each segment
+    count: np.ndarray  # (nseg,) steps of each segment (0: not cutting)
+    sums: np.ndarray  # (steps, 18) force sums, see _engagekernel
+    q: np.ndarray  # (steps, 6) area, ae, ap, w_max, feed direction x, y
+    tools: np.ndarray  # (ntools, 3) radius, nose radius, flutes
+    tool_index: np.ndarray  # (nseg,) row of ``tools`` for each segment
+    tool_numbers: tuple[int, ...]
+    stock: Stock
+    step: float
+    cells_changed: int
+    seconds: float
+
+    @property
+    def steps(self) -> int:
+        return len(self.sums)
+
+
+_STOCK_COMMENT = re.compile(rb"\(\s*MTWIN\s+STOCK\s+([^)]*)\)", re.IGNORECASE)
+
+
+def stock_from_program(program) -> tuple[tuple[float, ...], int] | None:
+    """The ``(MTWIN STOCK xmin,ymin,zmin,xmax,ymax,zmax)`` comment of a program, with its line."""
+    m = _STOCK_COMMENT.search(program.data)
+    if not m:
+        return None
+    line = program.data.count(b"\n", 0, m.start()) + 1
+    try:
+        box = parse_box(m.group(1).decode("ascii", "replace"), "MTWIN STOCK comment")
+    except ConfigError as exc:
+        raise GCodeError(str(exc), SourceLocation(program.path, line, m.start() - program.data.rfind(b"\n", 0, m.start())))
+    return box, line
+
+
+def _tool_rows(plan, program, cutting: Cutting):
+    rec = program.records
+    seg = plan.seg
+    nums = rec["tool"][seg["rec"]] if len(seg) else np.zeros(0, np.int32)
+    cutting_seg = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+    used = sorted(set(int(t) for t in nums[cutting_seg]))
+    table = []
+    index = {}
+    for t in used:
+        where_i = int(np.nonzero(cutting_seg & (nums == t))[0][0])
+        tool = cutting.tool(t, f"{program.path}:{int(seg['line'][where_i])}: ")
+        index[t] = len(table)
+        table.append(tool)
+    if not table:
+        table.append(cutting.tool(used[0]) if used else cutting.tool(0) if not cutting.tools else next(iter(cutting.tools.values())))
+    tool_index = np.array([index.get(int(t), 0) for t in nums], np.int64)
+    return table, tool_index, tuple(used)
+
+
+def default_stock(plan, tools) -> tuple[float, ...]:
+    """XY: bounding box of the feed moves grown by the largest tool radius; top at Z0 (the usual
+    CAM convention); bottom 1 mm below the deepest feed move (or at Z-1)."""
+    seg = plan.seg
+    feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+    if not feed.any():
+        return (-1.0, -1.0, -1.0, 1.0, 1.0, 0.0)
+    pts = np.concatenate([seg["p0"][feed], seg["p1"][feed]])
+    arcs = feed & (seg["kind"] == ARC)
+    if arcs.any():
+        r = np.maximum(seg["r0"][arcs], seg["r1"][arcs])[:, None]
+        pts = np.concatenate([pts, seg["c"][arcs] - r, seg["c"][arcs] + r])
+    rmax = max(t.radius for t in tools)
+    lo = pts.min(axis=0)
+    hi = pts.max(axis=0)
+    return (float(lo[0] - rmax), float(lo[1] - rmax), float(min(lo[2], 0.0) - 1.0),
+            float(hi[0] + rmax), float(hi[1] + rmax), 0.0)
+
+
+def stock_box(plan, program, cutting: Cutting, tools, box=None) -> tuple[tuple[float, ...], float, str]:
+    """(box, resolution, where the box came from): --stock > program comment > twin file > default."""
+    source = "--stock"
+    if box is None:
+        found = stock_from_program(program)
+        if found:
+            box, line = found
+            source = f"(MTWIN STOCK) comment, line {line}"
+        elif cutting.stock is not None:
+            box, source = cutting.stock, "twin file cutting.stock"
+        else:
+            box, source = default_stock(plan, tools), "default (feed moves' extent + tool radius, top at Z0)"
+    res = cutting.resolution
+    if res <= 0:
+        dmin = min(t.diameter for t in tools)
+        res = min(0.1, max(0.02, dmin / 120.0))
+    nx = int(math.ceil((box[3] - box[0]) / res))
+    ny = int(math.ceil((box[4] - box[1]) / res))
+    if nx * ny > MAX_CELLS:
+        res_new = math.sqrt((box[3] - box[0]) * (box[4] - box[1]) / MAX_CELLS) * 1.001
+        raise ConfigError(f"stock {box[3] - box[0]:g} x {box[4] - box[1]:g} mm at {res:g} mm needs {nx * ny / 1e6:.0f} "
+                          f"million cells (limit {MAX_CELLS / 1e6:.0f}); set cutting.resolution to {res_new:.3f} mm or more")
+    return tuple(box), res, source
+
+
+def new_stock(box, res, source) -> Stock:
+    nx = int(math.ceil((box[3] - box[0]) / res))
+    ny = int(math.ceil((box[4] - box[1]) / res))
+    return Stock(tuple(box), res, np.full((ny, nx), box[5], np.float32), source)
+
+
+def _check_inside(plan, b, source: str, path: str) -> None:
+    """A feed move whose tip goes below the stock bottom inside its footprint means the stock
+    does not contain the toolpath (wrong box, units or offsets)."""
+    seg = plan.seg
+    feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+    for pts in (seg["p0"], seg["p1"]):
+        inside = feed & (pts[:, 0] >= b[0]) & (pts[:, 0] <= b[3]) & (pts[:, 1] >= b[1]) & (pts[:, 1] <= b[4])
+        below = inside & (pts[:, 2] < b[2] - 1e-9)
+        if below.any():
+            i = int(np.argmax(below))
+            raise GCodeError(f"the tool reaches Z = {pts[i, 2]:.3f} mm, below the stock bottom Z = {b[2]:g} mm "
+                             f"(stock {b} from {source}): the stock does not contain the toolpath",
+                             SourceLocation(path, int(seg["line"][i]), 1))
+
+
+def _key(plan, program, tools, tool_index, box, res, step) -> str:
+    seg = plan.seg
+    h = hashlib.blake2b(digest_size=20)
+    for name in ("kind", "rapid", "p0", "p1", "c", "e1", "e2", "h", "r0", "r1", "theta", "length"):
+        h.update(np.ascontiguousarray(seg[name]).tobytes())
+    h.update(tool_index.tobytes())
+    h.update(np.asarray(program.records["spindle_dir"][seg["rec"]] < 0).tobytes() if len(seg) else b"")
+    h.update(repr((tuple((t.type, t.diameter, t.corner_radius, t.flutes, t.flute_length) for t in tools),
+                   tuple(box), res, step)).encode())
+    return h.hexdigest()
+
+
+def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
+    """Engagement of a planned program, from the cache when the geometry is unchanged."""
+    global COMPUTATIONS
+    tools, tool_index, numbers = _tool_rows(plan, program, cutting)
+    box, res, source = stock_box(plan, program, cutting, tools, box)
+    _check_inside(plan, box, source, program.path)
+    step = cutting.step if cutting.step > 0 else 2.0 * res
+    key = _key(plan, program, tools, tool_index, box, res, step)
+    if key in _CACHE:
+        return _CACHE[key]
+    COMPUTATIONS += 1
+    stock = new_stock(box, res, source)
+    t0 = time.perf_counter()
+    seg = plan.seg
+    cuts = ((seg["kind"] != PAUSE) & (seg["rapid"] == 0)).astype(np.int64)
+    n_steps = int(np.sum(np.where(cuts == 1, np.maximum(1, np.ceil(seg["length"] / step)), 0)))
+    table = np.array([[t.radius, t.nose_radius, t.flutes] for t in tools], np.float64)
+    starts = [0]
+    cols = [[], [], [], [], [], []]
+    for t in tools:
+        parts = EK.slice_table(t.radius, t.nose_radius, t.flute_length, stock.resolution)
+        for c, p in zip(cols, parts):
+            c.append(p)
+        starts.append(starts[-1] + len(parts[0]))
+    skind, skap, sr, szlo, szhi, sdrho = (np.concatenate(c) for c in cols)
+    hand = np.where(program.records["spindle_dir"][seg["rec"]] < 0, -1.0, 1.0) if len(seg) else np.zeros(0)
+    first = np.zeros(len(seg), np.int64)
+    count = np.zeros(len(seg), np.int64)
+    sums = np.zeros((max(n_steps, 1), EK.N_SUMS))
+    q = np.zeros((max(n_steps, 1), EK.N_Q))
+    H = stock.heights
+    n, cells = EK.engage_path(H, stock.box[0], stock.box[1], stock.resolution,
+                              seg["kind"].astype(np.int64), cuts, np.ascontiguousarray(seg["p0"]),
+                              np.ascontiguousarray(seg["p1"]), np.ascontiguousarray(seg["c"]),
+                              np.ascontiguousarray(seg["e1"]), np.ascontiguousarray(seg["e2"]),
+                              np.ascontiguousarray(seg["h"]), seg["r0"].copy(), seg["r1"].copy(),
+                              seg["theta"].copy(), seg["length"].copy(), tool_index, hand, table,
+                              np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho,
+                              step, N_BINS, first, count, sums, q)
+    eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
+                     time.perf_counter() - t0)
+    if len(_CACHE) >= _CACHE_MAX:
+        _CACHE.pop(next(iter(_CACHE)))
+    _CACHE[key] = eng
+    return eng

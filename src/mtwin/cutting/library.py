@@ -1,0 +1,191 @@
+"""Tools and work materials: the cutting half of the twin file.
+
+    [cutting]
+    material = "al6061"            # a built-in name or one of [materials.*]
+    stock = [0, 0, -20, 60, 50, 0] # xmin, ymin, zmin, xmax, ymax, zmax (mm, work coordinates)
+    resolution = 0.05              # Z-map cell size, mm
+    step = 0.1                     # engagement step along the path, mm
+
+    [tools.1]
+    type = "flat"                  # flat | ball | bull
+    diameter = 6.0
+    flutes = 2
+
+    [materials.my_steel]
+    ktc = 2100.0                   # N/mm^2 (cutting coefficients), N/mm (edge coefficients)
+
+Coefficients follow ``PHYSICS.md`` section 1: Ktc, Krc, Kac in N/mm², Kte, Kre, Kae in
+N/mm.  With no tool table every tool is the reference's 6 mm two-flute carbide flat end
+mill, and the material is ``al6061`` with the reference's identified Kt and Ke.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+
+from ..errors import ConfigError
+from ..twin.machine import P, _check
+
+TOOL_TYPES = ("flat", "ball", "bull")
+
+
+@dataclass(frozen=True)
+class Tool:
+    type: str = P("flat", "str", "flat | ball | bull (corner radius)", "choice", TOOL_TYPES)
+    diameter: float = P(6.0, "mm", "cutting diameter [S: reference 6 mm end mill]")
+    flutes: int = P(2, "int", "number of flutes [S: reference two-flute]")
+    helix: float = P(30.0, "", "helix angle, degrees [E: 30 deg typical for aluminium end mills]", "nonneg")
+    corner_radius: float = P(0.0, "mm", "corner radius (bull-nose); a ball's is diameter/2", "nonneg")
+    flute_length: float = P(15.0, "mm", "length of cut; deeper engagement is an error")
+    stickout: float = P(25.0, "mm", "length out of the holder [E]")
+    price: float = P(30.0, "", "price per tool or edge, currency units [E: 30-150 $ carbide end mill]", "nonneg")
+    taylor_n: float = P(0.35, "", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4]")
+    taylor_c: float = P(1300.0, "", "Taylor constant C, m/min for T in min [E: aluminium 1100-1500]")
+
+    @property
+    def radius(self) -> float:
+        return 0.5 * self.diameter
+
+    @property
+    def nose_radius(self) -> float:
+        """Radius of the rounded bottom edge: 0 flat, D/2 ball, the corner radius for bull."""
+        if self.type == "ball":
+            return self.radius
+        if self.type == "bull":
+            return self.corner_radius
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Material:
+    ktc: float = P(1230.0, "N/mm^2", "tangential cutting coefficient")
+    krc: float = P(615.0, "N/mm^2", "radial cutting coefficient", "nonneg")
+    kac: float = P(0.0, "N/mm^2", "axial cutting coefficient", "nonneg")
+    kte: float = P(0.0, "N/mm", "tangential edge coefficient", "nonneg")
+    kre: float = P(0.0, "N/mm", "radial edge coefficient", "nonneg")
+    kae: float = P(0.0, "N/mm", "axial edge coefficient", "nonneg")
+    source: str = P("", "str", "where the values come from", "any")
+
+
+# PHYSICS.md section 1 table
+MATERIALS = {
+    "al6061": Material(1230.0, 615.0, 0.0, 0.0, 0.0, 0.0,
+                       "[S] reference identification, 6 mm 2-flute carbide: Kt = 1.23e9 N/m^2, Ke = 0.50 "
+                       "(Krc = Ke*Kt); axial and edge terms not identified (0)"),
+    "al7075": Material(767.0, 168.8, 222.0, 27.7, 26.6, 0.7, "[S] Al 7075-T6 dry, CJME review 2021, Table 5"),
+    "al6082": Material(631.0, 99.0, 273.0, 13.0, 10.0, 2.8, "[S] Al 6082-T6, CJME review 2021"),
+    "steel1045": Material(2150.0, 800.0, 450.0, 30.0, 30.0, 10.0,
+                          "[E] mild steel 1018/1045: middle of the PHYSICS.md ranges"),
+    "ti6al4v": Material(2000.0, 700.0, 300.0, 35.0, 25.0, 12.0, "[E] Ti-6Al-4V, PHYSICS.md"),
+}
+MATERIAL_ALIASES = {"mild_steel": "steel1045", "steel": "steel1045", "ti64": "ti6al4v", "a6061": "al6061"}
+
+
+@dataclass(frozen=True)
+class Cutting:
+    """The cutting part of a twin: tools, material, stock and resolution."""
+
+    tools: dict[int, Tool] = field(default_factory=dict)  # empty: every tool is the default
+    material_name: str = "al6061"
+    material: Material = MATERIALS["al6061"]
+    stock: tuple[float, ...] | None = None
+    resolution: float = 0.0  # 0: automatic (smallest tool diameter / 120, within 0.02..0.1 mm)
+    step: float = 0.0  # 0: automatic (twice the resolution)
+    spindle_loss: tuple[float, float, float] = (0.0, 0.0, 0.0)  # W: a + b*n + c*n^2 (n in rpm)
+    defaults_used: tuple[str, ...] = ()
+
+    def tool(self, number: int, where: str = "") -> Tool:
+        if not self.tools:
+            return Tool()
+        if number not in self.tools:
+            raise ConfigError(f"{where}tool T{number} is not in the tool table [tools.*] of the twin file "
+                              f"(has {', '.join(f'T{k}' for k in sorted(self.tools))})")
+        return self.tools[number]
+
+
+def _parse(cls, table, prefix, where):
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}: [{prefix}] must be a table")
+    known = {f.name: f for f in fields(cls)}
+    values = {}
+    for key, value in table.items():
+        if key not in known:
+            raise ConfigError(f"{where}: unknown key {prefix}.{key} (known: {', '.join(known)})")
+        meta = known[key].metadata
+        if meta["check"] == "any":
+            values[key] = str(value)
+        else:
+            try:
+                values[key] = _check(value, meta, f"{prefix}.{key}")
+            except ConfigError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
+    return values
+
+
+def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
+    """Tools, materials and [cutting] of a parsed twin file."""
+    defaults = []
+    materials = dict(MATERIALS)
+    for name, body in raw.get("materials", {}).items():
+        values = _parse(Material, body, f"materials.{name}", where)
+        if "ktc" not in values:
+            raise ConfigError(f"{where}: materials.{name}: needs at least ktc (tangential cutting coefficient, N/mm^2)")
+        base = Material(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, "")
+        materials[name] = replace(base, **values)
+    tools = {}
+    for key, body in raw.get("tools", {}).items():
+        if not str(key).isdigit():
+            raise ConfigError(f"{where}: tools.{key}: tool numbers are non-negative integers")
+        values = _parse(Tool, body, f"tools.{key}", where)
+        t = replace(Tool(), **values)
+        if t.type == "bull" and not 0 < t.corner_radius < t.radius:
+            raise ConfigError(f"{where}: tools.{key}.corner_radius must be between 0 and diameter/2 for a bull-nose tool")
+        if t.type == "flat" and t.corner_radius:
+            raise ConfigError(f"{where}: tools.{key}.corner_radius is only for type = \"bull\"")
+        tools[int(key)] = t
+    if not tools:
+        defaults.append("tool: every tool is a 6 mm two-flute carbide flat end mill (no [tools.*] table)")
+    cut = raw.get("cutting", {})
+    if not isinstance(cut, dict):
+        raise ConfigError(f"{where}: [cutting] must be a table")
+    known = {"material", "stock", "resolution", "step", "spindle_loss"}
+    for key in cut:
+        if key not in known:
+            raise ConfigError(f"{where}: unknown key cutting.{key} (known: {', '.join(sorted(known))})")
+    name = cut.get("material", "al6061")
+    if "material" not in cut:
+        defaults.append("material: al6061 with the reference's Kt = 1230 N/mm^2, Ke = 0.50")
+    name = MATERIAL_ALIASES.get(name, name)
+    if name not in materials:
+        raise ConfigError(f"{where}: cutting.material: no coefficients for {cut.get('material')!r} "
+                          f"(built in: {', '.join(MATERIALS)}; or define [materials.{cut.get('material')}])")
+    stock = None
+    if "stock" in cut:
+        stock = parse_box(cut["stock"], f"{where}: cutting.stock")
+    res = _check(cut["resolution"], {"unit": "mm", "check": "positive", "choices": ()}, "cutting.resolution") \
+        if "resolution" in cut else 0.0
+    step = _check(cut["step"], {"unit": "mm", "check": "positive", "choices": ()}, "cutting.step") \
+        if "step" in cut else 0.0
+    loss = (0.0, 0.0, 0.0)
+    if "spindle_loss" in cut:
+        v = cut["spindle_loss"]
+        if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v)):
+            raise ConfigError(f"{where}: cutting.spindle_loss: expected [a, b, c] for a + b*n + c*n^2 W (n in rpm)")
+        loss = tuple(float(x) for x in v)
+    return Cutting(tools, name, materials[name], stock, res, step, loss, tuple(defaults))
+
+
+def parse_box(value, key: str) -> tuple[float, ...]:
+    """xmin, ymin, zmin, xmax, ymax, zmax from a list or a 'a,b,c,d,e,f' string."""
+    if isinstance(value, str):
+        try:
+            value = [float(x) for x in value.replace(" ", "").split(",")]
+        except ValueError:
+            raise ConfigError(f"{key}: expected six numbers xmin,ymin,zmin,xmax,ymax,zmax (mm)") from None
+    if not (isinstance(value, (list, tuple)) and len(value) == 6
+            and all(isinstance(x, (int, float)) and math.isfinite(x) for x in value)):
+        raise ConfigError(f"{key}: expected six numbers xmin,ymin,zmin,xmax,ymax,zmax (mm)")
+    box = tuple(float(x) for x in value)
+    if not (box[0] < box[3] and box[1] < box[4] and box[2] < box[5]):
+        raise ConfigError(f"{key}: each min must be below its max, got {box}")
+    return box
