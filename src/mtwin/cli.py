@@ -216,6 +216,10 @@ def simulate(
     decimate: Optional[float] = typer.Option(None, "--decimate",
                                              help="Trace sample rate in Hz (e.g. 100); alternative to --every."),
     json_out: bool = typer.Option(False, "--json", help="Summary as JSON on stdout."),
+    stock: Optional[str] = typer.Option(None, "--stock",
+                                        help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm (work coordinates)."),
+    no_cutting: bool = typer.Option(False, "--no-cutting", help="Motion only: no stock, engagement or cutting forces."),
+    plot: Optional[str] = typer.Option(None, "--plot", help="Write the spindle power against time as SVG."),
     planner: Optional[str] = PlannerOpt,
     twin: Optional[str] = TwinOpt,
     dialect: Optional[str] = DialectOpt,
@@ -236,7 +240,14 @@ def simulate(
             raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {planner!r}")
         machine = replace(machine, controller=replace(machine.controller, style=planner))
     settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
-    tw = Twin(machine, settings, twin)
+    from .config import load_cutting
+
+    tw = Twin(machine, settings, twin, load_cutting(twin))
+    box = None
+    if stock is not None:
+        from .cutting.library import parse_box
+
+        box = parse_box(stock, "--stock")
     dt = machine.controller.servo_period
     if every is not None and decimate is not None:
         raise MtwinError("give --every or --decimate, not both")
@@ -259,9 +270,10 @@ def simulate(
         with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                       TimeRemainingColumn(), console=err, transient=True) as bar:
             task = bar.add_task("sim", total=n)
-            trace = simulate_plan(tw, prog, plan, every=every, progress=lambda k, total: bar.update(task, completed=k))
+            trace = simulate_plan(tw, prog, plan, every=every, progress=lambda k, total: bar.update(task, completed=k),
+                                  cutting=not no_cutting, stock=box)
     else:
-        trace = simulate_plan(tw, prog, plan, every=every)
+        trace = simulate_plan(tw, prog, plan, every=every, cutting=not no_cutting, stock=box)
     s = trace.summary
     for w in s.warnings:
         err.print(f"[yellow]warning: {w}[/yellow]", soft_wrap=True)
@@ -271,10 +283,15 @@ def simulate(
         trace.write(output, {"source": f"mtwin {__version__} simulate", "program": prog.path,
                              "machine": machine.name, "planner": machine.controller.style,
                              "servo_period_s": f"{dt:g}", "every": str(every)})
+    if plot:
+        from .report.plots import power_svg
+
+        write_output(power_svg(trace, f"{prog.path}: spindle power"), plot, [part])
     if json_out:
         d = s.as_dict()
         d["program"] = prog.path
         d["trace"] = output
+        d["plot"] = plot
         sys.stdout.write(json.dumps(d, indent=2) + "\n")
         return
     _print_simulation(prog.path, s, output)
@@ -295,6 +312,20 @@ def _print_simulation(path: str, s, output) -> None:
     for tool, d in sorted(s.per_tool.items()):
         t.add_row(f"tool T{tool}", f"cutting {d['cutting_time']:,.2f} s over {d['cutting_length']:,.1f} mm, "
                                    f"rapid {d['rapid_time']:,.2f} s")
+    c = s.cutting
+    if c is not None:
+        t.add_row("cutting load", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line})")
+        t.add_row("spindle power", f"peak {c.peak_power:,.0f} W (line {c.peak_power_line}), mean while cutting "
+                                   f"{c.mean_cutting_power:,.0f} W, energy {c.cutting_energy / 1000:,.1f} kJ")
+        t.add_row("spindle torque", f"peak {c.peak_spindle_torque:,.2f} N·m (line {c.peak_spindle_torque_line})")
+        t.add_row("material removal", f"peak {c.peak_mrr:,.0f} mm³/s; tool in the material {c.engaged_time:,.2f} s")
+        b = c.stock
+        t.add_row("stock", f"X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  Z {b[2]:g}…{b[5]:g} mm, "
+                           f"{c.resolution:g} mm cells ({c.stock_source}); {c.material}")
+        from rich.markup import escape
+
+        for d in c.defaults:
+            t.add_row("default used", escape(d))
     t.add_row("servo samples", f"{s.samples:,} at {s.servo_period * 1000:g} ms")
     if output:
         t.add_row("trace", str(output))

@@ -33,21 +33,30 @@ Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY = range(6)
 N_Q = 6
 
 SLICE_BOTTOM, SLICE_SIDE = 0, 1
+# heights are float32: material thinner than this is rounding, not stock
+_EPS = 1e-5
 
 
 def slice_table(radius: float, nose: float, flute_length: float, grid: float):
-    """Edge elements of a tool: (kind, kappa, r, z_lo, z_hi, d_rho) per slice.
+    """Edge elements of a tool: (kind, kappa, r, z_lo, z_hi, d_rho, r_query) per slice.
+
+    ``r_query`` is where the stock is looked up: the radius at the slice's lower end, moved
+    in by half a cell diagonal.  A cell is removed when its centre is under the tool, so a
+    point looked up there lies in a cell whose centre is under the tool wherever it was
+    before — a second pass along the same path then finds no material (an air cut), at the
+    price of a systematic wall offset of Δ/√2 in radial width.
 
     Bottom elements (κ = 0) lie along the flat part of the end face (ρ from 0 to R − nose);
     nose slices follow the corner (bull) or the ball; the last slice is the cylinder from the
     top of the nose to the end of the flutes."""
     rows = []
     flat = radius - nose
+    shrink = grid / math.sqrt(2.0)
     if flat > 1e-12:
         nb = max(4, min(24, int(math.ceil(flat / max(grid, 1e-3)))))
         d = flat / nb
         for k in range(nb):
-            rows.append((SLICE_BOTTOM, 0.0, (k + 0.5) * d, 0.0, 0.0, d))
+            rows.append((SLICE_BOTTOM, 0.0, (k + 0.5) * d, 0.0, 0.0, d, (k + 0.5) * d))
     if nose > 1e-12:
         nn = max(4, min(16, int(math.ceil(nose / max(grid, 1e-3) * 0.5))))
         # equal steps in κ resolve the tip of a ball better than equal steps in z
@@ -58,10 +67,12 @@ def slice_table(radius: float, nose: float, flute_length: float, grid: float):
             z_lo = nose * (1.0 - math.cos(k0))
             z_hi = nose * (1.0 - math.cos(k1))
             r = flat + nose * math.sin(kap)
-            rows.append((SLICE_SIDE, kap, r, z_lo, z_hi, 0.0))
-    rows.append((SLICE_SIDE, 0.5 * math.pi, radius, nose, flute_length, 0.0))
+            rq = max(0.0, flat + nose * math.sin(k0) - shrink)
+            rows.append((SLICE_SIDE, kap, r, z_lo, z_hi, 0.0, rq))
+    rows.append((SLICE_SIDE, 0.5 * math.pi, radius, nose, flute_length, 0.0, radius - shrink))
     a = np.array(rows, dtype=np.float64)
-    return a[:, 0].astype(np.int64), a[:, 1].copy(), a[:, 2].copy(), a[:, 3].copy(), a[:, 4].copy(), a[:, 5].copy()
+    return (a[:, 0].astype(np.int64), a[:, 1].copy(), a[:, 2].copy(), a[:, 3].copy(), a[:, 4].copy(),
+            a[:, 5].copy(), a[:, 6].copy())
 
 
 @njit
@@ -75,7 +86,7 @@ def _height(H, x0, y0, dx, nx, ny, x, y):
 
 @njit
 def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
-                skind, skap, sr, szlo, szhi, sdrho, sums, q):
+                skind, skap, sr, szlo, szhi, sdrho, srq, sums, q):
     """Engagement of the tool with its tip at (cx, cy, cz) moving along unit u; fills the force
     sums (revolution averages: × flutes/2π per radian of φ) and the scalars q."""
     ny, nx = H.shape
@@ -111,15 +122,16 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
             if w <= 1e-12:
                 continue
             r = sr[l]
-            hgt = _height(H, x0, y0, dx, nx, ny, cx + r * dxv, cy + r * dyv)
+            rq = srq[l]
+            hgt = _height(H, x0, y0, dx, nx, ny, cx + rq * dxv, cy + rq * dyv)
             if skind[l] == SLICE_BOTTOM:
-                if hgt <= cz:
+                if hgt <= cz + _EPS:
                     continue
                 db = sdrho[l]
             else:
                 lo = cz + szlo[l]
                 eng = min(hgt, cz + szhi[l]) - lo
-                if eng <= 0.0:
+                if eng <= _EPS:
                     continue
                 db = eng / sk
                 depth = max(depth, min(hgt, cz + szhi[l]) - cz)
@@ -274,7 +286,7 @@ def segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, 
 
 @njit
 def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, length, tool_index,
-                hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, step, nbins,
+                hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, srq, step, nbins,
                 first, count, sums, q):
     """Walk every segment in order: engagement at each step (midpoints of ``step``-long pieces)
     against the stock as left by earlier segments, then the segment's swept volume is removed.
@@ -308,7 +320,7 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
             segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, s, pt, tg)
             engage_step(H, x0, y0, dx, pt[0], pt[1], pt[2], tg[0], tg[1], tg[2], hand[i], nbins, flutes,
                         skind[s0:s1], skap[s0:s1], sr[s0:s1], szlo[s0:s1], szhi[s0:s1], sdrho[s0:s1],
-                        sums[n], q[n])
+                        srq[s0:s1], sums[n], q[n])
             n += 1
         count[i] = m
         # remove the swept volume: lines at once, arcs as chords short enough that the chord

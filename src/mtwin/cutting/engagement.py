@@ -189,13 +189,13 @@ def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
     n_steps = int(np.sum(np.where(cuts == 1, np.maximum(1, np.ceil(seg["length"] / step)), 0)))
     table = np.array([[t.radius, t.nose_radius, t.flutes] for t in tools], np.float64)
     starts = [0]
-    cols = [[], [], [], [], [], []]
+    cols = [[], [], [], [], [], [], []]
     for t in tools:
         parts = EK.slice_table(t.radius, t.nose_radius, t.flute_length, stock.resolution)
         for c, p in zip(cols, parts):
             c.append(p)
         starts.append(starts[-1] + len(parts[0]))
-    skind, skap, sr, szlo, szhi, sdrho = (np.concatenate(c) for c in cols)
+    skind, skap, sr, szlo, szhi, sdrho, srq = (np.concatenate(c) for c in cols)
     hand = np.where(program.records["spindle_dir"][seg["rec"]] < 0, -1.0, 1.0) if len(seg) else np.zeros(0)
     first = np.zeros(len(seg), np.int64)
     count = np.zeros(len(seg), np.int64)
@@ -208,7 +208,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
                               np.ascontiguousarray(seg["e1"]), np.ascontiguousarray(seg["e2"]),
                               np.ascontiguousarray(seg["h"]), seg["r0"].copy(), seg["r1"].copy(),
                               seg["theta"].copy(), seg["length"].copy(), tool_index, hand, table,
-                              np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho,
+                              np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho, srq,
                               step, N_BINS, first, count, sums, q)
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0)

@@ -1,0 +1,1 @@
+"""Human-facing output: plots (matplotlib, SVG) and, later, the HTML report."""

@@ -1,0 +1,49 @@
+"""Plots of a simulated trace, as SVG (matplotlib, no display needed)."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+
+def power_svg(trace, title: str = "") -> bytes:
+    """Spindle power against time, with the program line being executed on a secondary axis
+    at the top (ticks where the peak-power line and other landmarks are)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if trace.cut is None:
+        from ..errors import MtwinError
+
+        raise MtwinError("--plot needs the cutting model (do not combine it with --no-cutting)")
+    t = np.asarray(trace.t)
+    power = np.asarray(trace.cut[:, 2], dtype=float)
+    fig, ax = plt.subplots(figsize=(10, 4), dpi=100)
+    ax.plot(t, power, lw=0.8, color="#1f5fa8", label="spindle power")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("spindle power [W]")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlim(t[0] if len(t) else 0.0, t[-1] if len(t) else 1.0)
+    s = trace.summary
+    if s.cutting is not None and s.cutting.peak_power > 0:
+        k = int(np.argmax(power))
+        ax.annotate(f"peak {s.cutting.peak_power:,.0f} W (line {s.cutting.peak_power_line})",
+                    xy=(t[k], power[k]), xytext=(10, -12), textcoords="offset points", fontsize=8)
+    # secondary axis: program line numbers at evenly spaced times
+    top = ax.twiny()
+    top.set_xlim(ax.get_xlim())
+    if len(t):
+        ticks = np.linspace(t[0], t[-1], 9)
+        idx = np.clip(np.searchsorted(t, ticks), 0, len(t) - 1)
+        top.set_xticks(ticks)
+        top.set_xticklabels([str(int(trace.line[i])) for i in idx], fontsize=8)
+    top.set_xlabel("program line")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="svg")
+    plt.close(fig)
+    return buf.getvalue()

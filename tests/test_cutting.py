@@ -1,0 +1,180 @@
+"""Cutting-load twin against closed forms (PHYSICS.md §1): slot forces and torque, up/down
+milling, air cuts, ball-end plunge, power = torque × ω; engagement reuse; clear errors."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from mtwin.cutting import engagement as E
+from mtwin.cutting.library import MATERIALS, cutting_from_dict
+from mtwin.errors import MtwinError
+from mtwin.twin import Twin
+from mtwin.twin.machine import Machine
+
+AL7075 = MATERIALS["al7075"]  # all six coefficients non-zero
+
+
+def twin_with(material="al7075", tools=None) -> Twin:
+    m = Machine()
+    m = replace(m, timing=replace(m.timing, tool_change=0.0))
+    raw = {"cutting": {"material": material}}
+    if tools:
+        raw["tools"] = tools
+    return Twin(m, cutting=cutting_from_dict(raw))
+
+
+def run(tw, text, **kw):
+    prog = tw.load(text.encode(), path="cut.nc")
+    return prog, tw.simulate(prog, **kw)
+
+
+def steady(trace, x_lo, x_hi):
+    """Samples while the tool is between x_lo and x_hi at constant speed."""
+    x = trace.cmd[:, 0]
+    return (x > x_lo) & (x < x_hi)
+
+
+N, R, A_P = 2, 3.0, 2.0
+F_MM_MIN, S_RPM = 600.0, 8000.0
+FZ = F_MM_MIN / 60.0 / (N * S_RPM / 60.0)  # feed per tooth, mm
+
+
+def slot_forces(k, fz, a, phi_st, phi_ex):
+    """Revolution-averaged Fx, Fy, Fz (N) and torque (N·m) of a flat end mill, local frame."""
+    def avg(g):
+        return N * a / (2 * math.pi) * quad(g, phi_st, phi_ex)[0]
+
+    ft = lambda p: k.ktc * fz * math.sin(p) + k.kte  # noqa: E731
+    fr = lambda p: k.krc * fz * math.sin(p) + k.kre  # noqa: E731
+    fa = lambda p: k.kac * fz * math.sin(p) + k.kae  # noqa: E731
+    fx = avg(lambda p: -ft(p) * math.cos(p) - fr(p) * math.sin(p))
+    fy = avg(lambda p: ft(p) * math.sin(p) - fr(p) * math.cos(p))
+    fz_ = avg(fa)
+    torque = avg(ft) * R * 1e-3
+    return fx, fy, fz_, torque
+
+
+def test_full_slot_matches_the_closed_form():
+    tw = twin_with()
+    _, tr = run(tw, f"G21 G90 G94 S{S_RPM:g} M3\nG0 X-10 Y0 Z5\nG0 Z-{A_P}\nG1 X40 F{F_MM_MIN:g}\nG0 Z5\nM30\n"
+                    "(MTWIN STOCK 0,-10,-10,50,10,0)\n")
+    m = steady(tr, 15, 35)
+    fx, fy, fz, torque = slot_forces(AL7075, FZ, A_P, 0.0, math.pi)
+    # PHYSICS.md's own closed form for the full slot, as a second check of the reference
+    assert fx == pytest.approx(-N * A_P * AL7075.krc * FZ / 4 - N * A_P * AL7075.kre / math.pi)
+    assert fy == pytest.approx(N * A_P * AL7075.ktc * FZ / 4 + N * A_P * AL7075.kte / math.pi)
+    assert fz == pytest.approx(N * A_P * AL7075.kac * FZ / math.pi + N * A_P * AL7075.kae / 2)
+    assert tr.force[m, 0].mean() == pytest.approx(fx, rel=0.02)
+    assert tr.force[m, 1].mean() == pytest.approx(fy, rel=0.02)
+    assert tr.force[m, 2].mean() == pytest.approx(fz, rel=0.02)
+    assert tr.cut[m, 1].mean() == pytest.approx(torque, rel=0.02)
+    assert tr.cut[m, 3].mean() == pytest.approx(2 * R, rel=0.02)  # ae
+    assert tr.cut[m, 4].mean() == pytest.approx(A_P, rel=1e-6)  # ap
+    assert tr.cut[m, 5].mean() == pytest.approx(F_MM_MIN / 60 * 2 * R * A_P, rel=0.02)  # mrr
+
+
+@pytest.mark.parametrize("side,phi", [("up", (0.0, math.pi / 2)), ("down", (math.pi / 2, math.pi))])
+def test_half_immersion_up_and_down_milling(side, phi):
+    # feed +X with M3: material on the left (+Y) is up-milling (the chip starts at zero
+    # thickness, φ from 0 to π/2), on the right (−Y) down-milling (φ from π/2 to π)
+    box = "0,0,-10,50,10,0" if side == "up" else "0,-10,-10,50,0,0"
+    tw = twin_with()
+    _, tr = run(tw, f"G21 G90 G94 S{S_RPM:g} M3\nG0 X-10 Y0 Z5\nG0 Z-{A_P}\nG1 X40 F{F_MM_MIN:g}\nG0 Z5\nM30\n"
+                    f"(MTWIN STOCK {box})\n")
+    m = steady(tr, 15, 35)
+    fx, fy, _, torque = slot_forces(AL7075, FZ, A_P, *phi)
+    assert tr.force[m, 0].mean() == pytest.approx(fx, rel=0.02)
+    assert tr.force[m, 1].mean() == pytest.approx(fy, rel=0.02)
+    assert tr.cut[m, 1].mean() == pytest.approx(torque, rel=0.02)
+    # the sign that tells them apart: down-milling pulls the tool along the feed
+    assert (tr.force[m, 0].mean() > 0) == (side == "down")
+
+
+def test_second_identical_pass_is_an_air_cut():
+    tw = twin_with()
+    pas = f"G0 X-10 Y0 Z5\nG0 Z-{A_P}\nG1 X40 F{F_MM_MIN:g}\nG0 Z5\n"
+    prog, tr = run(tw, f"G21 G90 G94 S{S_RPM:g} M3\n{pas}{pas}M30\n(MTWIN STOCK 0,-10,-10,50,10,0)\n")
+    first = tr.line == 4
+    second = tr.line == 8
+    assert np.abs(tr.force[first]).max() > 10.0
+    assert np.abs(tr.force[second]).max() == 0.0
+    assert tr.cut[second, 1].max() == 0.0
+
+
+def test_ball_end_plunge_axial_force():
+    depth = 1.5
+    tools = {"1": {"type": "ball", "diameter": 6.0, "flutes": 2}}
+    tw = twin_with(tools=tools)
+    prog, tr = run(tw, f"G21 G90 G94 T1 M6\nS{S_RPM:g} M3\nG0 X10 Y10 Z2\nG1 Z-3 F{F_MM_MIN:g}\nG0 Z5\nM30\n"
+                       "(MTWIN STOCK 0,0,-10,20,20,0)\n")
+    k = AL7075
+    # sample where the tip is `depth` below the surface, moving at constant speed
+    z = tr.cmd[:, 2]
+    i = int(np.argmin(np.abs(z + depth)))
+    v = np.linalg.norm(tr.vel[i])
+    fz_t = v / (N * S_RPM / 60.0)
+    kap_a = math.acos(1 - depth / R)
+    # h = f·cosκ, db = dS = R·dκ; on the tool Fz = cosκ·Fr + sinκ·Fa, over N flutes
+    integrand = lambda kap: (math.cos(kap) * (k.krc * fz_t * math.cos(kap) + k.kre)  # noqa: E731
+                             + math.sin(kap) * (k.kac * fz_t * math.cos(kap) + k.kae))
+    expected = N * R * quad(integrand, 0.0, kap_a)[0]
+    assert tr.force[i, 2] == pytest.approx(expected, rel=0.02)
+    assert abs(tr.force[i, 0]) < 1e-6 * expected and abs(tr.force[i, 1]) < 1e-6 * expected
+
+
+def test_power_equals_torque_times_omega():
+    tw = twin_with()
+    _, tr = run(tw, f"G21 G90 G94 S{S_RPM:g} M3\nG0 X-10 Y0 Z5\nG0 Z-{A_P}\nG1 X40 F{F_MM_MIN:g}\nG0 Z5\nM30\n"
+                    "(MTWIN STOCK 0,-10,-10,50,10,0)\n")
+    speed, torque, power = tr.cut[:, 0].astype(float), tr.cut[:, 1].astype(float), tr.cut[:, 2].astype(float)
+    assert np.allclose(power, torque * 2 * math.pi * np.abs(speed) / 60.0, rtol=1e-5, atol=1e-6)
+    assert power.max() > 50.0
+
+
+def test_engagement_is_computed_once_per_path():
+    tw = twin_with()
+    base = "G21 G90 G94 S{s} M3\nG0 X-10 Y0 Z5\nG0 Z-2\nG1 X40 F{f}\nG0 Z5\nM30\n(MTWIN STOCK 0,-10,-10,50,10,0)\n"
+    _, a = run(tw, base.format(s=8000, f=600))
+    n0 = E.COMPUTATIONS
+    _, b = run(tw, base.format(s=6000, f=900))  # new F and S only
+    assert E.COMPUTATIONS == n0
+    assert b.summary.cutting.peak_load != a.summary.cutting.peak_load  # the forces did change
+    _, c = run(tw, base.format(s=6000, f=900).replace("Z-2", "Z-3"))  # new geometry
+    assert E.COMPUTATIONS == n0 + 1
+
+
+def test_stock_not_containing_the_toolpath_names_the_line():
+    tw = twin_with()
+    with pytest.raises(MtwinError, match=r"cut\.nc:4:.*below the stock bottom"):
+        run(tw, "G21 G90 G94 S8000 M3\nG0 X5 Y5 Z5\nG1 Z-1 F300\nG1 Z-12\nM30\n(MTWIN STOCK 0,0,-10,10,10,0)\n")
+
+
+def test_tool_missing_from_the_table_names_the_line():
+    tw = twin_with(tools={"1": {"type": "flat", "diameter": 10.0, "flutes": 3}})
+    with pytest.raises(MtwinError, match=r"cut\.nc:5:.*T2 is not in the tool table"):
+        run(tw, "G21 G90 G94 T1 M6\nS8000 M3\nG1 X5 F300\nT2 M6\nG1 X10 Y1 Z-1\nM30\n")
+
+
+def test_material_without_coefficients_names_the_key():
+    with pytest.raises(MtwinError, match=r"cutting\.material: no coefficients for 'inconel'"):
+        cutting_from_dict({"cutting": {"material": "inconel"}})
+    with pytest.raises(MtwinError, match=r"materials\.mine: needs at least ktc"):
+        cutting_from_dict({"materials": {"mine": {"krc": 100.0}}, "cutting": {"material": "mine"}})
+    with pytest.raises(MtwinError, match=r"tools\.3\.flutes"):
+        cutting_from_dict({"tools": {"3": {"flutes": 0}}})
+
+
+def test_cutting_force_loads_the_feed_drive():
+    # in a slot the X drive must push against Fx: more torque than the same move in air
+    tw = twin_with()
+    text = f"G21 G90 G94 S{S_RPM:g} M3\nG0 X-10 Y0 Z5\nG0 Z-{A_P}\nG1 X40 F{F_MM_MIN:g}\nG0 Z5\nM30\n"
+    _, cut = run(tw, text + "(MTWIN STOCK 0,-10,-10,50,10,0)\n")
+    _, air = run(tw, text, cutting=False)
+    m_c, m_a = steady(cut, 15, 35), steady(air, 15, 35)
+    fpt = tw.machine.x.force_per_torque
+    extra = cut.torque[m_c, 0].mean() - air.torque[m_a, 0].mean()
+    assert extra == pytest.approx(-cut.force[m_c, 0].mean() / fpt, rel=0.01)
