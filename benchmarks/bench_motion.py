@@ -1,9 +1,12 @@
-"""Motion-twin throughput: an hour of machining made of >= 100,000 short moves.
+"""Twin throughput: an hour of machining made of >= 100,000 short moves.
 
-Prints, per planner style: interpretation, planning and servo-loop times, machining
-seconds simulated per wall-clock second, and the process's peak memory.  Kernel
-compilation (or loading from the numba cache) is timed separately on a tiny program
-first.  Target (issue 3): >= 1,000x real time, < 1 GB peak memory.
+Prints, per planner style: interpretation, planning and servo-loop times (motion only),
+machining seconds simulated per wall-clock second, and the process's peak memory; then,
+for the default machine, the cutting-load stages side by side: engagement on the stock
+(once per path), the full twin (motion + stock + forces), and a re-simulation with new F
+and S values (engagement reused).  Kernel compilation (or loading from the numba cache)
+is timed separately on a tiny program first.  Targets: motion >= 1,000x real time with
+< 1 GB (issue 3); full twin < 30 s and F/S re-simulation < 3 s for an hour (issue 4).
 
     python3 benchmarks/bench_motion.py [--moves 100000] [--every 1]
 """
@@ -71,7 +74,7 @@ def main() -> None:
         t1 = time.perf_counter()
         plan = twin.plan(prog)
         t2 = time.perf_counter()
-        trace = twin.simulate(prog, every=args.every)
+        trace = twin.simulate(prog, every=args.every, cutting=False)
         t3 = time.perf_counter()
         machining = trace.summary.cycle_time
         sim = t3 - t2
@@ -79,6 +82,38 @@ def main() -> None:
               f" | plan {t2 - t1:5.2f} s | plan+servo loop {t3 - t1:5.2f} s -> {machining / (t3 - t1):7.0f}x real time"
               f" | servo loop alone {machining / sim:7.0f}x | {trace.summary.samples:,} samples | peak RSS {peak_mb():6.0f} MB")
         del trace, plan, prog
+
+    # ---- cutting load: engagement once, full twin, re-simulation with new F and S
+    from mtwin.cutting import engagement as E
+
+    twin = Twin()
+    prog = twin.load(data, path="bench.nc")
+    t0 = time.perf_counter()
+    plan = twin.plan(prog)
+    t1 = time.perf_counter()
+    eng = E.engagement_for(plan, prog, twin.cutting)
+    t2 = time.perf_counter()
+    trace = twin.simulate(prog, every=args.every)
+    t3 = time.perf_counter()
+    machining = trace.summary.cycle_time
+    c = trace.summary.cutting
+    print(f"engagement      {eng.steps:,} steps of {eng.step:g} mm on a {eng.stock.heights.shape[1]}x"
+          f"{eng.stock.heights.shape[0]} Z-map ({eng.stock.resolution:g} mm): {t2 - t1:.2f} s = "
+          f"{eng.steps / (t2 - t1):,.0f} steps/s, {eng.cells_changed:,} cell updates")
+    print(f"full twin       plan + servo loop with forces {t3 - t2:.2f} s (engagement cached) -> "
+          f"{trace.summary.samples / (t3 - t2):,.0f} samples/s; from program to trace "
+          f"{t1 - t0 + t2 - t1 + t3 - t2:.2f} s for {machining / 3600:.2f} h ({machining / (t3 - t0):,.0f}x real time); "
+          f"peak load {c.peak_load:.0f} N, peak power {c.peak_power:.0f} W | peak RSS {peak_mb():.0f} MB")
+    del trace
+    faster = data.replace(b"F1500", b"F1800").replace(b"S8000", b"S7000")
+    n0 = E.COMPUTATIONS
+    t4 = time.perf_counter()
+    prog2 = twin.load(faster, path="bench2.nc")
+    trace2 = twin.simulate(prog2, every=args.every)
+    t5 = time.perf_counter()
+    print(f"new F and S     interpret + plan + servo loop with forces {t5 - t4:.2f} s "
+          f"(engagement recomputed: {E.COMPUTATIONS - n0}); cycle {trace2.summary.cycle_time:.1f} s | "
+          f"peak RSS {peak_mb():.0f} MB")
 
 
 if __name__ == "__main__":

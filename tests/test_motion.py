@@ -22,7 +22,7 @@ def make_twin(style="fanuc", **controller) -> Twin:
 
 def run(twin: Twin, text: str, every: int = 1):
     prog = twin.load(text.encode(), path="test.nc")
-    return prog, twin.plan(prog), twin.simulate(prog, every=every)
+    return prog, twin.plan(prog), twin.simulate(prog, every=every, cutting=False)
 
 
 def cmd_velocity(trace) -> np.ndarray:
@@ -205,8 +205,8 @@ def test_empty_program_simulates():
 def test_chunked_run_equals_single_run():
     tw = make_twin()
     prog = tw.load(b"G21 G90 G94 G1 X30 Y20 F3000\nG2 X50 Y0 I10 J-10\nG0 Z5\nM30\n", path="t.nc")
-    a = tw.simulate(prog)
-    b = tw.simulate(prog, every=3, progress=lambda k, n: None)
+    a = tw.simulate(prog, cutting=False)
+    b = tw.simulate(prog, every=3, progress=lambda k, n: None, cutting=False)
     n = len(a.cmd[::3])
     assert np.array_equal(a.cmd[::3], b.cmd[:n])
     assert np.array_equal(a.err[::3], b.err[:n])
@@ -235,7 +235,7 @@ def test_no_drift_over_a_million_samples():
     tw = make_twin(before_shape="linear", after_filter="none", min_block_time=0.0, in_position=0.0)
     tw = Twin(replace(tw.machine, x=replace(m.x, min_travel=-1.0, max_travel=60000.0)))
     prog = tw.load(("\n".join(lines) + "\n").encode(), path="long.nc")
-    trace = tw.simulate(prog, every=1000)
+    trace = tw.simulate(prog, every=1000, cutting=False)
     assert trace.summary.samples > 1_000_000
     assert trace.cmd[-1, 0] == 50000.0
     tacc = 50.0 / 3000.0
@@ -253,8 +253,8 @@ def test_cutting_force_input_is_balanced_by_the_drive():
     n = int(np.ceil(plan.total_time / 0.001 - 1e-9)) + 1
     fd = np.zeros((n, 3))
     fd[:, 0] = 400.0
-    a = tw.simulate(prog)
-    b = tw.simulate(prog, disturbance=fd)
+    a = tw.simulate(prog, cutting=False)
+    b = tw.simulate(prog, disturbance=fd, cutting=False)
     ma = (a.t > 3.0) & (a.t < 5.0)
     mb = (b.t > 3.0) & (b.t < 5.0)
     fpt = tw.machine.x.force_per_torque

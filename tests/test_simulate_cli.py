@@ -13,7 +13,8 @@ from test_cli import mtwin
 SAMPLE_PROGRAMS = sorted(p.name for p in SAMPLES.glob("*.nc"))
 MEASUREMENT_COLUMNS = ["t", "line", "x", "y", "z", "x_cmd", "y_cmd", "z_cmd", "x_err", "y_err", "z_err",
                        "x_vel", "y_vel", "z_vel", "feed", "x_torque", "y_torque", "z_torque",
-                       "x_current", "y_current", "z_current"]
+                       "x_current", "y_current", "z_current", "spindle_speed", "spindle_torque", "spindle_power",
+                       "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"]
 
 
 @pytest.mark.parametrize("name", SAMPLE_PROGRAMS)

@@ -53,7 +53,7 @@ def slice_table(radius: float, nose: float, flute_length: float, grid: float):
     flat = radius - nose
     shrink = grid / math.sqrt(2.0)
     if flat > 1e-12:
-        nb = max(4, min(24, int(math.ceil(flat / max(grid, 1e-3)))))
+        nb = max(3, min(8, int(math.ceil(flat / max(4.0 * grid, 1e-3)))))
         d = flat / nb
         for k in range(nb):
             rows.append((SLICE_BOTTOM, 0.0, (k + 0.5) * d, 0.0, 0.0, d, (k + 0.5) * d))
@@ -86,9 +86,12 @@ def _height(H, x0, y0, dx, nx, ny, x, y):
 
 @njit
 def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
-                skind, skap, sr, szlo, szhi, sdrho, srq, sums, q):
+                skind, skap, sr, szlo, szhi, sdrho, srq, trig, sums, q):
     """Engagement of the tool with its tip at (cx, cy, cz) moving along unit u; fills the force
-    sums (revolution averages: × flutes/2π per radian of φ) and the scalars q."""
+    sums (revolution averages: × flutes/2π per radian of φ) and the scalars q.
+
+    Slices are the outer loop so that each slice's sin/cos of κ is computed once; the bottom
+    (κ = 0) elements, which only cut when the tool descends, use every 4th angular bin."""
     ny, nx = H.shape
     uh = math.sqrt(ux * ux + uy * uy)
     if uh > 1e-9:
@@ -98,7 +101,6 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
     # ŷ: left of the feed for a clockwise (M3) spindle, right for M4
     yx, yy = -xy * hand, xx * hand
     dphi = 2.0 * math.pi / nbins
-    scale = flutes / (2.0 * math.pi) * dphi
     for k in range(N_SUMS):
         sums[k] = 0.0
     area = 0.0
@@ -107,34 +109,41 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
     cmin = 2.0
     cmax = -2.0
     nsl = len(skind)
-    for b in range(nbins):
-        phi = (b + 0.5) * dphi
-        sp = math.sin(phi)
-        cp = math.cos(phi)
-        dxv = sp * xx + cp * yx
-        dyv = sp * xy + cp * yy
-        depth = 0.0
-        for l in range(nsl):
-            kap = skap[l]
-            sk = math.sin(kap)
-            ck = math.cos(kap)
+    for l in range(nsl):
+        kap = skap[l]
+        sk = math.sin(kap)
+        ck = math.cos(kap)
+        bottom = skind[l] == SLICE_BOTTOM
+        if bottom and uz >= -1e-12:
+            continue  # the end face cuts only while the tool descends
+        if not bottom and uh * sk <= 1e-12 and -uz * ck <= 1e-12:
+            continue
+        stride = 4 if bottom else 1
+        scale = flutes / (2.0 * math.pi) * dphi * stride
+        r = sr[l]
+        rq = srq[l]
+        zlo = szlo[l]
+        zhi = szhi[l]
+        row = 2 if bottom else 0  # trig rows: sin, cos at bin centres; then at 4-bin centres
+        for b in range(0, nbins, stride):
+            sp = trig[row, b]
             w = uh * sk * sp - uz * ck
             if w <= 1e-12:
                 continue
-            r = sr[l]
-            rq = srq[l]
-            hgt = _height(H, x0, y0, dx, nx, ny, cx + rq * dxv, cy + rq * dyv)
-            if skind[l] == SLICE_BOTTOM:
+            cp = trig[row + 1, b]
+            hgt = _height(H, x0, y0, dx, nx, ny, cx + rq * (sp * xx + cp * yx), cy + rq * (sp * xy + cp * yy))
+            if bottom:
                 if hgt <= cz + _EPS:
                     continue
                 db = sdrho[l]
             else:
-                lo = cz + szlo[l]
-                eng = min(hgt, cz + szhi[l]) - lo
+                top = min(hgt, cz + zhi)
+                eng = top - (cz + zlo)
                 if eng <= _EPS:
                     continue
                 db = eng / sk
-                depth = max(depth, min(hgt, cz + szhi[l]) - cz)
+                if top - cz > ap:
+                    ap = top - cz
             wc = w * db * scale
             we = db * scale
             sums[SX_TC] += -cp * wc
@@ -156,21 +165,27 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
             sums[SZ_AE] += sk * we
             sums[ST_TE] += r * we
             # projected area of the engaged edge on the plane normal to the motion (MRR = v·A)
-            area += w * r * dphi * db
+            area += w * r * dphi * stride * db
             if w > wmax:
                 wmax = w
-            if cp < cmin:
-                cmin = cp
-            if cp > cmax:
-                cmax = cp
-        if depth > ap:
-            ap = depth
+            if not bottom:
+                if cp < cmin:
+                    cmin = cp
+                if cp > cmax:
+                    cmax = cp
     q[Q_AREA] = area
     q[Q_AE] = (cmax - cmin) * sr[nsl - 1] if cmax >= cmin else 0.0
     q[Q_AP] = ap
     q[Q_WMAX] = wmax
     q[Q_DX] = xx
     q[Q_DY] = xy
+
+
+def trig_table(nbins: int) -> np.ndarray:
+    """sin and cos of φ at the bin centres, and at the centres of groups of 4 bins."""
+    d = 2.0 * math.pi / nbins
+    b = np.arange(nbins)
+    return np.array([np.sin((b + 0.5) * d), np.cos((b + 0.5) * d), np.sin((b + 2.0) * d), np.cos((b + 2.0) * d)])
 
 
 @njit
@@ -286,7 +301,7 @@ def segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, 
 
 @njit
 def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, length, tool_index,
-                hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, srq, step, nbins,
+                hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, srq, trig, step, nbins,
                 first, count, sums, q):
     """Walk every segment in order: engagement at each step (midpoints of ``step``-long pieces)
     against the stock as left by earlier segments, then the segment's swept volume is removed.
@@ -302,6 +317,8 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
     tg = np.empty(3)
     pa = np.empty(3)
     pb = np.empty(3)
+    tmp_s = np.empty(N_SUMS)  # accumulate in float64, store in the (float32) output rows
+    tmp_q = np.empty(N_Q)
     for i in range(nseg):
         first[i] = n
         count[i] = 0
@@ -320,7 +337,11 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
             segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, s, pt, tg)
             engage_step(H, x0, y0, dx, pt[0], pt[1], pt[2], tg[0], tg[1], tg[2], hand[i], nbins, flutes,
                         skind[s0:s1], skap[s0:s1], sr[s0:s1], szlo[s0:s1], szhi[s0:s1], sdrho[s0:s1],
-                        srq[s0:s1], sums[n], q[n])
+                        srq[s0:s1], trig, tmp_s, tmp_q)
+            for kk in range(N_SUMS):
+                sums[n, kk] = tmp_s[kk]
+            for kk in range(N_Q):
+                q[n, kk] = tmp_q[kk]
             n += 1
         count[i] = m
         # remove the swept volume: lines at once, arcs as chords short enough that the chord

@@ -44,8 +44,8 @@ class Stock:
 class Engagement:
     first: np.ndarray  # (nseg,) first step of each segment
     count: np.ndarray  # (nseg,) steps of each segment (0: not cutting)
-    sums: np.ndarray  # (steps, 18) force sums, see _engagekernel
-    q: np.ndarray  # (steps, 6) area, ae, ap, w_max, feed direction x, y
+    sums: np.ndarray  # (steps, 18) float32 force sums, see _engagekernel
+    q: np.ndarray  # (steps, 6) float32 area, ae, ap, w_max, feed direction x, y
     tools: np.ndarray  # (ntools, 3) radius, nose radius, flutes
     tool_index: np.ndarray  # (nseg,) row of ``tools`` for each segment
     tool_numbers: tuple[int, ...]
@@ -126,9 +126,12 @@ def stock_box(plan, program, cutting: Cutting, tools, box=None) -> tuple[tuple[f
         else:
             box, source = default_stock(plan, tools), "default (feed moves' extent + tool radius, top at Z0)"
     res = cutting.resolution
+    area = (box[3] - box[0]) * (box[4] - box[1])
     if res <= 0:
         dmin = min(t.diameter for t in tools)
         res = min(0.1, max(0.02, dmin / 120.0))
+        # a large stock gets coarser cells rather than more memory than MAX_CELLS allows
+        res = max(res, math.sqrt(area / MAX_CELLS) * 1.001)
     nx = int(math.ceil((box[3] - box[0]) / res))
     ny = int(math.ceil((box[4] - box[1]) / res))
     if nx * ny > MAX_CELLS:
@@ -199,8 +202,9 @@ def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
     hand = np.where(program.records["spindle_dir"][seg["rec"]] < 0, -1.0, 1.0) if len(seg) else np.zeros(0)
     first = np.zeros(len(seg), np.int64)
     count = np.zeros(len(seg), np.int64)
-    sums = np.zeros((max(n_steps, 1), EK.N_SUMS))
-    q = np.zeros((max(n_steps, 1), EK.N_Q))
+    # float32 halves the memory of an hour's million steps; 7 digits are plenty for force sums
+    sums = np.zeros((max(n_steps, 1), EK.N_SUMS), np.float32)
+    q = np.zeros((max(n_steps, 1), EK.N_Q), np.float32)
     H = stock.heights
     n, cells = EK.engage_path(H, stock.box[0], stock.box[1], stock.resolution,
                               seg["kind"].astype(np.int64), cuts, np.ascontiguousarray(seg["p0"]),
@@ -209,7 +213,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
                               np.ascontiguousarray(seg["h"]), seg["r0"].copy(), seg["r1"].copy(),
                               seg["theta"].copy(), seg["length"].copy(), tool_index, hand, table,
                               np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho, srq,
-                              step, N_BINS, first, count, sums, q)
+                              EK.trig_table(N_BINS), step, N_BINS, first, count, sums, q)
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0)
     if len(_CACHE) >= _CACHE_MAX:

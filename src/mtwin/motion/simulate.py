@@ -70,7 +70,8 @@ def _cutting_args(twin, program, plan, stock, enabled: bool):
     cut = twin.cutting
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
-        return None, (z, z, np.zeros((0, 18)), np.zeros((0, 6)), z, np.zeros((1, 3)), np.zeros(6), hand,
+        return None, (z, z, np.zeros((0, 18), np.float32), np.zeros((0, 6), np.float32), z, np.zeros((1, 3)),
+                      np.zeros(6), hand,
                       spin_cmd, m.spindle.acceleration, np.zeros(3))
     from ..cutting.engagement import engagement_for
 
