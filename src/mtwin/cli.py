@@ -317,7 +317,8 @@ def _print_simulation(path: str, s, output) -> None:
         t.add_row("cutting load", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line})")
         t.add_row("spindle power", f"peak {c.peak_power:,.0f} W (line {c.peak_power_line}), mean while cutting "
                                    f"{c.mean_cutting_power:,.0f} W, energy {c.cutting_energy / 1000:,.1f} kJ")
-        t.add_row("spindle torque", f"peak {c.peak_spindle_torque:,.2f} N·m (line {c.peak_spindle_torque_line})")
+        t.add_row("spindle torque", f"peak {c.peak_spindle_torque:,.2f} N·m (line {c.peak_spindle_torque_line}); "
+                                    f"up to {c.peak_spindle_load:.1%} of the spindle curve")
         t.add_row("material removal", f"peak {c.peak_mrr:,.0f} mm³/s; tool in the material {c.engaged_time:,.2f} s")
         b = c.stock
         t.add_row("stock", f"X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  Z {b[2]:g}…{b[5]:g} mm, "

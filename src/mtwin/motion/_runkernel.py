@@ -118,7 +118,7 @@ def allocate_outputs(n_out: int):
 C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
 # cstats entries
 CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
-    CS_SPINDLE_STOPPED, CS_MRR = range(10)
+    CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD = range(12)
 
 
 @njit
@@ -126,7 +126,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
              dt, k0, k1, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd,
              ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
              t_out, line_out, cmd, act, err, vel, trq, pathv,
-             eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, hand, spin_cmd, spin_acc, loss,
+             eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, hand, spin_cmd, spin_acc, loss, spin_curve,
              spin, cstats, force_out, cut_out):
     """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
     position), continuing from the state arrays (updated in place).  Sample k is stored at
@@ -319,6 +319,14 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             cstats[7] = line[i]
         if mrr > cstats[9]:
             cstats[9] = mrr
+        if torque_sp > 0.0:
+            # spindle curve: constant torque up to the base speed, constant power above it
+            t_lim = spin_curve[0] / (2.0 * math.pi * max(n_abs, spin_curve[1]) / 60.0)
+            ratio = torque_sp / t_lim
+            if ratio > cstats[11]:
+                cstats[11] = ratio
+                if ratio > 1.0 and cstats[10] == 0.0:
+                    cstats[10] = line[i]
         if store:
             for k in range(3):
                 force_out[o, k] = ftool[k]

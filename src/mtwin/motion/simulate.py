@@ -68,18 +68,18 @@ def _cutting_args(twin, program, plan, stock, enabled: bool):
         spin_cmd[:] = r["spindle_dir"] * np.minimum(r["spindle"], m.spindle.max_speed)
         hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
     cut = twin.cutting
+    curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
         return None, (z, z, np.zeros((0, 18), np.float32), np.zeros((0, 6), np.float32), z, np.zeros((1, 3)),
-                      np.zeros(6), hand,
-                      spin_cmd, m.spindle.acceleration, np.zeros(3))
+                      np.zeros(6), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve)
     from ..cutting.engagement import engagement_for
 
     eng = engagement_for(plan, program, cut, stock)
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, hand, spin_cmd,
-                 m.spindle.acceleration, np.array(cut.spindle_loss))
+                 m.spindle.acceleration, np.array(cut.spindle_loss), curve)
 
 
 def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
@@ -166,6 +166,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     warnings = list(plan.warnings)
     if cstats[RK.CS_SPINDLE_STOPPED]:
         warnings.append("feed moves cut the stock with the spindle stopped (no M3/M4 or S0): their forces are not modelled")
+    if cstats[RK.CS_OVERLOAD_LINE]:
+        warnings.append(f"the cutting torque exceeds the spindle curve (up to {cstats[RK.CS_SPINDLE_LOAD]:.0%} of "
+                        f"the available torque), first at line {int(cstats[RK.CS_OVERLOAD_LINE])}: the spindle would stall")
     rated = machine.spindle.rated_power
     if cstats[RK.CS_POWER] > rated:
         warnings.append(f"spindle power reaches {cstats[RK.CS_POWER]:,.0f} W at line {int(cstats[RK.CS_POWER_LINE])}, "
@@ -199,7 +202,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             mean_cutting_power=float(cstats[RK.CS_ENERGY] / cut_time) if cut_time > 0 else 0.0,
             peak_spindle_torque=float(cstats[RK.CS_TORQUE]), peak_spindle_torque_line=int(cstats[RK.CS_TORQUE_LINE]),
             cutting_energy=float(cstats[RK.CS_ENERGY]), engaged_time=float(cut_time),
-            peak_mrr=float(cstats[RK.CS_MRR]), material=twin.cutting.material_name,
+            peak_mrr=float(cstats[RK.CS_MRR]), peak_spindle_load=float(cstats[RK.CS_SPINDLE_LOAD]),
+            material=twin.cutting.material_name,
             stock=list(eng.stock.box), stock_source=eng.stock.source, resolution=eng.stock.resolution,
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
             defaults=list(twin.cutting.defaults_used))

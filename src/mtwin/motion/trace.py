@@ -28,6 +28,7 @@ class CuttingSummary:
     cutting_energy: float  # J
     engaged_time: float  # s with the tool in the material
     peak_mrr: float  # mm³/s
+    peak_spindle_load: float  # largest share of the spindle curve's available torque used
     material: str
     stock: list[float]
     stock_source: str

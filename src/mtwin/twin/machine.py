@@ -104,6 +104,8 @@ class Axis:
 class Spindle:
     max_speed: float = P(8000.0, "rpm", "maximum spindle speed [S: reference VMC 8,000 rpm]")
     rated_power: float = P(11000.0, "W", "rated spindle power [S: reference VMC 11 kW]")
+    base_speed: float = P(1500.0, "rpm", "end of the constant-torque range: torque limit = rated power / "
+                          "(2*pi*max(n, base)/60) [E]")
     acceleration: float = P(4000.0, "rpm/s", "run-up / braking rate [E]")
     wait_for_speed: bool = P(True, "bool", "feed moves wait until the spindle is at speed after M3/M4/S", "bool")
 
