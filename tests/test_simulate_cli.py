@@ -147,3 +147,32 @@ def test_trace_parquet_when_pyarrow_is_installed(tmp_path):
     table = pq.read_table(out)
     assert table.column_names == MEASUREMENT_COLUMNS
     assert table.num_rows > 100
+
+
+def test_simulate_cutting_keys_plot_and_defaults(tmp_path):
+    svg = tmp_path / "power.svg"
+    r = mtwin("simulate", str(SAMPLES / "pocket.nc"), "--json", "--plot", str(svg))
+    assert r.returncode == 0, r.stderr.decode()
+    d = json.loads(r.stdout)
+    for key in ("peak_load", "peak_power", "mean_cutting_power", "peak_spindle_torque", "peak_load_line"):
+        assert key in d
+    assert d["peak_load"] > 0 and d["peak_power"] >= d["mean_cutting_power"] > 0
+    assert 1 <= d["peak_load_line"] <= 103
+    text = svg.read_text()
+    assert text.startswith("<?xml") and "spindle power" in text and "program line" in text
+    table = mtwin("simulate", str(SAMPLES / "pocket.nc")).stderr.decode()
+    assert "default used" in table and "al6061" in table and "[tools.*]" in table
+
+
+def test_simulate_stock_option_and_errors(tmp_path):
+    f = tmp_path / "slot.nc"
+    f.write_text("G21 G90 G94 S8000 M3\nG0 X-10 Y0 Z5\nG0 Z-2\nG1 X30 F600\nG0 Z5\nM30\n")
+    ok = mtwin("simulate", str(f), "--json", "--stock", "0,-10,-10,40,10,0")
+    assert ok.returncode == 0 and json.loads(ok.stdout)["peak_load"] > 10
+    air = mtwin("simulate", str(f), "--json", "--stock", "0,20,-10,40,30,0")
+    assert air.returncode == 0 and json.loads(air.stdout)["peak_load"] == 0
+    bad = mtwin("simulate", str(f), "--stock", "0,-10,-1,40,10,0")
+    assert bad.returncode == 2 and "slot.nc:4:" in bad.stderr.decode() and "stock bottom" in bad.stderr.decode()
+    assert mtwin("simulate", str(f), "--stock", "1,2,3").returncode == 2
+    inst = mtwin("simulate", str(f), "--json", "--stock", "0,-10,-10,40,10,0", "--tooth-resolution")
+    assert inst.returncode == 0 and json.loads(inst.stdout)["peak_load"] > json.loads(ok.stdout)["peak_load"]

@@ -220,6 +220,8 @@ def simulate(
                                         help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm (work coordinates)."),
     no_cutting: bool = typer.Option(False, "--no-cutting", help="Motion only: no stock, engagement or cutting forces."),
     plot: Optional[str] = typer.Option(None, "--plot", help="Write the spindle power against time as SVG."),
+    tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
+                                          help="Instantaneous tooth-passing forces instead of revolution averages."),
     planner: Optional[str] = PlannerOpt,
     twin: Optional[str] = TwinOpt,
     dialect: Optional[str] = DialectOpt,
@@ -271,9 +273,9 @@ def simulate(
                       TimeRemainingColumn(), console=err, transient=True) as bar:
             task = bar.add_task("sim", total=n)
             trace = simulate_plan(tw, prog, plan, every=every, progress=lambda k, total: bar.update(task, completed=k),
-                                  cutting=not no_cutting, stock=box)
+                                  cutting=not no_cutting, stock=box, tooth=tooth_resolution)
     else:
-        trace = simulate_plan(tw, prog, plan, every=every, cutting=not no_cutting, stock=box)
+        trace = simulate_plan(tw, prog, plan, every=every, cutting=not no_cutting, stock=box, tooth=tooth_resolution)
     s = trace.summary
     for w in s.warnings:
         err.print(f"[yellow]warning: {w}[/yellow]", soft_wrap=True)

@@ -29,8 +29,8 @@ N_SUMS = 18
 SX_TC, SX_RC, SX_AC, SY_TC, SY_RC, SY_AC, SZ_RC, SZ_AC, ST_TC = range(9)
 SX_TE, SX_RE, SX_AE, SY_TE, SY_RE, SY_AE, SZ_RE, SZ_AE, ST_TE = range(9, 18)
 # per-step scalars
-Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY = range(6)
-N_Q = 6
+Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY, Q_UH, Q_UZ = range(8)
+N_Q = 8
 
 SLICE_BOTTOM, SLICE_SIDE = 0, 1
 # heights are float32: material thinner than this is rounding, not stock
@@ -86,7 +86,7 @@ def _height(H, x0, y0, dx, nx, ny, x, y):
 
 @njit
 def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
-                skind, skap, sr, szlo, szhi, sdrho, srq, trig, sums, q):
+                skind, skap, sr, szlo, szhi, sdrho, srq, trig, sums, q, prof, n):
     """Engagement of the tool with its tip at (cx, cy, cz) moving along unit u; fills the force
     sums (revolution averages: × flutes/2π per radian of φ) and the scalars q.
 
@@ -109,6 +109,11 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
     cmin = 2.0
     cmax = -2.0
     nsl = len(skind)
+    keep = prof.shape[0] > 0  # tooth-passing resolution: keep the engaged length per slice and bin
+    if keep:
+        for l in range(prof.shape[1]):
+            for b in range(nbins):
+                prof[n, l, b] = 0.0
     for l in range(nsl):
         kap = skap[l]
         sk = math.sin(kap)
@@ -136,6 +141,9 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
                 if hgt <= cz + _EPS:
                     continue
                 db = sdrho[l]
+                if keep:
+                    for bb in range(b, min(b + stride, nbins)):
+                        prof[n, l, bb] = 1.0
             else:
                 top = min(hgt, cz + zhi)
                 eng = top - (cz + zlo)
@@ -144,6 +152,8 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
                 db = eng / sk
                 if top - cz > ap:
                     ap = top - cz
+                if keep:
+                    prof[n, l, b] = eng
             wc = w * db * scale
             we = db * scale
             sums[SX_TC] += -cp * wc
@@ -179,6 +189,89 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
     q[Q_WMAX] = wmax
     q[Q_DX] = xx
     q[Q_DY] = xy
+    q[Q_UH] = uh
+    q[Q_UZ] = uz
+
+
+@njit
+def tooth_forces(prof_m, q_m, theta, fz, flutes, radius, tan_helix, skind, skap, sr, szlo, szhi, sdrho,
+                 nbins, kc, out):
+    """Instantaneous (tooth-passing) force on the tool in the step's local frame and spindle
+    torque, with the teeth at spindle angle ``theta``: out = (Fx, Fy, Fz, T [N·mm], h_max).
+
+    Tooth j's edge at height z above the tip is at φ = θ + 2πj/N − z·tanβ/R (helix lag); it
+    cuts where the engagement profile of the step says material was met at that φ."""
+    uh = q_m[Q_UH]
+    uz = q_m[Q_UZ]
+    dphi = 2.0 * math.pi / nbins
+    fx = 0.0
+    fy = 0.0
+    fzs = 0.0
+    tq = 0.0
+    hmax = 0.0
+    nsl = len(skind)
+    n_t = int(flutes)
+    for j in range(n_t):
+        th = theta + 2.0 * math.pi * j / n_t
+        for l in range(nsl):
+            kap = skap[l]
+            sk = math.sin(kap)
+            ck = math.cos(kap)
+            r = sr[l]
+            cyl = l == nsl - 1
+            if skind[l] == SLICE_BOTTOM:
+                nsub = 1
+                dz = 0.0
+            elif cyl:
+                depth = q_m[Q_AP] - szlo[l]
+                if depth <= 0.0:
+                    continue
+                nsub = max(1, int(math.ceil(depth / 0.05)))
+                dz = depth / nsub
+            else:
+                nsub = 1
+                dz = szhi[l] - szlo[l]
+            for k in range(nsub):
+                zm = szlo[l] + (k + 0.5) * dz if skind[l] != SLICE_BOTTOM else 0.0
+                phi = th - zm * tan_helix / radius
+                phi = phi - 2.0 * math.pi * math.floor(phi / (2.0 * math.pi))
+                b = int(phi / dphi)
+                if b >= nbins:
+                    b = nbins - 1
+                e = prof_m[l, b]
+                if e <= 0.0:
+                    continue
+                if skind[l] == SLICE_BOTTOM:
+                    db = sdrho[l]
+                elif cyl:
+                    # engaged part of this sub-slice along z
+                    seg_lo = k * dz
+                    length = min(e, seg_lo + dz) - seg_lo
+                    if length <= 0.0:
+                        continue
+                    db = length / sk
+                else:
+                    db = e / sk
+                sp = math.sin(phi)
+                cp = math.cos(phi)
+                w = uh * sk * sp - uz * ck
+                if w <= 0.0:
+                    continue
+                h = fz * w
+                if h > hmax:
+                    hmax = h
+                ft = kc[0] * h * db + kc[3] * db
+                fr = kc[1] * h * db + kc[4] * db
+                fa = kc[2] * h * db + kc[5] * db
+                fx += -cp * ft - sk * sp * fr + ck * sp * fa
+                fy += sp * ft - sk * cp * fr + ck * cp * fa
+                fzs += ck * fr + sk * fa
+                tq += r * ft
+    out[0] = fx
+    out[1] = fy
+    out[2] = fzs
+    out[3] = tq
+    out[4] = hmax
 
 
 def trig_table(nbins: int) -> np.ndarray:
@@ -302,7 +395,7 @@ def segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, 
 @njit
 def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, length, tool_index,
                 hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, srq, trig, step, nbins,
-                first, count, sums, q):
+                first, count, sums, q, prof):
     """Walk every segment in order: engagement at each step (midpoints of ``step``-long pieces)
     against the stock as left by earlier segments, then the segment's swept volume is removed.
 
@@ -337,7 +430,7 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
             segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, s, pt, tg)
             engage_step(H, x0, y0, dx, pt[0], pt[1], pt[2], tg[0], tg[1], tg[2], hand[i], nbins, flutes,
                         skind[s0:s1], skap[s0:s1], sr[s0:s1], szlo[s0:s1], szhi[s0:s1], sdrho[s0:s1],
-                        srq[s0:s1], trig, tmp_s, tmp_q)
+                        srq[s0:s1], trig, tmp_s, tmp_q, prof, n)
             for kk in range(N_SUMS):
                 sums[n, kk] = tmp_s[kk]
             for kk in range(N_Q):

@@ -53,6 +53,9 @@ class Engagement:
     step: float
     cells_changed: int
     seconds: float
+    prof: np.ndarray  # (steps, slices, bins) engaged lengths for tooth-passing resolution, or empty
+    slices: tuple  # (starts, kind, kappa, r, z_lo, z_hi, d_rho) of every tool's edge slices
+    helix: np.ndarray  # (ntools,) tan of the helix angle
 
     @property
     def steps(self) -> int:
@@ -174,14 +177,20 @@ def _key(plan, program, tools, tool_index, box, res, step) -> str:
     return h.hexdigest()
 
 
-def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
-    """Engagement of a planned program, from the cache when the geometry is unchanged."""
+MAX_PROFILE_BYTES = 1.5e9
+
+
+def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = False) -> Engagement:
+    """Engagement of a planned program, from the cache when the geometry is unchanged.
+
+    ``tooth``: also keep the engaged length per slice and angular bin of every step, for
+    instantaneous (tooth-passing) forces."""
     global COMPUTATIONS
     tools, tool_index, numbers = _tool_rows(plan, program, cutting)
     box, res, source = stock_box(plan, program, cutting, tools, box)
     _check_inside(plan, box, source, program.path)
     step = cutting.step if cutting.step > 0 else 2.0 * res
-    key = _key(plan, program, tools, tool_index, box, res, step)
+    key = _key(plan, program, tools, tool_index, box, res, step) + ("-tooth" if tooth else "")
     if key in _CACHE:
         return _CACHE[key]
     COMPUTATIONS += 1
@@ -205,6 +214,16 @@ def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
     # float32 halves the memory of an hour's million steps; 7 digits are plenty for force sums
     sums = np.zeros((max(n_steps, 1), EK.N_SUMS), np.float32)
     q = np.zeros((max(n_steps, 1), EK.N_Q), np.float32)
+    nsl_max = max(starts[k + 1] - starts[k] for k in range(len(tools)))
+    if tooth:
+        need = n_steps * nsl_max * N_BINS * 4
+        if need > MAX_PROFILE_BYTES:
+            raise ConfigError(f"tooth-passing resolution over {n_steps:,} path steps needs {need / 1e9:.1f} GB of "
+                              f"engagement profiles (limit {MAX_PROFILE_BYTES / 1e9:.1f} GB): simulate a shorter "
+                              f"program or section, or use the revolution average")
+        prof = np.zeros((max(n_steps, 1), nsl_max, N_BINS), np.float32)
+    else:
+        prof = np.zeros((0, nsl_max, N_BINS), np.float32)
     H = stock.heights
     n, cells = EK.engage_path(H, stock.box[0], stock.box[1], stock.resolution,
                               seg["kind"].astype(np.int64), cuts, np.ascontiguousarray(seg["p0"]),
@@ -213,9 +232,11 @@ def engagement_for(plan, program, cutting: Cutting, box=None) -> Engagement:
                               np.ascontiguousarray(seg["h"]), seg["r0"].copy(), seg["r1"].copy(),
                               seg["theta"].copy(), seg["length"].copy(), tool_index, hand, table,
                               np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho, srq,
-                              EK.trig_table(N_BINS), step, N_BINS, first, count, sums, q)
+                              EK.trig_table(N_BINS), step, N_BINS, first, count, sums, q, prof)
+    helix = np.array([math.tan(math.radians(t.helix)) for t in tools])
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
-                     time.perf_counter() - t0)
+                     time.perf_counter() - t0, prof[:n] if tooth else prof,
+                     (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix)
     if len(_CACHE) >= _CACHE_MAX:
         _CACHE.pop(next(iter(_CACHE)))
     _CACHE[key] = eng

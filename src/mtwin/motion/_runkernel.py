@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .._jit import njit
+from ..cutting._engagekernel import tooth_forces
 from ._plankernel import ramp_eval
 
 FILTER_NONE, FILTER_LINEAR, FILTER_BELL, FILTER_EXP = 0, 1, 2, 3
@@ -127,6 +128,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
              ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
              t_out, line_out, cmd, act, err, vel, trq, pathv,
              eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, hand, spin_cmd, spin_acc, loss, spin_curve,
+             eprof, sl_starts, skind, skap, sr, szlo, szhi, sdrho, tan_helix,
              spin, cstats, force_out, cut_out):
     """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
     position), continuing from the state arrays (updated in place).  Sample k is stored at
@@ -152,7 +154,9 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     xc = np.empty(3)
     nfd = fd.shape[0]
     has_cut = eng_sums.shape[0] > 0
+    tooth = eprof.shape[0] > 0
     ftool = np.zeros(3)
+    tout = np.zeros(5)
     t_end = t_start[nseg - 1] + dur[nseg - 1]
     i = segp[0]
     kstep = k0
@@ -257,6 +261,10 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             spin[0] -= dn
         else:
             spin[0] = target
+        # spindle angle, for tooth-passing forces
+        spin[1] += 2.0 * math.pi * abs(spin[0]) / 60.0 * dt
+        if spin[1] > 2.0 * math.pi:
+            spin[1] -= 2.0 * math.pi * math.floor(spin[1] / (2.0 * math.pi))
         ftool[0] = 0.0
         ftool[1] = 0.0
         ftool[2] = 0.0
@@ -282,14 +290,29 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     fz_ = 0.0
                 else:
                     fz_ = va / (fl * nrps)  # feed per tooth from the actual speeds, mm
-                fxl = fz_ * (kc[0] * S[0] + kc[1] * S[1] + kc[2] * S[2]) + kc[3] * S[9] + kc[4] * S[10] + kc[5] * S[11]
-                fyl = fz_ * (kc[0] * S[3] + kc[1] * S[4] + kc[2] * S[5]) + kc[3] * S[12] + kc[4] * S[13] + kc[5] * S[14]
-                fzl = fz_ * (kc[1] * S[6] + kc[2] * S[7]) + kc[4] * S[15] + kc[5] * S[16]
+                if tooth:
+                    tt = seg_tool[i]
+                    a0 = sl_starts[tt]
+                    a1 = sl_starts[tt + 1]
+                    tooth_forces(eprof[m_], eng_q[m_], spin[1], fz_, fl, tools[tt, 0], tan_helix[tt],
+                                 skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
+                                 eprof.shape[2], kc, tout)
+                    fxl = tout[0]
+                    fyl = tout[1]
+                    fzl = tout[2]
+                    torque_sp = tout[3] * 1e-3
+                else:
+                    fxl = fz_ * (kc[0] * S[0] + kc[1] * S[1] + kc[2] * S[2]) + kc[3] * S[9] + kc[4] * S[10] \
+                        + kc[5] * S[11]
+                    fyl = fz_ * (kc[0] * S[3] + kc[1] * S[4] + kc[2] * S[5]) + kc[3] * S[12] + kc[4] * S[13] \
+                        + kc[5] * S[14]
+                    fzl = fz_ * (kc[1] * S[6] + kc[2] * S[7]) + kc[4] * S[15] + kc[5] * S[16]
+                    torque_sp = (fz_ * kc[0] * S[8] + kc[3] * S[17]) * 1e-3  # N*m
                 if nrps <= 0.0:
                     fxl = 0.0
                     fyl = 0.0
                     fzl = 0.0
-                torque_sp = (fz_ * kc[0] * S[8] + kc[3] * S[17]) * 1e-3 if nrps > 0.0 else 0.0  # N*m
+                    torque_sp = 0.0
                 dxv = eng_q[m_, 4]
                 dyv = eng_q[m_, 5]
                 yxv = -dyv * hand[i]
@@ -299,7 +322,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 ftool[2] = fzl
                 p_cut = torque_sp * 2.0 * math.pi * nrps
                 mrr = va * eng_q[m_, 0]
-                hmax = fz_ * eng_q[m_, 3]
+                hmax = tout[4] if tooth else fz_ * eng_q[m_, 3]
                 ae = eng_q[m_, 1]
                 ap = eng_q[m_, 2]
         n_abs = abs(spin[0])

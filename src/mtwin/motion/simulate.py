@@ -55,7 +55,7 @@ def _per_tool(program, plan, wait) -> dict[int, dict[str, float]]:
     return out
 
 
-def _cutting_args(twin, program, plan, stock, enabled: bool):
+def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False):
     """Engagement arrays and coefficients for the kernel (empty arrays: no cutting model)."""
     seg = plan.seg
     nseg = max(len(seg), 1)
@@ -71,19 +71,23 @@ def _cutting_args(twin, program, plan, stock, enabled: bool):
     curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
-        return None, (z, z, np.zeros((0, 18), np.float32), np.zeros((0, 6), np.float32), z, np.zeros((1, 3)),
-                      np.zeros(6), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve)
+        z1 = np.zeros(1)
+        return None, (z, z, np.zeros((0, 18), np.float32), np.zeros((0, 8), np.float32), z, np.zeros((1, 3)),
+                      np.zeros(6), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve,
+                      np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64), z1, z1, z1, z1,
+                      z1, z1)
     from ..cutting.engagement import engagement_for
 
-    eng = engagement_for(plan, program, cut, stock)
+    eng = engagement_for(plan, program, cut, stock, tooth=tooth)
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
+    prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
     return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, hand, spin_cmd,
-                 m.spindle.acceleration, np.array(cut.spindle_loss), curve)
+                 m.spindle.acceleration, np.array(cut.spindle_loss), curve, prof, *eng.slices, eng.helix)
 
 
 def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
-                  stock=None) -> Trace:
+                  stock=None, tooth: bool = False) -> Trace:
     machine = twin.machine
     c = machine.controller
     if every < 1:
@@ -131,8 +135,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         z = np.zeros(1)
         args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
                 z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
-    eng, cut_args = _cutting_args(twin, program, plan, stock, cutting)
-    spin = np.zeros(1)
+    eng, cut_args = _cutting_args(twin, program, plan, stock, cutting, tooth)
+    spin = np.zeros(2)  # speed (rpm), angle (rad)
     cstats = np.zeros(12)
     state = RK.State(nfilt, x0, sv, len(seg))
     cap = n_est // every + 3

@@ -52,15 +52,18 @@ class Twin:
         return plan_program(program, self.machine)
 
     def simulate(self, program, *, every: int = 1, disturbance: np.ndarray | None = None, progress=None,
-                 cutting: bool = True, stock=None):
+                 cutting: bool = True, stock=None, tooth_resolution: bool = False):
         """Run a program through the controller, feed drives and cutting process; returns a Trace.
 
         ``every``: keep every n-th servo sample in the trace (statistics use all of them).
         ``cutting``: compute engagement on the stock and the cutting forces, torque and power
         (they act on the feed drives); ``stock``: a box (xmin, ymin, zmin, xmax, ymax, zmax)
         overriding the program's (MTWIN STOCK) comment, the twin file and the default.
+        ``tooth_resolution``: instantaneous tooth-passing forces (spindle angle, helix lag) instead
+        of revolution averages — for comparison with dynamometer data; shorten the servo period
+        in the twin file to resolve the tooth frequency finely.
         ``disturbance``: an extra (samples, 3) force in N against each axis, by servo sample."""
         from ..motion.simulate import simulate_plan
 
         return simulate_plan(self, program, self.plan(program), every=every, disturbance=disturbance,
-                             progress=progress, cutting=cutting, stock=stock)
+                             progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution)
