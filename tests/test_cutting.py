@@ -222,3 +222,25 @@ def test_tooth_resolution_straight_flute_slot_peak():
     assert tr.force[m, 1].max() == pytest.approx(fy.max(), rel=0.03)
     assert tr.force[m, 1].min() == pytest.approx(fy.min(), rel=0.03, abs=0.5)
     assert tr.force[m, 0].min() == pytest.approx(fx.min(), rel=0.03)
+
+
+def test_rapid_through_the_stock_is_reported():
+    tw = twin_with()
+    _, tr = run(tw, "G21 G90 G94 S8000 M3\nG0 X-10 Y0 Z5\nG0 Z-2\nG0 X30\nG1 X40 F600\nM30\n"
+                    "(MTWIN STOCK 0,-10,-10,50,10,0)\n")
+    assert any("cut.nc:4: a rapid move goes through the stock" in w for w in tr.summary.warnings)
+
+
+def test_pocket_sample_clears_its_pocket():
+    # the sample is meant to be a realistic program: no island of material left in the pocket
+    from conftest import SAMPLES
+
+    tw = Twin()
+    tr = tw.simulate(tw.load(str(SAMPLES / "pocket.nc")))
+    st = tr.engagement.stock
+    H = st.heights
+    xs = st.box[0] + (np.arange(H.shape[1]) + 0.5) * st.resolution
+    ys = st.box[1] + (np.arange(H.shape[0]) + 0.5) * st.resolution
+    X, Y = np.meshgrid(xs, ys)
+    core = (X > 13) & (X < 47) & (Y > 13) & (Y < 37)
+    assert H[core].max() == pytest.approx(-6.0, abs=1e-6)

@@ -220,6 +220,8 @@ def simulate(
                                         help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm (work coordinates)."),
     no_cutting: bool = typer.Option(False, "--no-cutting", help="Motion only: no stock, engagement or cutting forces."),
     plot: Optional[str] = typer.Option(None, "--plot", help="Write the spindle power against time as SVG."),
+    stock_out: Optional[str] = typer.Option(None, "--stock-out",
+                                            help="Write the stock after the last cut: .png height map or .stl surface."),
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
                                           help="Instantaneous tooth-passing forces instead of revolution averages."),
     planner: Optional[str] = PlannerOpt,
@@ -285,6 +287,12 @@ def simulate(
         trace.write(output, {"source": f"mtwin {__version__} simulate", "program": prog.path,
                              "machine": machine.name, "planner": machine.controller.style,
                              "servo_period_s": f"{dt:g}", "every": str(every)})
+    if stock_out:
+        if trace.engagement is None:
+            raise MtwinError("--stock-out needs the cutting model (do not combine it with --no-cutting)")
+        from .report.stock import stock_bytes
+
+        write_output(stock_bytes(trace.engagement.stock, stock_out), stock_out, [part])
     if plot:
         from .report.plots import power_svg
 

@@ -395,7 +395,7 @@ def segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, 
 @njit
 def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, length, tool_index,
                 hand, tools, slices_start, skind, skap, sr, szlo, szhi, sdrho, srq, trig, step, nbins,
-                first, count, sums, q, prof):
+                first, count, sums, q, prof, collide):
     """Walk every segment in order: engagement at each step (midpoints of ``step``-long pieces)
     against the stock as left by earlier segments, then the segment's swept volume is removed.
 
@@ -412,9 +412,27 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
     pb = np.empty(3)
     tmp_s = np.empty(N_SUMS)  # accumulate in float64, store in the (float32) output rows
     tmp_q = np.empty(N_Q)
+    ny, nx = H.shape
     for i in range(nseg):
         first[i] = n
         count[i] = 0
+        if kind[i] != 2 and cuts[i] == 0 and length[i] > 0.0 and collide[0] < 0:
+            # a rapid through material is a crash: report the first one
+            t = tool_index[i]
+            rr = tools[t, 0] - dx
+            m = max(1, int(math.ceil(length[i] / step)))
+            for k in range(m + 1):
+                segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i,
+                                      length[i] * k / m, pt, tg)
+                for a in range(9):
+                    ang = 2.0 * math.pi * a / 8.0
+                    rad = 0.0 if a == 8 else rr
+                    hh = _height(H, x0, y0, dx, nx, ny, pt[0] + rad * math.cos(ang), pt[1] + rad * math.sin(ang))
+                    if hh > pt[2] + 0.01:
+                        collide[0] = i
+                        break
+                if collide[0] >= 0:
+                    break
         if kind[i] == 2 or cuts[i] == 0 or length[i] <= 0.0:
             continue
         t = tool_index[i]

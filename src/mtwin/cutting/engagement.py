@@ -56,6 +56,7 @@ class Engagement:
     prof: np.ndarray  # (steps, slices, bins) engaged lengths for tooth-passing resolution, or empty
     slices: tuple  # (starts, kind, kappa, r, z_lo, z_hi, d_rho) of every tool's edge slices
     helix: np.ndarray  # (ntools,) tan of the helix angle
+    warnings: list
 
     @property
     def steps(self) -> int:
@@ -225,6 +226,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     else:
         prof = np.zeros((0, nsl_max, N_BINS), np.float32)
     H = stock.heights
+    collide = np.full(1, -1, np.int64)
     n, cells = EK.engage_path(H, stock.box[0], stock.box[1], stock.resolution,
                               seg["kind"].astype(np.int64), cuts, np.ascontiguousarray(seg["p0"]),
                               np.ascontiguousarray(seg["p1"]), np.ascontiguousarray(seg["c"]),
@@ -232,11 +234,15 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
                               np.ascontiguousarray(seg["h"]), seg["r0"].copy(), seg["r1"].copy(),
                               seg["theta"].copy(), seg["length"].copy(), tool_index, hand, table,
                               np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho, srq,
-                              EK.trig_table(N_BINS), step, N_BINS, first, count, sums, q, prof)
+                              EK.trig_table(N_BINS), step, N_BINS, first, count, sums, q, prof, collide)
     helix = np.array([math.tan(math.radians(t.helix)) for t in tools])
+    warnings = []
+    if collide[0] >= 0:
+        warnings.append(f"{program.path}:{int(seg['line'][collide[0]])}: a rapid move goes through the stock "
+                        f"(the tool would crash; rapids remove no material in the twin)")
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
-                     (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix)
+                     (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings)
     if len(_CACHE) >= _CACHE_MAX:
         _CACHE.pop(next(iter(_CACHE)))
     _CACHE[key] = eng

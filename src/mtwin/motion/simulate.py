@@ -167,7 +167,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     if not (np.isfinite(max_err).all() and np.isfinite(max_trq).all()):
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
     cats = plan.category_times(state.wait[:len(seg)])
-    warnings = list(plan.warnings)
+    warnings = list(plan.warnings) + (list(eng.warnings) if eng is not None else [])
     if cstats[RK.CS_SPINDLE_STOPPED]:
         warnings.append("feed moves cut the stock with the spindle stopped (no M3/M4 or S0): their forces are not modelled")
     if cstats[RK.CS_OVERLOAD_LINE]:
