@@ -324,7 +324,8 @@ def _print_simulation(path: str, s, output) -> None:
                                    f"rapid {d['rapid_time']:,.2f} s")
     c = s.cutting
     if c is not None:
-        t.add_row("cutting load", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line})")
+        t.add_row("cutting load (XY)", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line}), mean while cutting "
+                                       f"{c.mean_load:,.1f} N")
         t.add_row("spindle power", f"peak {c.peak_power:,.0f} W (line {c.peak_power_line}), mean while cutting "
                                    f"{c.mean_cutting_power:,.0f} W, energy {c.cutting_energy / 1000:,.1f} kJ")
         t.add_row("spindle torque", f"peak {c.peak_spindle_torque:,.2f} N·m (line {c.peak_spindle_torque_line}); "

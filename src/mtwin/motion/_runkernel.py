@@ -119,7 +119,7 @@ def allocate_outputs(n_out: int):
 C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
 # cstats entries
 CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
-    CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD = range(12)
+    CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD, CS_LOAD_TIME = range(13)
 
 
 @njit
@@ -328,7 +328,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
         n_abs = abs(spin[0])
         p_sp = p_cut + (loss[0] + loss[1] * n_abs + loss[2] * n_abs * n_abs if n_abs > 0.0 else 0.0)
         load = math.sqrt(ftool[0] * ftool[0] + ftool[1] * ftool[1])
-        if load > cstats[0]:
+        if load > cstats[0] + 1e-9:
             cstats[0] = load
             cstats[1] = line[i]
         if p_sp > cstats[2]:
@@ -337,6 +337,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
         if p_cut > 0.0:
             cstats[4] += p_cut * dt
             cstats[5] += dt
+            cstats[12] += load * dt
         if torque_sp > cstats[6]:
             cstats[6] = torque_sp
             cstats[7] = line[i]

@@ -137,7 +137,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                 z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
     eng, cut_args = _cutting_args(twin, program, plan, stock, cutting, tooth)
     spin = np.zeros(2)  # speed (rpm), angle (rad)
-    cstats = np.zeros(12)
+    cstats = np.zeros(16)
     state = RK.State(nfilt, x0, sv, len(seg))
     cap = n_est // every + 3
     outs = RK.allocate_outputs(cap)
@@ -202,6 +202,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         cut_time = cstats[RK.CS_CUT_TIME]
         summary.cutting = CuttingSummary(
             peak_load=float(cstats[RK.CS_LOAD]), peak_load_line=int(cstats[RK.CS_LOAD_LINE]),
+            mean_load=float(cstats[RK.CS_LOAD_TIME] / cut_time) if cut_time > 0 else 0.0,
             peak_power=float(cstats[RK.CS_POWER]), peak_power_line=int(cstats[RK.CS_POWER_LINE]),
             mean_cutting_power=float(cstats[RK.CS_ENERGY] / cut_time) if cut_time > 0 else 0.0,
             peak_spindle_torque=float(cstats[RK.CS_TORQUE]), peak_spindle_torque_line=int(cstats[RK.CS_TORQUE_LINE]),

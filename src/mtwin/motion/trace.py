@@ -20,6 +20,7 @@ class CuttingSummary:
 
     peak_load: float
     peak_load_line: int
+    mean_load: float  # over the samples where the tool cuts
     peak_power: float
     peak_power_line: int
     mean_cutting_power: float  # over the samples where the tool cuts
@@ -66,7 +67,8 @@ class Summary:
         c = d.pop("cutting")
         if c is not None:
             d.update({k: v for k, v in c.__dict__.items() if k in (
-                "peak_load", "peak_load_line", "peak_power", "mean_cutting_power", "peak_spindle_torque")})
+                "peak_load", "peak_load_line", "mean_load", "peak_power", "peak_power_line", "mean_cutting_power",
+                "peak_spindle_torque")})
             d["cutting"] = dict(c.__dict__)
         return d
 
