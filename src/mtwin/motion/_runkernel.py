@@ -106,13 +106,13 @@ class State:
         self.max_trq = np.zeros(3)
 
 
-def allocate_outputs(n_out: int):
+def allocate_outputs(n_out: int, cutting: bool = True):
     # commanded positions stay float64 so that they can be differentiated (accelerations);
     # the other channels are stored as float32 (7 significant digits) to halve the memory
     return (np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
             np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32),
             np.empty((n_out, 3), np.float32), np.empty(n_out, np.float32),
-            np.zeros((n_out, 3), np.float32), np.zeros((n_out, 7), np.float32))
+            np.zeros((n_out if cutting else 1, 3), np.float32), np.zeros((n_out if cutting else 1, 7), np.float32))
 
 
 # cut_out columns
@@ -351,7 +351,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 cstats[11] = ratio
                 if ratio > 1.0 and cstats[10] == 0.0:
                     cstats[10] = line[i]
-        if store:
+        if store and has_cut:
             for k in range(3):
                 force_out[o, k] = ftool[k]
             cut_out[o, 0] = spin[0]

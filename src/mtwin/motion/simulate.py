@@ -140,7 +140,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     cstats = np.zeros(16)
     state = RK.State(nfilt, x0, sv, len(seg))
     cap = n_est // every + 3
-    outs = RK.allocate_outputs(cap)
+    outs = RK.allocate_outputs(cap, eng is not None)
     chunk = max(_CHUNK, every) if progress is not None else max(n_est, every)
     chunk -= chunk % every  # chunks start on stored samples
     k = 0
@@ -149,7 +149,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         need_slots = k1 // every + 2
         if need_slots > cap:  # the waits took longer than estimated: grow the outputs
             cap = max(need_slots, int(cap * 1.25))
-            outs = tuple(np.concatenate([a, np.empty((cap - len(a),) + a.shape[1:], a.dtype)]) for a in outs)
+            outs = tuple(a if len(a) == 1 else np.concatenate([a, np.empty((cap - len(a),) + a.shape[1:], a.dtype)])
+                         for a in outs)
         k = RK.run_twin(*args, dt, k, k1, every, filt, nfilt, c.after_time, c.in_position, _MAX_WAIT, sv, fd,
                         state.ring1, state.ring2, state.sums, state.axes, state.seg, state.clock, state.wait,
                         state.max_err, state.max_trq, *outs[:8], *cut_args, spin, cstats, *outs[8:])
