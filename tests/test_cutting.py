@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from mtwin.cutting import engagement as E
 from mtwin.cutting.library import MATERIALS, cutting_from_dict
 from mtwin.errors import MtwinError
 from mtwin.twin import Twin
@@ -139,12 +138,16 @@ def test_engagement_is_computed_once_per_path():
     tw = twin_with()
     base = "G21 G90 G94 S{s} M3\nG0 X-10 Y0 Z5\nG0 Z-2\nG1 X40 F{f}\nG0 Z5\nM30\n(MTWIN STOCK 0,-10,-10,50,10,0)\n"
     _, a = run(tw, base.format(s=8000, f=600))
-    n0 = E.COMPUTATIONS
+    assert tw.engagement_cache.computations == 1
     _, b = run(tw, base.format(s=6000, f=900))  # new F and S only
-    assert E.COMPUTATIONS == n0
+    assert tw.engagement_cache.computations == 1
     assert b.summary.cutting.peak_load != a.summary.cutting.peak_load  # the forces did change
     _, c = run(tw, base.format(s=6000, f=900).replace("Z-2", "Z-3"))  # new geometry
-    assert E.COMPUTATIONS == n0 + 1
+    assert tw.engagement_cache.computations == 2
+    # a twin with other drive parameters shares the cache: the path is the same
+    tw2 = tw.with_params({"axes.x.servo.kpp": 30.0})
+    run(tw2, base.format(s=7000, f=700))
+    assert tw2.engagement_cache.computations == 2
 
 
 def test_stock_not_containing_the_toolpath_names_the_line():
@@ -244,3 +247,25 @@ def test_pocket_sample_clears_its_pocket():
     X, Y = np.meshgrid(xs, ys)
     core = (X > 13) & (X < 47) & (Y > 13) & (Y < 37)
     assert H[core].max() == pytest.approx(-6.0, abs=1e-6)
+
+
+def test_feed_and_spindle_overrides_match_the_rewritten_program():
+    # simulating with per-record overrides is the same as simulating the program the writer
+    # produces with those feeds and speeds — and needs no new engagement
+    import mtwin
+    from conftest import SAMPLES
+
+    tw = Twin()
+    prog = tw.load(str(SAMPLES / "pocket.nc"))
+    base = tw.simulate(prog, every=50)
+    n = tw.engagement_cache.computations
+    rec = prog.records
+    over = tw.simulate(prog, every=50, feeds=rec["feed"] * 1.2, spindles=rec["spindle"] * 0.875)
+    assert tw.engagement_cache.computations == n
+    text = mtwin.scale_feeds(prog, feed=1.2, spindle=0.875)  # integer F values: no rounding
+    rewritten = tw.simulate(tw.load(text, path=prog.path), every=50)
+    assert over.summary.cycle_time == pytest.approx(rewritten.summary.cycle_time, abs=1e-9)
+    assert over.summary.cutting.peak_load == pytest.approx(rewritten.summary.cutting.peak_load, rel=1e-6)
+    assert over.summary.cycle_time < base.summary.cycle_time
+    with pytest.raises(MtwinError):
+        tw.simulate(prog, feeds=rec["feed"][:-1])

@@ -176,3 +176,17 @@ def test_simulate_stock_option_and_errors(tmp_path):
     assert mtwin("simulate", str(f), "--stock", "1,2,3").returncode == 2
     inst = mtwin("simulate", str(f), "--json", "--stock", "0,-10,-10,40,10,0", "--tooth-resolution")
     assert inst.returncode == 0 and json.loads(inst.stdout)["peak_load"] > json.loads(ok.stdout)["peak_load"]
+
+
+def test_machine_parameters_by_dotted_name():
+    from mtwin.errors import MtwinError
+    from mtwin.twin.machine import Machine, get_param, param_names, with_params
+
+    names = param_names()
+    assert "axes.x.servo.kpp" in names and "controller.bell_time" in names and "spindle.base_speed" in names
+    m = with_params(Machine(), {"axes.z.friction.coulomb_pos": "0.2 kN", "controller.bell_time": 0.016})
+    assert get_param(m, "axes.z.friction.coulomb_pos") == 200.0 and get_param(m, "controller.bell_time") == 0.016
+    assert get_param(m, "axes.x.friction.coulomb_pos") == 150.0
+    for bad in ({"axes.q.mass": 1.0}, {"axes.x.servo.nope": 1.0}, {"axes.x.mass": -3.0}, {"axes.x.servo": 1.0}):
+        with pytest.raises(MtwinError):
+            with_params(Machine(), bad)

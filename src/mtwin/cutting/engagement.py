@@ -1,10 +1,11 @@
 """Stock and engagement along a planned path, computed once and reused.
 
-``engagement_for(plan, program, cutting)`` returns an :class:`Engagement`: per path step the
-force sums of ``_engagekernel`` (independent of F, S and the material) and the Z-map after
-the last cut.  It is cached on the path geometry, the tools, the stock and the resolution,
-so a re-simulation with new F and S values — what the optimiser does thousands of times —
-never touches the stock.  ``COMPUTATIONS`` counts real computations (a test watches it).
+``engagement_for(plan, program, cutting, cache=...)`` returns an :class:`Engagement`: per
+path step the force sums of ``_engagekernel`` (independent of F, S and the material) and the
+Z-map after the last cut.  An :class:`EngagementCache` (each ``Twin`` owns one) keys it on the
+path geometry, the tools, the stock and the resolution, so a re-simulation with new F and S
+values — what the optimiser does thousands of times — never touches the stock.  The cache's
+``computations`` counts real computations (a test watches it).
 """
 from __future__ import annotations
 
@@ -21,9 +22,6 @@ from ..motion.path import ARC, LINE, PAUSE
 from . import _engagekernel as EK
 from .library import Cutting, parse_box
 
-COMPUTATIONS = 0
-_CACHE: dict[str, "Engagement"] = {}
-_CACHE_MAX = 4
 MAX_CELLS = 60_000_000  # 240 MB of float32 heights
 N_BINS = 180  # 2° angular bins (PHYSICS.md §2: 1-2°)
 
@@ -181,20 +179,39 @@ def _key(plan, program, tools, tool_index, box, res, step) -> str:
 MAX_PROFILE_BYTES = 1.5e9
 
 
-def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = False) -> Engagement:
+class EngagementCache:
+    """The few most recent engagements of a twin, by path key; ``computations`` counts misses."""
+
+    def __init__(self, size: int = 4):
+        self.size = size
+        self.entries: dict[str, Engagement] = {}
+        self.computations = 0
+
+    def get(self, key: str) -> Engagement | None:
+        return self.entries.get(key)
+
+    def put(self, key: str, eng: Engagement) -> None:
+        if len(self.entries) >= self.size:
+            self.entries.pop(next(iter(self.entries)))
+        self.entries[key] = eng
+
+
+def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = False,
+                   cache: EngagementCache | None = None) -> Engagement:
     """Engagement of a planned program, from the cache when the geometry is unchanged.
 
     ``tooth``: also keep the engaged length per slice and angular bin of every step, for
     instantaneous (tooth-passing) forces."""
-    global COMPUTATIONS
     tools, tool_index, numbers = _tool_rows(plan, program, cutting)
     box, res, source = stock_box(plan, program, cutting, tools, box)
     _check_inside(plan, box, source, program.path)
     step = cutting.step if cutting.step > 0 else 2.0 * res
     key = _key(plan, program, tools, tool_index, box, res, step) + ("-tooth" if tooth else "")
-    if key in _CACHE:
-        return _CACHE[key]
-    COMPUTATIONS += 1
+    if cache is not None:
+        hit = cache.get(key)
+        if hit is not None:
+            return hit
+        cache.computations += 1
     stock = new_stock(box, res, source)
     t0 = time.perf_counter()
     seg = plan.seg
@@ -243,7 +260,6 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
                      (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings)
-    if len(_CACHE) >= _CACHE_MAX:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = eng
+    if cache is not None:
+        cache.put(key, eng)
     return eng

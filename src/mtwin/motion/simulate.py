@@ -78,7 +78,7 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
                       z1, z1)
     from ..cutting.engagement import engagement_for
 
-    eng = engagement_for(plan, program, cut, stock, tooth=tooth)
+    eng = engagement_for(plan, program, cut, stock, tooth=tooth, cache=twin.engagement_cache)
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)

@@ -26,6 +26,10 @@ class Twin:
         self.interpreter = interpreter or InterpreterSettings()
         self.path = path
         self.cutting: Cutting = cutting or cutting_from_dict({})
+        from ..cutting.engagement import EngagementCache
+
+        # engagement depends only on the path: kept between simulations of this twin
+        self.engagement_cache = EngagementCache()
 
     @classmethod
     def from_toml(cls, path: str | None, **interpreter_overrides) -> "Twin":
@@ -45,14 +49,29 @@ class Twin:
         m = replace(self.machine, controller=replace(self.machine.controller, **changes))
         return Twin(m, self.interpreter, self.path, self.cutting)
 
-    def plan(self, program):
-        """NCK stages: segments, limits, corners, look-ahead, timing."""
+    def with_params(self, values: dict) -> "Twin":
+        """A copy with machine parameters changed by dotted name, e.g.
+        ``{"axes.x.servo.kpp": 35.0, "controller.bell_time": 0.016}`` (for calibration).
+        The engagement cache is shared: the path does not depend on drive parameters unless
+        the planner changes it, and the cache key covers that."""
+        from .machine import with_params
+
+        tw = Twin(with_params(self.machine, values), self.interpreter, self.path, self.cutting)
+        tw.engagement_cache = self.engagement_cache
+        return tw
+
+    def plan(self, program, *, feeds=None, spindles=None):
+        """NCK stages: segments, limits, corners, look-ahead, timing.
+
+        ``feeds`` / ``spindles``: per-record feed (mm/min) and spindle speed (rpm) replacing the
+        program's, without rewriting it — how an optimiser tries F and S values; the path,
+        and so the cached engagement, stays the same."""
         from ..motion.planner import plan_program
 
-        return plan_program(program, self.machine)
+        return plan_program(_with_overrides(program, feeds, spindles), self.machine)
 
     def simulate(self, program, *, every: int = 1, disturbance: np.ndarray | None = None, progress=None,
-                 cutting: bool = True, stock=None, tooth_resolution: bool = False):
+                 cutting: bool = True, stock=None, tooth_resolution: bool = False, feeds=None, spindles=None):
         """Run a program through the controller, feed drives and cutting process; returns a Trace.
 
         ``every``: keep every n-th servo sample in the trace (statistics use all of them).
@@ -62,8 +81,40 @@ class Twin:
         ``tooth_resolution``: instantaneous tooth-passing forces (spindle angle, helix lag) instead
         of revolution averages — for comparison with dynamometer data; shorten the servo period
         in the twin file to resolve the tooth frequency finely.
-        ``disturbance``: an extra (samples, 3) force in N against each axis, by servo sample."""
+        ``disturbance``: an extra (samples, 3) force in N against each axis, by servo sample.
+        ``feeds`` / ``spindles``: per-record overrides, as for :meth:`plan`."""
         from ..motion.simulate import simulate_plan
 
+        program = _with_overrides(program, feeds, spindles)
         return simulate_plan(self, program, self.plan(program), every=every, disturbance=disturbance,
                              progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution)
+
+
+def _with_overrides(program, feeds, spindles):
+    """The program with its records' feed and spindle speed replaced (a shallow copy)."""
+    if feeds is None and spindles is None:
+        return program
+    from dataclasses import replace as dc_replace
+
+    from ..errors import MtwinError
+    from ..gcode import records as R
+
+    rec = program.records.copy()
+    moving = (rec["kind"] != R.RAPID) & (rec["kind"] != R.DWELL)
+    for name, values in (("feed", feeds), ("spindle", spindles)):
+        if values is None:
+            continue
+        v = np.asarray(values, dtype=np.float64)
+        if v.shape != (len(rec),):
+            raise MtwinError(f"{name} overrides need one value per motion record ({len(rec)}), got shape {v.shape}")
+        if not np.isfinite(v).all():
+            raise MtwinError(f"{name} overrides must be finite")
+        if name == "feed":
+            if (v[moving] <= 0).any():
+                raise MtwinError("feed overrides must be positive on feed moves")
+            rec["feed"] = np.where(moving, v, rec["feed"])
+        else:
+            if (v < 0).any():
+                raise MtwinError("spindle overrides must be >= 0 rpm")
+            rec["spindle"] = v
+    return dc_replace(program, records=rec)

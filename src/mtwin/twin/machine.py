@@ -311,3 +311,58 @@ def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
     out += _table_lines(m.spindle, "spindle") + [""]
     out += _table_lines(m.timing, "timing")
     return "\n".join(out) + "\n"
+
+
+def param_names(m: Machine | None = None) -> list[str]:
+    """Every numeric parameter of a machine by dotted name ("axes.x.servo.kpp", ...)."""
+    m = m or Machine()
+    out = []
+
+    def walk(obj, prefix):
+        for f in fields(obj):
+            v = getattr(obj, f.name)
+            if dataclasses.is_dataclass(v):
+                walk(v, f"{prefix}{f.name}.")
+            elif isinstance(v, (int, float)) and not isinstance(v, bool):
+                out.append(prefix + f.name)
+
+    for sec in ("controller", "spindle", "timing"):
+        walk(getattr(m, sec), sec + ".")
+    for a in AXES:
+        walk(getattr(m, a), f"axes.{a}.")
+    return out
+
+
+def get_param(m: Machine, name: str):
+    obj = m
+    for part in _path(name):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _path(name: str) -> list[str]:
+    parts = name.split(".")
+    if parts[0] == "axes" and len(parts) > 1:
+        parts = parts[1:]
+    return parts
+
+
+def with_params(m: Machine, values: dict) -> Machine:
+    """A copy of ``m`` with parameters set by dotted name, validated like the twin file."""
+    for name, value in values.items():
+        parts = _path(name)
+        objs = [m]
+        for part in parts[:-1]:
+            if not hasattr(objs[-1], part) or not dataclasses.is_dataclass(getattr(objs[-1], part)):
+                raise ConfigError(f"unknown machine parameter {name!r}")
+            objs.append(getattr(objs[-1], part))
+        leaf = objs[-1]
+        known = {f.name: f for f in fields(leaf)}
+        if parts[-1] not in known or dataclasses.is_dataclass(getattr(leaf, parts[-1])):
+            raise ConfigError(f"unknown machine parameter {name!r}")
+        new = replace(leaf, **{parts[-1]: _check(value, known[parts[-1]].metadata, name)})
+        for obj, part in zip(reversed(objs[:-1]), reversed(parts[:-1])):
+            new = replace(obj, **{part: new})
+        m = new
+    validate_machine(m, "parameters")
+    return m
