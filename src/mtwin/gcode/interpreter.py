@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import GCodeError, SourceLocation
 from . import _interpkernel as K
 from .lexer import Lexed, lex
-from .records import MOVE_DTYPE
+from .records import FL_SUB, MOVE_DTYPE
 
 DIALECTS = ("auto", "fanuc", "linuxcnc")
 _WCS_NAMES = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
@@ -73,6 +73,8 @@ class Program:
     settings: InterpreterSettings
     dialect: str
     warnings: list
+    source: bytes | None = None  # the file as written, when it was a macro program
+    expanded: object = None  # gcode.macro.Expanded: the straight-line program that was run
 
     @property
     def path(self) -> str:
@@ -80,7 +82,11 @@ class Program:
 
     @property
     def data(self) -> bytes:
-        return self.lexed.data
+        return self.source if self.source is not None else self.lexed.data
+
+    @property
+    def is_macro(self) -> bool:
+        return self.expanded is not None
 
 
 def read_source(path: str | os.PathLike) -> bytes:
@@ -113,8 +119,44 @@ def load_program(source, settings: InterpreterSettings | None = None, *, path: s
         data = read_source(source)
         if name == "-":
             name = "<stdin>"
+    from .macro import looks_like_macro
+
+    if looks_like_macro(data):
+        return _load_macro(data, name, settings)
     lexed = lex(data, name)
     return interpret(lexed, settings)
+
+
+def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Program:
+    """Run a macro program into plain blocks, interpret those, and point every record and
+    message back at the source line it came from."""
+    from dataclasses import replace as dc_replace
+
+    from .macro import expand
+
+    dialect = _resolve_dialect(settings, name)
+    offsets = [tuple(v) for v in _offsets_array(settings)]
+    ex = expand(data, name, dialect, settings.skip_block_delete, offsets)
+    lexed = lex(ex.data, name)
+    try:
+        prog = interpret(lexed, dc_replace(settings, dialect=dialect))
+    except GCodeError as exc:
+        loc = exc.location
+        if loc is not None and 1 <= loc.line <= len(ex.line_map):
+            raise GCodeError(f"{exc.message} (in the macro-expanded block {ex.data.splitlines()[loc.line - 1].decode()!r})",
+                             SourceLocation(loc.path, int(ex.line_map[loc.line - 1]), 1)) from None
+        raise
+    rec = prog.records
+    idx = rec["line"].astype(np.int64) - 1
+    rec["line"] = ex.line_map[idx]
+    rec["flags"] = np.where(ex.in_sub[idx], rec["flags"] | FL_SUB, rec["flags"])
+    warnings = []
+    for w in prog.warnings:
+        loc = w.location
+        if 1 <= loc.line <= len(ex.line_map):
+            loc = SourceLocation(loc.path, int(ex.line_map[loc.line - 1]), loc.col)
+        warnings.append(GCodeWarning(loc, w.message))
+    return dc_replace(prog, warnings=warnings, source=data, expanded=ex)
 
 
 def _resolve_dialect(settings: InterpreterSettings, path: str) -> str:

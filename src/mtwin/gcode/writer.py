@@ -161,6 +161,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     if feeds.shape != (n,) or spindles.shape != (n,):
         raise WriteError(f"feeds and spindles must have one value per record ({n})")
     splits = dict(splits or {})
+    if prog.is_macro:
+        return _rewrite_macro(prog, feeds, spindles, splits, check)
     w = _Writer(prog, style)
     st = w.style
     lengths = move_lengths(rec)
@@ -370,6 +372,27 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
         j = bad[0]
         raise WriteError(f"internal check failed, nothing written: line {nr['line'][j]} would run the spindle at "
                          f"{nr['spindle'][j]:g} rpm instead of {exp_s[j]:g}")
+
+
+def _rewrite_macro(prog: Program, feeds, spindles, splits, check: bool) -> bytes:
+    """Macro programs: their words may be expressions and their lines run many times, so the
+    only rewrite offered is the identity (proven like any other)."""
+    rec = prog.records
+    is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
+    f_changed = is_feed & ~np.isnan(feeds) & ~np.isclose(feeds, rec["feed"], rtol=1e-12, atol=0)
+    s_changed = ~np.isnan(spindles) & ~np.isclose(spindles, rec["spindle"], rtol=1e-12, atol=0)
+    if splits or f_changed.any() or s_changed.any():
+        i = int(np.flatnonzero(f_changed | s_changed)[0]) if (f_changed | s_changed).any() else min(splits)
+        raise WriteError(f"{prog.path}:{int(rec['line'][i])}: this is a macro program (parameters, expressions or "
+                         f"control flow); rewriting its F/S words or splitting its moves is not supported yet")
+    out = prog.data
+    if check:
+        from .interpreter import load_program
+
+        again = load_program(out, prog.settings, path=prog.path)
+        if again.records.size != rec.size or not np.array_equal(again.records, rec):
+            raise WriteError("internal check failed: the unchanged macro program does not re-interpret the same")
+    return out
 
 
 def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed: float | None = None,

@@ -1,0 +1,752 @@
+"""Macro programs: parameters, expressions and control flow, executed into plain blocks.
+
+Programs with ``#`` parameters, ``[ ]`` expressions, LinuxCNC O-word control flow
+(``o100 sub``/``call``/``if``/``while``/``repeat``…) or Fanuc Macro B statements (``IF […]
+GOTO n``, ``WHILE […] DO m`` … ``END m``, ``G65`` calls) are run here, line by line, into a
+straight-line program whose words are all literal numbers.  That program goes through the
+ordinary lexer and interpreter; every block keeps the number of the source line it came
+from, so messages and motion records point into the file as written.
+
+Semantics follow RS274NGC (LinuxCNC) and Fanuc Macro B where they agree: numbered
+parameters #1–#5999 (unset reads as 0), named parameters ``#<name>`` (``#<_name>`` global,
+others local to a subroutine call; reading an unset one is an error), expressions with
+``**``, ``* / MOD``, ``+ -``, comparisons ``EQ NE GT GE LT LE``, ``AND OR XOR`` and the
+functions ABS ACOS ASIN ATAN[y]/[x] COS EXP FIX FUP LN ROUND SIN SQRT TAN EXISTS (degrees).
+Parameter assignments on a line take effect after the line's words are read.  Calls pass
+arguments in #1…#30 (O-word ``call [a] [b]``; ``G65 P… A… B…`` with Fanuc's letter map).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import GCodeError, SourceLocation
+
+MAX_EXECUTED_LINES = 2_000_000
+
+# G65 argument letters -> local parameter numbers (Fanuc argument specification I)
+_G65_ARGS = {"A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F": 9, "H": 11, "M": 13,
+             "Q": 17, "R": 18, "S": 19, "T": 20, "U": 21, "V": 22, "W": 23, "X": 24, "Y": 25, "Z": 26}
+_FUNCS = {"ABS", "ACOS", "ASIN", "ATAN", "COS", "EXP", "FIX", "FUP", "LN", "ROUND", "SIN", "SQRT", "TAN", "EXISTS"}
+_BINOPS = [("OR", "XOR", "AND"), ("EQ", "NE", "GT", "GE", "LT", "LE"), ("+", "-"), ("*", "/", "MOD"), ("**",)]
+_MACRO_HINT = re.compile(rb"#|\[|^[ \t]*/?[ \t]*[oO][ \t]*(<[^>\n]*>|\d+)[ \t]*(sub|endsub|call|return|if|elseif|else|"
+                         rb"endif|while|endwhile|do|repeat|endrepeat|break|continue)\b"
+                         rb"|^[ \t]*/?[ \t]*(N\d+[ \t]*)?(IF|WHILE|GOTO|END\d|G65)", re.MULTILINE | re.IGNORECASE)
+
+
+def looks_like_macro(data: bytes) -> bool:
+    """Cheap test: does the program use anything this module handles?"""
+    return _MACRO_HINT.search(_strip_comments_bytes(data)) is not None
+
+
+def _strip_comments_bytes(data: bytes) -> bytes:
+    return re.sub(rb"\([^)\n]*\)|;[^\n]*", b"", data)
+
+
+@dataclass
+class Expanded:
+    data: bytes  # the straight-line program
+    line_map: np.ndarray  # expanded line index -> 1-based source line
+    in_sub: np.ndarray  # expanded line index -> executed inside a subroutine call
+
+
+class _Err(Exception):
+    def __init__(self, msg, col=1):
+        super().__init__(msg)
+        self.col = col
+
+
+@dataclass
+class _Line:
+    no: int  # 1-based source line
+    text: str  # code without comments, upper case, no spaces
+    raw: str
+    block_delete: bool
+    nnum: int | None = None  # N number (Fanuc GOTO target)
+    cols: list = field(default_factory=list)  # 1-based column in ``raw`` of each character of ``text``
+
+    def col(self, i: int) -> int:
+        """Source column of position i (1-based) of ``text``."""
+        if not self.cols:
+            return 1
+        return self.cols[min(max(i, 1), len(self.cols)) - 1]
+
+
+@dataclass
+class _Frame:
+    ret: int  # line index to return to
+    locals_: dict = field(default_factory=dict)  # #1..#30 of this call
+    named: dict = field(default_factory=dict)
+    name: str = ""
+
+
+class _Expr:
+    """Recursive-descent evaluator over one line's text, starting at ``pos``."""
+
+    def __init__(self, ex: "_Executor", text: str, pos: int):
+        self.ex = ex
+        self.t = text
+        self.p = pos
+
+    def peek(self, s):
+        return self.t.startswith(s, self.p)
+
+    def expect(self, s):
+        if not self.peek(s):
+            raise _Err(f"expected {s!r} in expression", self.p + 1)
+        self.p += len(s)
+
+    def bracket(self) -> float:
+        self.expect("[")
+        v = self.binary(0)
+        self.expect("]")
+        return v
+
+    def binary(self, level) -> float:
+        if level == len(_BINOPS):
+            return self.unary()
+        v = self.binary(level + 1)
+        while True:
+            op = next((o for o in sorted(_BINOPS[level], key=len, reverse=True) if self.peek(o)), None)
+            if op is None:
+                return v
+            # "**" must not be read as "*" at the multiplication level
+            if op == "*" and self.peek("**"):
+                return v
+            self.p += len(op)
+            w = self.binary(level + 1) if op != "**" else self.unary()
+            v = self.apply(op, v, w)
+
+    def apply(self, op, a, b):
+        if op == "+":
+            return a + b
+        if op == "-":
+            return a - b
+        if op == "*":
+            return a * b
+        if op == "/":
+            if b == 0:
+                raise _Err("division by zero", self.p)
+            return a / b
+        if op == "MOD":
+            if b == 0:
+                raise _Err("MOD by zero", self.p)
+            return math.fmod(a, b) if a * b >= 0 else a - b * math.floor(a / b)
+        if op == "**":
+            return a ** b
+        tol = 1e-6
+        if op == "EQ":
+            return float(abs(a - b) < tol)
+        if op == "NE":
+            return float(abs(a - b) >= tol)
+        if op == "GT":
+            return float(a > b)
+        if op == "GE":
+            return float(a >= b)
+        if op == "LT":
+            return float(a < b)
+        if op == "LE":
+            return float(a <= b)
+        if op == "AND":
+            return float(a != 0 and b != 0)
+        if op == "OR":
+            return float(a != 0 or b != 0)
+        return float((a != 0) != (b != 0))  # XOR
+
+    def unary(self) -> float:
+        if self.peek("-"):
+            self.p += 1
+            return -self.unary()
+        if self.peek("+"):
+            self.p += 1
+            return self.unary()
+        return self.primary()
+
+    def primary(self) -> float:
+        t = self.t
+        if self.peek("["):
+            return self.bracket()
+        if self.peek("#"):
+            return self.ex.read_param(self)
+        for name in sorted(_FUNCS, key=len, reverse=True):
+            if self.peek(name + "["):
+                self.p += len(name)
+                if name == "EXISTS":
+                    self.expect("[")
+                    m = re.match(r"#<([^>]*)>", t[self.p:])
+                    if m:
+                        self.p += m.end()
+                        self.expect("]")
+                        return float(self.ex.named_exists(m.group(1)))
+                    # numbered: EXISTS[#n], EXISTS[##n] ...: is the (computed) number a parameter?
+                    hashes = 0
+                    while self.peek("#"):
+                        hashes += 1
+                        self.p += 1
+                    m = re.match(r"\d+", t[self.p:])
+                    if not hashes or not m:
+                        raise _Err("EXISTS needs a parameter: EXISTS[#<name>] or EXISTS[#n]", self.p + 1)
+                    self.p += m.end()
+                    self.expect("]")
+                    n = int(m.group(0))
+                    for _ in range(hashes - 1):
+                        n = int(round(self.ex.get_num(n, self.p)))  # out of range is an error here
+                    return float(1 <= n <= 5999)
+                a = self.bracket()
+                if name == "ATAN":
+                    self.expect("/")
+                    b = self.bracket()
+                    return math.degrees(math.atan2(a, b))
+                return self.func(name, a)
+        m = re.match(r"\d+\.?\d*|\.\d+", t[self.p:])
+        if m:
+            self.p += m.end()
+            return float(m.group(0))
+        raise _Err(f"cannot read an expression at {t[self.p:self.p + 12]!r}", self.p + 1)
+
+    def func(self, name, a):
+        try:
+            if name == "ABS":
+                return abs(a)
+            if name == "ACOS":
+                return math.degrees(math.acos(a))
+            if name == "ASIN":
+                return math.degrees(math.asin(a))
+            if name == "COS":
+                return math.cos(math.radians(a))
+            if name == "SIN":
+                return math.sin(math.radians(a))
+            if name == "TAN":
+                return math.tan(math.radians(a))
+            if name == "EXP":
+                return math.exp(a)
+            if name == "FIX":
+                return float(math.floor(a))
+            if name == "FUP":
+                return float(math.ceil(a))
+            if name == "LN":
+                return math.log(a)
+            if name == "ROUND":
+                return float(math.floor(a + 0.5)) if a >= 0 else -float(math.floor(-a + 0.5))
+            if name == "SQRT":
+                return math.sqrt(a)
+        except (ValueError, OverflowError):
+            raise _Err(f"{name}[{a:g}] is outside its domain", self.p) from None
+        raise _Err(f"unknown function {name}", self.p)
+
+
+class _Executor:
+    def __init__(self, data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: dict):
+        self.path = path
+        self.dialect = dialect
+        self.skip_bd = skip_block_delete
+        self.params: dict[int, float] = {}
+        self.globals_: dict[str, float] = {}
+        self.frames: list[_Frame] = [_Frame(-1)]
+        self.lines = self._split(data)
+        self.out: list[str] = []
+        self.out_line: list[int] = []
+        self.out_sub: list[bool] = []
+        # G54..G59.3 offsets readable as #5221.. (20 apart), as the control keeps them
+        for k, (x, y, z) in enumerate(offsets.get("list", [])):
+            base = 5221 + 20 * k
+            self.params[base], self.params[base + 1], self.params[base + 2] = x, y, z
+        self._index()
+
+    # ---------------------------------------------------------------- source
+    def _split(self, data: bytes) -> list[_Line]:
+        text = data.decode("latin-1")
+        out = []
+        for no, raw in enumerate(text.splitlines(), start=1):
+            chars = []
+            cols = []
+            depth = 0
+            for j, ch in enumerate(raw):
+                if depth:
+                    if ch == ")":
+                        depth = 0
+                    continue
+                if ch == "(":
+                    depth = 1
+                    continue
+                if ch == ";":
+                    break
+                if ch in " \t\r":
+                    continue
+                chars.append(ch.upper())
+                cols.append(j + 1)
+            code = "".join(chars)
+            bd = False
+            if code.startswith("/"):
+                bd = True
+                code = code[1:]
+                cols = cols[1:]
+            nnum = None
+            m = re.match(r"N(\d+)", code)
+            if m:
+                nnum = int(m.group(1))
+            out.append(_Line(no, code, raw, bd, nnum, cols))
+        return out
+
+    def _index(self):
+        """Positions of subroutine definitions and of every O-word, for jumps."""
+        self.subs: dict[str, int] = {}
+        self.fanuc_progs: dict[int, int] = {}
+        self.nlines: dict[int, int] = {}
+        for k, ln in enumerate(self.lines):
+            m = re.match(r"O(<[^>]*>|\d+)SUB", ln.text)
+            if m:
+                self.subs[m.group(1).strip("<>").lower()] = k
+            m = re.fullmatch(r"O(\d+)", ln.text) or re.match(r"O(\d+)(?![A-Z<])", ln.text)
+            if m and not re.match(r"O\d+[A-Z]", ln.text):
+                self.fanuc_progs.setdefault(int(m.group(1)), k)
+            if ln.nnum is not None:
+                self.nlines.setdefault(ln.nnum, k)
+
+    # ---------------------------------------------------------------- parameters
+    def read_param(self, e: _Expr) -> float:
+        e.expect("#")
+        t = e.t
+        if e.peek("<"):
+            j = t.find(">", e.p)
+            if j < 0:
+                raise _Err("named parameter without '>'", e.p + 1)
+            name = t[e.p + 1:j].lower()
+            e.p = j + 1
+            return self.get_named(name, e.p)
+        if e.peek("["):
+            n = e.bracket()
+        elif e.peek("#"):
+            n = self.read_param(e)
+        elif any(e.peek(f + "[") for f in _FUNCS):
+            n = e.primary()
+        else:
+            m = re.match(r"\d+", t[e.p:])
+            if not m:
+                raise _Err("'#' must be followed by a number, '<name>' or '[expr]'", e.p + 1)
+            e.p += m.end()
+            n = int(m.group(0))
+        return self.get_num(int(round(n)), e.p)
+
+    def get_num(self, n: int, col: int) -> float:
+        if not 0 <= n <= 5999:
+            raise _Err(f"parameter #{n} does not exist (1..5999)", col)
+        if 5420 <= n <= 5428 or n in (5400, 5401, 5403):
+            raise _Err(f"parameter #{n} (current position / tool state) is not supported", col)
+        if 1 <= n <= 30 and len(self.frames) > 1:
+            return self.frames[-1].locals_.get(n, 0.0)
+        return self.params.get(n, 0.0)
+
+    def get_named(self, name: str, col: int) -> float:
+        if name.startswith("_ini[") or name.startswith("_hal["):
+            raise _Err(f"#<{name}>: INI-file and HAL parameters are not supported", col)
+        if name.startswith("_"):
+            if name not in self.globals_:
+                raise _Err(f"named parameter #<{name}> is not defined", col)
+            return self.globals_[name]
+        fr = self.frames[-1]
+        if name not in fr.named:
+            raise _Err(f"named parameter #<{name}> is not defined", col)
+        return fr.named[name]
+
+    def named_exists(self, name: str) -> bool:
+        name = name.lower()
+        return name in self.globals_ if name.startswith("_") else name in self.frames[-1].named
+
+    def set_param(self, key, value):
+        if isinstance(key, str):
+            if key.startswith("_"):
+                self.globals_[key] = value
+            else:
+                self.frames[-1].named[key] = value
+        elif 1 <= key <= 30 and len(self.frames) > 1:
+            self.frames[-1].locals_[key] = value
+        else:
+            self.params[key] = value
+
+    # ---------------------------------------------------------------- lines
+    def eval_at(self, text: str, pos: int) -> tuple[float, int]:
+        e = _Expr(self, text, pos)
+        v = e.unary()
+        return v, e.p
+
+    def cond(self, text: str, pos: int) -> tuple[float, int]:
+        e = _Expr(self, text, pos)
+        v = e.bracket()
+        return v, e.p
+
+    def emit(self, words: str, no: int):
+        self.out.append(words)
+        self.out_line.append(no)
+        self.out_sub.append(len(self.frames) > 1)
+
+    def expand_words(self, text: str, no: int) -> str:
+        """Evaluate every word's value and the line's assignments; return literal words."""
+        out = []
+        assigns = []
+        p = 0
+        n = len(text)
+        while p < n:
+            c = text[p]
+            if c == "#":
+                # assignment: #n = expr  |  #<name> = expr  |  #[expr] = expr
+                e = _Expr(self, text, p + 1)
+                if e.peek("<"):
+                    j = text.find(">", e.p)
+                    key = text[e.p + 1:j].lower()
+                    e.p = j + 1
+                elif e.peek("["):
+                    key = int(round(e.bracket()))
+                elif any(e.peek(f + "[") for f in _FUNCS):
+                    key = int(round(e.primary()))
+                else:
+                    m = re.match(r"\d+", text[e.p:])
+                    if not m:
+                        raise _Err("'#' must be followed by a number or '<name>'", p + 1)
+                    key = int(m.group(0))
+                    e.p += m.end()
+                e.expect("=")
+                v = e.binary(0)  # Fanuc allows #1 = #2/2 + 3 without brackets
+                assigns.append((key, v))
+                p = e.p
+                continue
+            if not c.isalpha():
+                raise _Err(f"unexpected {c!r}", p + 1)
+            letter = c
+            if letter == "O" and p == 0:
+                # a Fanuc program number (or name) at the start of a line: not a word to run
+                m = re.match(r"O[0-9A-Z]*", text)
+                p = m.end()
+                continue
+            v, q = self.eval_at(text, p + 1)
+            out.append(f"{letter}{_fmt(v)}")
+            p = q
+        for key, v in assigns:
+            self.set_param(key, v)
+        return "".join(out)
+
+    # ---------------------------------------------------------------- run
+    def run(self):
+        lines = self.lines
+        k = 0
+        executed = 0
+        loops: list = []  # LinuxCNC loop stack entries: (kind, start index, label, count)
+        fanuc_loops: dict[int, int] = {}
+        while 0 <= k < len(lines):
+            executed += 1
+            if executed > MAX_EXECUTED_LINES:
+                raise GCodeError(f"more than {MAX_EXECUTED_LINES:,} lines executed (endless loop?)",
+                                 SourceLocation(self.path, lines[k].no, 1))
+            ln = lines[k]
+            t = ln.text
+            try:
+                if ln.block_delete and self.skip_bd:
+                    k += 1
+                    continue
+                if not t or t.startswith("%"):
+                    if t.startswith("%") and k > 0 and any(x.text for x in lines[:k]):
+                        if any(ll.text.startswith("%") for ll in lines[:k]):
+                            break
+                    k += 1
+                    continue
+                if t.startswith("N") and ln.nnum is not None:
+                    t = t[re.match(r"N\d+", t).end():]
+                # ---- LinuxCNC O-words
+                if t.startswith("O#") or t.startswith("O["):
+                    raise _Err("O-words with a computed number (o#<n> call) are not supported")
+                m = re.match(r"O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|"
+                             r"REPEAT|ENDREPEAT|BREAK|CONTINUE)(.*)$", t)
+                if m:
+                    k = self.oword(m, k, loops)
+                    continue
+                # ---- Fanuc Macro B
+                if t.startswith("IF["):
+                    e = _Expr(self, t, 2)
+                    v = e.binary(0)  # IF [a] AND [b] GOTO n is accepted too
+                    q = e.p
+                    rest = t[q:]
+                    if rest.startswith("GOTO"):
+                        if v:
+                            k = self.goto(rest[4:], k)
+                            continue
+                    elif rest.startswith("THEN"):
+                        if v:
+                            self.expand_words(rest[4:], ln.no)
+                    else:
+                        raise _Err("IF [...] must be followed by GOTO n or THEN", q + 1)
+                    k += 1
+                    continue
+                if t.startswith("GOTO"):
+                    k = self.goto(t[4:], k)
+                    continue
+                m = re.match(r"WHILE(\[.*\])DO(\d+)$", t)
+                if m:
+                    v, _ = self.cond(t, 5)
+                    label = int(m.group(2))
+                    if v:
+                        fanuc_loops[label] = k
+                        k += 1
+                    else:
+                        k = self._find_end(k, label) + 1
+                    continue
+                m = re.fullmatch(r"END(\d+)", t)
+                if m:
+                    label = int(m.group(1))
+                    if label not in fanuc_loops:
+                        raise _Err(f"END{label} without a running WHILE … DO{label}")
+                    k = fanuc_loops.pop(label)
+                    continue
+                m = re.fullmatch(r"DO(\d+)", t)
+                if m:  # DO without WHILE: an endless loop until GOTO leaves it
+                    fanuc_loops[int(m.group(1))] = k
+                    k += 1
+                    continue
+                # ---- Fanuc subprograms and macro calls (M98 / M99 / G65)
+                if re.fullmatch(r"O\d+", t):
+                    k += 1
+                    continue
+                words = self.expand_words(t, ln.no)
+                codes = re.findall(r"([A-Z])([-+]?\d*\.?\d*)", words)
+                gs = [float(v) for c, v in codes if c == "G" and v]
+                ms = [float(v) for c, v in codes if c == "M" and v]
+                if 65.0 in gs:
+                    k = self.g65(codes, k)
+                    continue
+                if 98.0 in ms:
+                    k = self.m98(codes, words, k, ln.no)
+                    continue
+                if 99.0 in ms:
+                    rest = _drop(words, {"M": 99.0})
+                    if rest:
+                        self.emit(rest, ln.no)
+                    if len(self.frames) > 1:
+                        fr = self.frames.pop()
+                        k = fr.ret
+                        continue
+                    break  # M99 in the main program: end (no endless rerun here)
+                if 30.0 in ms or 2.0 in ms:
+                    self.emit(words, ln.no)
+                    break
+                if words:
+                    self.emit(words, ln.no)
+                k += 1
+            except _Err as exc:
+                col = exc.col + (len(ln.text) - len(t))  # t may have lost its N word
+                raise GCodeError(str(exc), SourceLocation(self.path, ln.no, ln.col(col))) from None
+
+    def goto(self, target: str, k: int) -> int:
+        v, _ = self.eval_at(target, 0)
+        n = int(round(v))
+        if n not in self.nlines:
+            raise _Err(f"GOTO {n}: no block N{n} in the program")
+        return self.nlines[n]
+
+    def _find_end(self, k: int, label: int) -> int:
+        depth = 0
+        for j in range(k + 1, len(self.lines)):
+            t = self.lines[j].text
+            t = t[re.match(r"N\d+", t).end():] if re.match(r"N\d+", t) else t
+            if re.match(rf"WHILE\[.*\]DO{label}$", t):
+                depth += 1
+            if t == f"END{label}":
+                if depth == 0:
+                    return j
+                depth -= 1
+        raise _Err(f"WHILE … DO{label} without END{label}")
+
+    def g65(self, codes, k):
+        args = {}
+        prog = None
+        for c, v in codes:
+            if c == "P":
+                prog = int(float(v))
+            elif c in _G65_ARGS and c != "G":
+                args[_G65_ARGS[c]] = float(v)
+        if prog is None or prog not in self.fanuc_progs:
+            raise _Err(f"G65 P{prog}: no program O{prog} in this file")
+        self.frames.append(_Frame(k + 1, args, {}, f"O{prog}"))
+        return self.fanuc_progs[prog] + 1
+
+    def m98(self, codes, words, k, no):
+        prog = None
+        reps = 1
+        for c, v in codes:
+            if c == "P":
+                prog = int(float(v))
+            if c == "L":
+                reps = int(float(v))
+        if prog is not None and prog not in self.fanuc_progs and prog > 9999:
+            # packed form P<repeats><4-digit program>
+            reps, prog = prog // 10000, prog % 10000
+        if prog is None or prog not in self.fanuc_progs:
+            raise _Err(f"M98 P{prog}: no program O{prog} in this file")
+        rest = _drop(words, {"M": 98.0}, ("P", "L"))
+        if rest:
+            self.emit(rest, no)
+        # run the subprogram `reps` times: stack one frame per repetition
+        for _ in range(max(1, reps)):
+            self.frames.append(_Frame(k + 1 if _ == 0 else self.fanuc_progs[prog] + 1, {}, {}, f"O{prog}"))
+        # frames are popped by M99 in order; the last pushed runs first
+        return self.fanuc_progs[prog] + 1
+
+    def oword(self, m, k, loops) -> int:
+        label, kw, rest = m.group(1).strip("<>").lower(), m.group(2), m.group(3)
+        if kw == "SUB":
+            # skip the definition in normal flow
+            return self._skip_to(k, label, "ENDSUB") + 1
+        if kw == "ENDSUB" or kw == "RETURN":
+            if len(self.frames) <= 1:
+                raise _Err(f"o{label} {kw.lower()} outside a subroutine call")
+            fr = self.frames.pop()
+            return fr.ret
+        if kw == "CALL":
+            if label not in self.subs:
+                raise _Err(f"o<{label}> call: no o<{label}> sub in this file (subroutines in other files and "
+                           f"Python remaps are not supported)")
+            args = {}
+            pos = 0
+            idx = 1
+            while pos < len(rest):
+                if rest[pos] != "[":
+                    raise _Err("call arguments must be [expressions]", pos + 1)
+                v, pos = self.cond(rest, pos)
+                args[idx] = v
+                idx += 1
+            self.frames.append(_Frame(k + 1, args, {}, label))
+            return self.subs[label] + 1
+        if kw in ("IF", "ELSEIF"):
+            if kw == "ELSEIF":
+                # reached after a taken branch: skip to the endif
+                return self._skip_to(k, label, "ENDIF") + 1
+            v, _ = self.cond(rest, 0)
+            j = k
+            while not v:
+                j = self._next_branch(j, label)
+                t = _strip_n(self.lines[j].text)
+                mm = re.match(r"O(<[^>]*>|\d+)(ELSEIF|ELSE|ENDIF)(.*)$", t)
+                if mm.group(2) == "ELSEIF":
+                    v, _ = self.cond(mm.group(3), 0)
+                else:
+                    return j + 1
+            return j + 1
+        if kw == "ELSE":
+            return self._skip_to(k, label, "ENDIF") + 1
+        if kw == "ENDIF":
+            return k + 1
+        if kw == "WHILE":
+            # a "do … while" ends here
+            if loops and loops[-1][0] == "do" and loops[-1][2] == label:
+                v, _ = self.cond(rest, 0)
+                start = loops[-1][1]
+                if v:
+                    return start + 1
+                loops.pop()
+                return k + 1
+            v, _ = self.cond(rest, 0)
+            if v:
+                loops.append(("while", k, label, 0))
+                return k + 1
+            return self._skip_to(k, label, "ENDWHILE") + 1
+        if kw == "ENDWHILE":
+            for j in range(len(loops) - 1, -1, -1):
+                if loops[j][2] == label:
+                    start = loops[j][1]
+                    del loops[j:]
+                    return start
+            raise _Err(f"o{label} endwhile without while")
+        if kw == "DO":
+            loops.append(("do", k, label, 0))
+            return k + 1
+        if kw == "REPEAT":
+            v, _ = self.cond(rest, 0)
+            n = int(round(v))
+            if n <= 0:
+                return self._skip_to(k, label, "ENDREPEAT") + 1
+            loops.append(("repeat", k, label, n))
+            return k + 1
+        if kw == "ENDREPEAT":
+            for j in range(len(loops) - 1, -1, -1):
+                if loops[j][2] == label and loops[j][0] == "repeat":
+                    kind, start, lab, n = loops[j]
+                    if n > 1:
+                        loops[j] = (kind, start, lab, n - 1)
+                        return start + 1
+                    del loops[j:]
+                    return k + 1
+            raise _Err(f"o{label} endrepeat without repeat")
+        if kw in ("BREAK", "CONTINUE"):
+            for j in range(len(loops) - 1, -1, -1):
+                if loops[j][2] == label:
+                    kind, start, lab, n = loops[j]
+                    if kw == "CONTINUE":
+                        del loops[j + 1:]
+                        if kind == "while":
+                            loops.pop()
+                            return start
+                        end = {"do": "WHILE", "repeat": "ENDREPEAT"}[kind]
+                        return self._skip_to(start, label, end)
+                    del loops[j:]
+                    end = {"while": "ENDWHILE", "do": "WHILE", "repeat": "ENDREPEAT"}[kind]
+                    return self._skip_to(start, label, end) + 1
+            raise _Err(f"o{label} {kw.lower()} outside a loop")
+        raise _Err(f"o{label} {kw.lower()} is not supported")
+
+    def _skip_to(self, k, label, kw) -> int:
+        for j in range(k + 1, len(self.lines)):
+            t = _strip_n(self.lines[j].text)
+            mm = re.match(r"O(<[^>]*>|\d+)([A-Z]+)", t)
+            if mm and mm.group(1).strip("<>").lower() == label and mm.group(2) == kw:
+                return j
+        raise _Err(f"o{label}: no matching o{label} {kw.lower()}")
+
+    def _next_branch(self, k, label) -> int:
+        for j in range(k + 1, len(self.lines)):
+            t = _strip_n(self.lines[j].text)
+            mm = re.match(r"O(<[^>]*>|\d+)(ELSEIF|ELSE|ENDIF)", t)
+            if mm and mm.group(1).strip("<>").lower() == label:
+                return j
+        raise _Err(f"o{label} if: no matching o{label} endif")
+
+
+def _strip_n(t: str) -> str:
+    m = re.match(r"N\d+", t)
+    return t[m.end():] if m else t
+
+
+def _fmt(v: float) -> str:
+    if not math.isfinite(v):
+        raise _Err(f"a word evaluates to {v}")
+    s = f"{v:.10f}".rstrip("0")
+    if s.endswith("."):
+        s = s[:-1]
+    if s in ("-0", ""):
+        s = "0"
+    return s
+
+
+def _drop(words: str, codes: dict, letters: tuple = ()) -> str:
+    """Remove the given code words (e.g. M98) and letters (P, L) from an expanded line."""
+    out = []
+    for c, v in re.findall(r"([A-Z])([-+]?[\d.]*)", words):
+        if c in codes and v and float(v) == codes[c]:
+            continue
+        if c in letters:
+            continue
+        out.append(c + v)
+    return "".join(out)
+
+
+def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: list) -> Expanded:
+    """Run a macro program into a straight-line one (see the module docstring)."""
+    ex = _Executor(data, path, dialect, skip_block_delete, {"list": offsets})
+    try:
+        ex.run()
+    except _Err as exc:
+        raise GCodeError(str(exc), SourceLocation(path, 1, exc.col)) from None
+    except RecursionError:
+        raise GCodeError("expression nested too deeply", SourceLocation(path, 1, 1)) from None
+    text = "\n".join(ex.out) + "\n"
+    return Expanded(text.encode("ascii"), np.array(ex.out_line, np.int64), np.array(ex.out_sub, bool))
