@@ -336,6 +336,8 @@ class _Executor:
             raise _Err(f"parameter #{n} does not exist (1..5999)", col)
         if 5420 <= n <= 5428 or n in (5400, 5401, 5403):
             raise _Err(f"parameter #{n} (current position / tool state) is not supported", col)
+        if 5061 <= n <= 5070:
+            raise _Err(f"parameter #{n} (probe result) is not supported: the twin does not probe", col)
         if 1 <= n <= 30 and len(self.frames) > 1:
             return self.frames[-1].locals_.get(n, 0.0)
         return self.params.get(n, 0.0)
@@ -362,6 +364,8 @@ class _Executor:
                 self.globals_[key] = value
             else:
                 self.frames[-1].named[key] = value
+        elif not 1 <= key <= 5999:
+            raise _Err(f"parameter #{key} does not exist (1..5999)")
         elif 1 <= key <= 30 and len(self.frames) > 1:
             self.frames[-1].locals_[key] = value
         else:
@@ -512,6 +516,8 @@ class _Executor:
                 codes = re.findall(r"([A-Z])([-+]?\d*\.?\d*)", words)
                 gs = [float(v) for c, v in codes if c == "G" and v]
                 ms = [float(v) for c, v in codes if c == "M" and v]
+                if any(38.0 <= g < 39.0 for g in gs):
+                    raise _Err("probing (G38.x) is not supported: the twin has no probe")
                 if 65.0 in gs:
                     k = self.g65(codes, k)
                     continue

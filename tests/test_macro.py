@@ -1,0 +1,126 @@
+"""Macro programs (RS274NGC parameters and O-words, Fanuc Macro B) against hand-computed results."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mtwin.errors import GCodeError, WriteError
+from mtwin.gcode.interpreter import InterpreterSettings, load_program
+from mtwin.gcode.records import FL_SUB, LINEAR, RAPID
+from mtwin.gcode.writer import scale_feeds
+
+
+def run(text, name="m.ngc", **kw):
+    return load_program(text.encode(), InterpreterSettings(**kw), path=name)
+
+
+def ends(prog):
+    r = prog.records
+    return np.stack([r["x"], r["y"], r["z"]], axis=1)
+
+
+def test_expressions_precedence_and_functions():
+    prog = run("G21 G90\n#1 = [2 + 3 * 4 ** 2]\n#2 = [SIN[30] + COS[60]]\n#3 = ATAN[1]/[1]\n"
+               "#4 = [ROUND[2.5] + FIX[-1.5] + FUP[1.2] + ABS[-3]]\n#5 = [7 MOD 3 + [-7 MOD 3]]\n"
+               "G0 X#1 Y#2 Z#3\nG0 X#4 Y#5 Z[SQRT[16] + EXP[0] + LN[1]]\n"
+               "G0 X[1 LT 2] Y[[1 GT 2] OR [3 EQ 3]] Z[2 AND 0]\nM2\n")
+    p = ends(prog)
+    assert p[0] == pytest.approx([50.0, 1.0, 45.0])
+    # ROUND 2.5 -> 3, FIX -1.5 -> -2, FUP 1.2 -> 2, ABS -3 -> 3; 7 MOD 3 = 1, -7 MOD 3 = 2
+    assert p[1] == pytest.approx([6.0, 3.0, 5.0])
+    assert p[2] == pytest.approx([1.0, 1.0, 0.0])
+
+
+def test_linuxcnc_assignments_take_effect_after_the_line():
+    # RS274NGC: parameters set on a line are set after the line's words are read
+    prog = run("G21 G90\n#1=1\n#1=2 G0 X#1\nG0 X#1\nM2\n")
+    assert ends(prog)[:, 0] == pytest.approx([1.0, 2.0])
+
+
+def test_named_parameters_scope_and_errors():
+    prog = run("G21 G90\n#<_g> = 3\n#<a> = 4\no<s> sub\n  #<a> = 10\n  G0 X#<_g> Y#<a>\n  #<_g> = 7\no<s> endsub\n"
+               "o<s> call\nG0 X#<_g> Y#<a>\nM2\n")
+    np.testing.assert_allclose(ends(prog)[:, :2], [[3.0, 10.0], [7.0, 4.0]])
+    with pytest.raises(GCodeError, match=r"m\.ngc:2:.*#<nope> is not defined"):
+        run("G21\nG0 X#<nope>\nM2\n")
+
+
+def test_oword_subroutine_with_arguments_and_return():
+    text = ("G21 G90 F600\no<sq> sub\n  G1 X#1 Y0\n  G1 X#1 Y#1\n  o<sq> if [#2 GT 0]\n    o<sq> return\n"
+            "  o<sq> endif\n  G1 X0 Y#1\no<sq> endsub\no<sq> call [5] [1]\no<sq> call [2] [0]\nM2\n")
+    prog = run(text)
+    np.testing.assert_allclose(ends(prog)[:, :2], [[5, 0], [5, 5], [2, 0], [2, 2], [0, 2]])
+    # every move of a call points at its line inside the sub, and is marked as a subprogram move
+    assert list(prog.records["line"]) == [3, 4, 3, 4, 8]
+    assert np.all(prog.records["flags"] & FL_SUB)
+
+
+def test_oword_loops_if_elseif_repeat_break_continue():
+    text = ("G21 G90\n#1 = 0\no1 while [#1 LT 5]\n  #1 = [#1 + 1]\n  o2 if [#1 EQ 2]\n    o1 continue\n"
+            "  o2 elseif [#1 EQ 4]\n    G0 Y#1\n  o2 else\n    G0 X#1\n  o2 endif\no1 endwhile\n"
+            "o3 repeat [3]\n  G0 Z#1\n  #1 = [#1 + 1]\no3 endrepeat\n"
+            "o4 do\n  #1 = [#1 - 1]\n  o5 if [#1 LT 6]\n    o4 break\n  o5 endif\n  G0 X#1\no4 while [1]\nM2\n")
+    p = ends(run(text))
+    # while: X1, (skip 2), X3, Y4, X5; repeat: Z5 Z6 Z7; do: #1 8 -> X7, X6, then break at 5
+    np.testing.assert_allclose(p[:, 0], [1, 3, 3, 5, 5, 5, 5, 7, 6])
+    np.testing.assert_allclose(p[:, 1], [0, 0, 4, 4, 4, 4, 4, 4, 4])
+    np.testing.assert_allclose(p[:, 2], [0, 0, 0, 0, 5, 6, 7, 7, 7])
+
+
+def test_fanuc_macro_b_if_goto_while_and_g65():
+    text = ("O1000\nG21 G90 G94\n#1 = 0\nWHILE [#1 LT 3] DO1\n  #1 = #1 + 1\n  G0 X#1\nEND1\n"
+            "IF [#1 EQ 3] GOTO 20\nG0 Y99\nN20 G0 Y[#1 * 2]\nIF [#1 GT 0] THEN #2 = 7\nG65 P2000 A#2 B0.5\nM30\n"
+            "O2000\nG1 X#1 Y#2 F#1\nM99\n")
+    prog = run(text, name="m.nc")
+    p = ends(prog)
+    np.testing.assert_allclose(p, [[1, 0, 0], [2, 0, 0], [3, 0, 0], [3, 6, 0], [7, 0.5, 0]])
+    assert prog.records["feed"][-1] == pytest.approx(7.0)
+    assert prog.records["line"][-1] == 15 and prog.records["flags"][-1] & FL_SUB
+
+
+def test_fanuc_m98_with_parameters_in_the_subprogram():
+    text = ("O1\nG21 G90 G94 F500\n#100 = 0\nM98 P2 L3\nM30\nO2\n#100 = #100 + 10\nG1 X#100\nM99\n")
+    prog = run(text, name="m.nc")
+    assert ends(prog)[:, 0].tolist() == pytest.approx([10, 20, 30])
+    assert set(prog.records["line"].tolist()) == {8}
+
+
+def test_macro_program_round_trip_and_rewrite_limits():
+    text = "G21 G90 F600\n#1 = 3\no1 repeat [2]\n  G1 X#1\n  #1 = [#1 * 2]\no1 endrepeat\nM2\n"
+    prog = run(text)
+    assert scale_feeds(prog, 1.0) == text.encode()
+    with pytest.raises(WriteError, match=r"m\.ngc:4: this is a macro program"):
+        scale_feeds(prog, 0.8)
+
+
+def test_endless_loop_is_an_error(monkeypatch):
+    from mtwin.gcode import macro
+
+    monkeypatch.setattr(macro, "MAX_EXECUTED_LINES", 20_000)  # the real cap is 2 million lines
+    with pytest.raises(GCodeError, match="endless loop"):
+        run("G21\n#1=0\no1 while [1]\n  #1 = [#1+1]\no1 endwhile\nM2\n")
+
+
+@pytest.mark.parametrize("text,message", [
+    ("G21\nG0 X[1/0]\nM2\n", "division by zero"),
+    ("G21\nG0 X[SQRT[-1]]\nM2\n", "outside its domain"),
+    ("G21\no<x> call\nM2\n", "not supported"),
+    ("G21\no1 if [0]\nG0 X1\nM2\n", "no matching o1 endif"),
+    ("G21\nGOTO 77\nM2\n", "no block N77"),
+    ("G21\nWHILE [0] DO1\nM2\n", "without END1"),
+    ("G21\n#7000=1\nM2\n", "does not exist"),
+    ("G21\nG38.2 Z-5 F100\nG0 X#5061\nM2\n", "probing"),
+])
+def test_macro_errors_name_the_line(text, message):
+    with pytest.raises(GCodeError, match=message) as info:
+        run(text)
+    assert info.value.location.line >= 2
+
+
+def test_records_keep_plain_program_behaviour():
+    # a program without any macro construct is not touched by the macro path
+    prog = run("G21 G90 G0 X1\nG1 X2 F100\nM2\n")
+    assert not prog.is_macro and prog.records["kind"].tolist() == [RAPID, LINEAR]
+    assert math.isclose(prog.records["x"][-1], 2.0)
