@@ -242,3 +242,15 @@ def test_runaway_subprograms_end_with_an_error():
         run("O1\nM98 P1\n")
     with pytest.raises(GCodeError, match="does not terminate"):
         run("M98 P100 L99999999\nM30\nO100\nG4 P1\nM99\n")
+
+
+def test_g92_offsets_program_coordinates():
+    # G92 makes the current point read as the given values; machine position = program + offset
+    prog = load_program(b"G21 G90\nG0 X10 Y5\nG92 X0 Y0\nG1 X5 F100\nG92.1\nG1 X20\nG92 X0\nG92.2\nG1 Y0\n"
+                        b"G92.3\nG1 X1\nM2\n", path="t.ngc")
+    r = prog.records
+    assert list(zip(r["x"], r["y"])) == [(10, 5), (5, 0), (20, 5), (20, 0), (1, 0)]
+    assert list(zip(r["ox"], r["oy"])) == [(0, 0), (10, 5), (0, 0), (0, 0), (20, 0)]
+    # a G28 return is a machine position: the G92 offset is taken out of it
+    prog = load_program(b"G21 G90\nG0 X10\nG92 X0\nG28\nM2\n", path="t.ngc")
+    assert prog.records["x"][-1] == -10.0 and prog.records["ox"][-1] == 10.0

@@ -123,9 +123,10 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.cam_tol = st[SF_CAM_TOL]
         r.tlo = st[SF_TLO]
         w = si[SI_WCS]
-        r.ox = wcs_off[w, 0]
-        r.oy = wcs_off[w, 1]
-        r.oz = wcs_off[w, 2]
+        # work offset plus the G92 offset (row 9): machine = program + offset (+ tool length)
+        r.ox = wcs_off[w, 0] + wcs_off[9, 0]
+        r.oy = wcs_off[w, 1] + wcs_off[9, 1]
+        r.oz = wcs_off[w, 2] + wcs_off[9, 2]
     return n + 1
 
 
@@ -164,7 +165,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     n = 0
     nwarn = 0
     err_vals = np.zeros(4)
-    wcs_off = wcs_init.copy()
+    # rows 0..8: G54..G59.3; row 9: the active G92 offset; row 10: the saved one (G92.3)
+    wcs_off = np.zeros((11, 3))
+    wcs_off[:9] = wcs_init
 
     st = np.zeros(5)
     si = np.zeros(8, np.int64)
@@ -341,7 +344,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_retract = code
                 grp = 10
-            elif code == 100 or code == 280 or code == 300 or code == 530:
+            elif code == 100 or code == 280 or code == 300 or code == 530 or code == 920 or code == 921 \
+                    or code == 922 or code == 923:
                 if g_nonmodal >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_nonmodal = code
@@ -354,7 +358,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
                 grp = 99
             elif code == 410 or code == 420 or code == 411 or code == 421 or code == 680 \
-                    or code == 510 or code == 511 or code == 160 or code == 920 \
+                    or code == 510 or code == 511 or code == 160 \
                     or code == 520 or code == 120 or code == 130 or code == 330 \
                     or code == 760 or code == 70 or code == 80 or code == 681 \
                     or code == 650 or code == 660 or code == 661:
@@ -571,11 +575,28 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 s[a] = e[a]
             for a, L in ((0, _X), (1, _Y), (2, _Z)):
                 if has[L] or not has_axis:
-                    e[a] = home[a] - wcs_off[si[SI_WCS], a] - (st[SF_TLO] if a == 2 else 0.0)
+                    e[a] = home[a] - wcs_off[si[SI_WCS], a] - wcs_off[9, a] - (st[SF_TLO] if a == 2 else 0.0)
             n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
             for a in range(3):
                 pos[a] = e[a]
             has_axis = False
+        elif g_nonmodal == 920:
+            # G92: offset the coordinates so that the current point reads as the given values
+            for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                if has[L]:
+                    v = val[L] * scale
+                    wcs_off[9, a] = pos[a] + wcs_off[9, a] - v
+                    wcs_off[10, a] = wcs_off[9, a]
+                    pos[a] = v
+            has_axis = False
+        elif g_nonmodal == 921 or g_nonmodal == 922 or g_nonmodal == 923:
+            # G92.1 / G92.2 cancel the offset (G92.1 also forgets it); G92.3 restores it
+            for a in range(3):
+                new = wcs_off[10, a] if g_nonmodal == 923 else 0.0
+                pos[a] += wcs_off[9, a] - new
+                wcs_off[9, a] = new
+                if g_nonmodal == 921:
+                    wcs_off[10, a] = 0.0
         elif g_nonmodal == 530:
             if not (motion == 0 or motion == 10) or (g_motion >= 0 and g_motion != 0 and g_motion != 10):
                 return n, E_G53_MODE, g_nonmodal_w, li, err_vals, nwarn
@@ -584,7 +605,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 e[a] = pos[a]
             for a, L in ((0, _X), (1, _Y), (2, _Z)):
                 if has[L]:
-                    e[a] = val[L] * scale - wcs_off[si[SI_WCS], a] - (st[SF_TLO] if a == 2 else 0.0)
+                    e[a] = val[L] * scale - wcs_off[si[SI_WCS], a] - wcs_off[9, a] - (st[SF_TLO] if a == 2 else 0.0)
             if has_axis:
                 kind = RAPID if motion == 0 else LINEAR
                 if kind == LINEAR and st[SF_FEED] <= 0.0:

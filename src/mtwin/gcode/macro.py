@@ -373,8 +373,10 @@ class _Executor:
 
     # ---------------------------------------------------------------- lines
     def eval_at(self, text: str, pos: int) -> tuple[float, int]:
+        """A word's value: a number, parameter, function or [expr] — followed, as Fanuc-style
+        controls accept (X#140/2), by arithmetic without brackets up to the next address."""
         e = _Expr(self, text, pos)
-        v = e.unary()
+        v = e.binary(2)  # + - * / MOD ** (no comparisons: their letters would eat addresses)
         return v, e.p
 
     def cond(self, text: str, pos: int) -> tuple[float, int]:
