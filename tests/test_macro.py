@@ -124,3 +124,19 @@ def test_records_keep_plain_program_behaviour():
     prog = run("G21 G90 G0 X1\nG1 X2 F100\nM2\n")
     assert not prog.is_macro and prog.records["kind"].tolist() == [RAPID, LINEAR]
     assert math.isclose(prog.records["x"][-1], 2.0)
+
+
+def test_parse_and_simulate_a_macro_program_through_the_cli(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    f = tmp_path / "m.ngc"
+    f.write_text("G21 G90 F600\n#1 = 3\no1 repeat [4]\n  G1 X#1\n  #1 = [#1 * 2]\no1 endrepeat\nM2\n")
+    r = subprocess.run([sys.executable, "-m", "mtwin", "parse", str(f), "--json"], capture_output=True)
+    d = json.loads(r.stdout)
+    assert d["lines"] == 7 and d["moves"]["linear"] == 4 and d["bbox"]["max"][0] == 24.0
+    r = subprocess.run([sys.executable, "-m", "mtwin", "parse", str(f), "--moves"], capture_output=True)
+    assert [ln.split(",")[0] for ln in r.stdout.decode().splitlines()[1:]] == ["4"] * 4
+    r = subprocess.run([sys.executable, "-m", "mtwin", "simulate", str(f), "--json", "--no-cutting"], capture_output=True)
+    assert r.returncode == 0 and json.loads(r.stdout)["cutting_time"] > 0

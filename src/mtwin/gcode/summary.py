@@ -62,7 +62,7 @@ def summarize(prog: Program, rapid_rate: float = DEFAULT_RAPID_RATE) -> ProgramS
     inch = bool(prog.lexed.data) and bool((rec["flags"] & 1).any())
     return ProgramSummary(
         path=prog.path,
-        lines=prog.lexed.n_lines,
+        lines=len(prog.data.splitlines()) if prog.is_macro else prog.lexed.n_lines,
         moves=counts,
         tools=sorted(int(t) for t in np.unique(rec["tool"])) if rec.size else [],
         feed_range=[float(f.min()), float(f.max())] if f.size else [0.0, 0.0],
