@@ -90,8 +90,8 @@ def _tool_rows(plan, program, cutting: Cutting):
         tool = cutting.tool(t, f"{program.path}:{int(seg['line'][where_i])}: ")
         index[t] = len(table)
         table.append(tool)
-    if not table:
-        table.append(cutting.tool(used[0]) if used else cutting.tool(0) if not cutting.tools else next(iter(cutting.tools.values())))
+    if not table:  # no feed move: any tool row will do, none is read
+        table.append(next(iter(cutting.tools.values()), None) or cutting.tool(0))
     tool_index = np.array([index.get(int(t), 0) for t in nums], np.int64)
     return table, tool_index, tuple(used)
 

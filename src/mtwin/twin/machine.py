@@ -310,6 +310,16 @@ def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
         out += _table_lines(ax, f"axes.{name}") + [""]
     out += _table_lines(m.spindle, "spindle") + [""]
     out += _table_lines(m.timing, "timing")
+    out += ["", "# Cutting: tools, material and stock (docs/cutting.md). Without [tools.*] every tool is a",
+            "# 6 mm two-flute carbide flat end mill; without [cutting] material, al6061 (reference Kt, Ke).",
+            "# [cutting]",
+            '# material = "al6061"          # al6061 | al7075 | al6082 | steel1045 | ti6al4v | a [materials.*] name',
+            "# stock = [0, 0, -20, 60, 50, 0]   # xmin, ymin, zmin, xmax, ymax, zmax, mm (else the program's",
+            "#                                  # (MTWIN STOCK ...) comment, else feed moves' extent, top Z0)",
+            "# [tools.1]",
+            '# type = "flat"                # flat | ball | bull',
+            "# diameter = 6.0",
+            "# flutes = 2"]
     return "\n".join(out) + "\n"
 
 
