@@ -56,18 +56,20 @@ def our_motion(prog):
     out = []
     for r in prog.records:
         k = 1 / 25.4 if r["flags"] & FL_INCH else 1.0
+        # LinuxCNC reports inverse-time moves (G93) with their equivalent feed per minute
+        fw = r["feed"] if r["feed_mode"] == 2 else r["feed_word"]
         end = np.array([r["x"], r["y"], r["z"]]) * k
         if r["kind"] == RAPID:
             out.append(("STRAIGHT_TRAVERSE", list(end), None))
         elif r["kind"] == LINEAR:
-            out.append(("STRAIGHT_FEED", list(end), r["feed_word"] * k))
+            out.append(("STRAIGHT_FEED", list(end), fw * k))
         elif r["kind"] == DWELL:
             out.append(("DWELL", [r["dwell"]], None))
         else:
             a1, a2, an = PLANE_AXES[r["plane"]]
             c = np.array([r["cx"], r["cy"], r["cz"]]) * k
             rot = (1 if r["kind"] == ARC_CCW else -1) * (r["turns"] + 1)
-            out.append(("ARC_FEED", [end[a1], end[a2], c[a1], c[a2], rot, end[an]], r["feed_word"] * k))
+            out.append(("ARC_FEED", [end[a1], end[a2], c[a1], c[a2], rot, end[an]], fw * k))
     return out
 
 

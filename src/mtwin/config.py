@@ -31,7 +31,8 @@ else:  # pragma: no cover
 
 from .errors import ConfigError
 
-_SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "machine", "controller", "axes", "spindle", "timing",
+_SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "cutter_comp", "machine", "controller", "axes", "spindle",
+             "timing",
              "tools", "materials", "cutting"}
 _INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30"}
 
@@ -109,6 +110,28 @@ def load_twin_file(path: str | None) -> dict:
         offsets[key.upper()] = _vec3(value, f"{path}: work_offsets.{key}")
     if offsets:
         out["work_offsets"] = offsets
+    # cutter compensation radii: the tools' own (D = tool number, as LinuxCNC), then [cutter_comp]
+    radii = {}
+    for key, body in (raw.get("tools") or {}).items():
+        if str(key).isdigit() and isinstance(body, dict) and "diameter" in body:
+            d = body["diameter"]
+            if isinstance(d, (int, float)) and not isinstance(d, bool) and d > 0:
+                radii[int(key)] = 0.5 * float(d)
+    for key, value in (raw.get("cutter_comp") or {}).items():
+        k = str(key).upper().lstrip("D")
+        if not k.isdigit():
+            raise ConfigError(f"{path}: cutter_comp.{key}: keys are D numbers (D3 or 3)")
+        from .units import UnitError, convert
+
+        try:
+            r = convert(value, "mm", f"cutter_comp.{key}")
+        except UnitError as exc:
+            raise ConfigError(f"{path}: {exc}") from None
+        if r < 0:
+            raise ConfigError(f"{path}: cutter_comp.{key}: a radius must be >= 0 mm")
+        radii[int(k)] = r
+    if radii:
+        out["comp_radii"] = radii
     if raw.get("tool_lengths"):  # an empty table is the same as none (every length 0)
         tools = {}
         for key, value in raw["tool_lengths"].items():

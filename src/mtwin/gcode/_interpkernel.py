@@ -64,6 +64,8 @@ E_G53_MODE = 28
 E_BAD_TURNS = 29
 E_ROTARY = 30
 E_UNUSED_WORD = 31
+E_COMP_PLANE = 40
+E_COMP_ACTIVE = 41
 E_AMBIGUOUS_R = 32
 
 # ---- warning codes ----
@@ -71,15 +73,16 @@ W_IGNORED_G = 1
 W_IGNORED_M = 2
 W_M99_IN_MAIN = 3
 W_AXIS_LETTER_ZERO = 4
+W_COMP_RADIUS_UNKNOWN = 5
 
 # letters
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
 _N, _O, _P, _Q, _R, _S, _T, _U, _V, _W, _X, _Y, _Z = range(13, 26)
 
 # state indices (float)
-SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL = 0, 1, 2, 3, 4
+SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R = 0, 1, 2, 3, 4, 5
 # state indices (int)
-SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS = range(8)
+SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP = range(9)
 
 
 @njit
@@ -121,6 +124,8 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.dwell = dwell
         r.path_tol = st[SF_PATH_TOL]
         r.cam_tol = st[SF_CAM_TOL]
+        r.comp = si[SI_COMP]
+        r.comp_r = st[SF_COMP_R]
         r.tlo = st[SF_TLO]
         w = si[SI_WCS]
         # work offset plus the G92 offset (row 9): machine = program + offset (+ tool length)
@@ -155,7 +160,7 @@ def _arc_len(s, e, c, a1, a2, an, ccw, turns):
 def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                   sub_num, sub_line, wcs_init, tool_len, tool_known, have_tool_table,
                   home28, home30, dialect, lenient, skip_block_delete, max_steps, out,
-                  warn_code, warn_word):
+                  warn_code, warn_word, comp_r, comp_known):
     """Interpret a lexed program.  See module docstring.
 
     Returns (n_records, err_code, err_word, err_line, err_vals, n_warnings).
@@ -169,8 +174,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     wcs_off = np.zeros((11, 3))
     wcs_off[:9] = wcs_init
 
-    st = np.zeros(5)
-    si = np.zeros(8, np.int64)
+    st = np.zeros(6)
+    si = np.zeros(9, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
     inch = False
@@ -267,6 +272,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_retract = -1
         g_nonmodal = -1
         g_nonmodal_w = -1
+        g_comp = -1
+        g_comp_w = -1
         g_motion = -1
         g_motion_w = -1
         g_dwell = False
@@ -306,7 +313,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_units = 1 if code == 200 else 0
                 grp = 6
-            elif code == 400:
+            elif code == 400 or code == 410 or code == 420 or code == 411 or code == 421:
+                if g_comp >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_comp = code
+                g_comp_w = kw
                 grp = 7
             elif code == 430 or code == 490:
                 if g_tlo >= 0:
@@ -357,7 +368,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if code == 960:
                     return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
                 grp = 99
-            elif code == 410 or code == 420 or code == 411 or code == 421 or code == 680 \
+            elif code == 680 \
                     or code == 510 or code == 511 or code == 160 \
                     or code == 520 or code == 120 or code == 130 or code == 330 \
                     or code == 760 or code == 70 or code == 80 or code == 681 \
@@ -494,6 +505,35 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             st[SF_TLO] = tool_len[hn]
         elif g_tlo == 490:
             st[SF_TLO] = 0.0
+        # 10b. cutter radius compensation (G17 only); the offset path is computed after
+        # interpretation from the records' side and radius (gcode/cutcomp.py)
+        if g_comp == 400:
+            si[SI_COMP] = 0
+            st[SF_COMP_R] = 0.0
+        elif g_comp >= 410:
+            if si[SI_PLANE] != 0:
+                return n, E_COMP_PLANE, g_comp_w, li, err_vals, nwarn
+            if si[SI_COMP] != 0:
+                return n, E_COMP_ACTIVE, g_comp_w, li, err_vals, nwarn
+            si[SI_COMP] = 1 if (g_comp == 410 or g_comp == 411) else 2
+            if g_comp == 411 or g_comp == 421:
+                # G41.1/G42.1 D<diameter>
+                if not has[_D]:
+                    return n, E_COMP_PLANE, g_comp_w, li, err_vals, nwarn
+                st[SF_COMP_R] = 0.5 * abs(val[_D]) * scale
+                if val[_D] < 0.0:
+                    si[SI_COMP] = 3 - si[SI_COMP]  # a negative diameter swaps the side (as LinuxCNC)
+            else:
+                dn = int(val[_D]) if has[_D] else si[SI_TOOL]
+                if dn < 0 or dn >= comp_r.size:
+                    return n, E_BAD_VALUE, widx[_D] if has[_D] else g_comp_w, li, err_vals, nwarn
+                if not comp_known[dn]:
+                    # no radius known for this D: the CAM path is taken as compensated already
+                    if nwarn < warn_code.size:
+                        warn_code[nwarn] = W_COMP_RADIUS_UNKNOWN
+                        warn_word[nwarn] = widx[_D] if has[_D] else g_comp_w
+                    nwarn += 1
+                st[SF_COMP_R] = comp_r[dn]
         # 11. work offsets: positions stay in program coordinates of the new frame
         if g_wcs >= 0:
             ow = si[SI_WCS]

@@ -53,6 +53,7 @@ class InterpreterSettings:
     tool_lengths: dict | None = None
     home_g28: tuple = (0.0, 0.0, 0.0)
     home_g30: tuple = (0.0, 0.0, 0.0)
+    comp_radii: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -206,6 +207,12 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
     wcs = _offsets_array(settings)
     tool_len, tool_known, have_table = _tool_arrays(settings)
     sub_num, sub_line = _subprogram_table(lexed)
+    comp_r = np.zeros(1000)
+    comp_known = np.zeros(1000, np.bool_)
+    for d, radius in (settings.comp_radii or {}).items():
+        if 0 <= int(d) < 1000:
+            comp_r[int(d)] = float(radius)
+            comp_known[int(d)] = True
     cap = max(64, 2 * int(lexed.line_nw.size) + 16)
     max_steps = 200 * lexed.n_lines + 1_000_000
     warn_code = np.zeros(256, np.int64)
@@ -217,7 +224,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
             sub_num, sub_line, wcs, tool_len, tool_known, have_table,
             np.asarray(settings.home_g28, float), np.asarray(settings.home_g30, float),
             0 if dialect == "fanuc" else 1, settings.lenient, settings.skip_block_delete, max_steps,
-            out, warn_code, warn_word)
+            out, warn_code, warn_word, comp_r, comp_known)
         if n <= cap or err != K.E_OK:  # an error is reported even if the buffer also overflowed
             break
         if n > 50_000_000:
@@ -228,7 +235,12 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
     warnings = [_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(min(nwarn, 256))]
     if nwarn > 256:
         warnings.append(GCodeWarning(SourceLocation(lexed.path, 0, 0), f"{nwarn - 256} more warnings"))
-    return Program(lexed, out[:n], settings, dialect, warnings)
+    records = out[:n]
+    if (records["comp"] != 0).any():
+        from .cutcomp import apply
+
+        records = apply(records, lexed.path)
+    return Program(lexed, records, settings, dialect, warnings)
 
 
 def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
@@ -238,6 +250,9 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
         msg = f"unsupported G-code {w} ignored (--lenient)"
     elif code == K.W_IGNORED_M:
         msg = f"unsupported M-code {w} ignored (--lenient)"
+    elif code == K.W_COMP_RADIUS_UNKNOWN:
+        msg = (f"cutter compensation with {w or 'the current tool'}: no radius known ([cutter_comp] in the twin "
+               f"file), taken as 0 (a CAM-compensated path)")
     elif code == K.W_M99_IN_MAIN:
         msg = "M99 in the main program ends it here (a Fanuc control would loop to the start)"
     else:
@@ -286,6 +301,9 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_BAD_TURNS: f"arc turn count {w} must be a positive integer",
         K.E_UNUSED_WORD: f"word {w} is not used by any code on this block",
         K.E_AMBIGUOUS_R: "R word is ambiguous on a block with both G64 and M19; use separate blocks",
+        K.E_COMP_PLANE: ("cutter compensation outside the XY plane (G18/G19) is not supported; G41.1/G42.1 "
+                         "need a D diameter"),
+        K.E_COMP_ACTIVE: "cutter compensation is already on: G40 first (a control refuses to switch sides here)",
         K.E_ROTARY: f"rotary/secondary axis word {w} is not supported (3-axis machine)",
     }
     return GCodeError(msgs.get(code, f"interpreter error {code}"), loc)

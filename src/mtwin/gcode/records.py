@@ -33,6 +33,7 @@ FL_MACHINE = 32  # G28/G30/G53 machine-coordinate move
 FL_SUB = 64  # executed inside an M98 subprogram call
 FL_FIRST_IN_LINE = 128  # first record produced by its source line
 FL_F_INCH = 256  # an F word on this line is read in inches (units before this line's G20/G21)
+FL_COMP = 512  # geometry moved by cutter compensation (the programmed path differs)
 
 MOVE_DTYPE = np.dtype(
     [
@@ -58,6 +59,8 @@ MOVE_DTYPE = np.dtype(
         ("tlo", np.float64),  # active tool length offset, mm
         ("ox", np.float64), ("oy", np.float64), ("oz", np.float64),  # work offset, mm
         ("cam_tol", np.float64),  # G64 Q (naive-CAM merge) tolerance, mm; P when Q is absent
+        ("comp", np.int8),  # cutter compensation: 0 off (G40), 1 left (G41), 2 right (G42)
+        ("comp_r", np.float64),  # its radius, mm
     ]
 )
 

@@ -21,6 +21,7 @@ from .interpreter import Program, interpret
 from .lexer import lex
 from .numfmt import NumberStyle, detect_style
 from .records import (
+    FL_COMP,
     ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
     FL_F_INCH, FL_INCH, FL_INCREMENTAL, FL_R_ARC, FL_SUB, LINEAR, PLANE_AXES, RAPID, move_lengths, arc_sweep,
 )
@@ -211,6 +212,10 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
         r = rec[i]
         if r["flags"] & (FL_CANNED | FL_SUB) or not r["flags"] & FL_FIRST_IN_LINE or r["turns"] > 0:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a canned-cycle, subprogram or multi-turn move")
+        if r["flags"] & FL_COMP:
+            # the programmed path and the tool-centre path differ: a split point on one is not
+            # the same fraction of the other
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
         if lengths[i] <= 0.0:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a zero-length move")
         if (line0 == li).sum() != 1:
