@@ -224,7 +224,7 @@ def test_errors_name_line_and_column(text, match, line, col):
 
 
 def test_lenient_turns_unsupported_codes_into_warnings():
-    p = load_program(b"G1 X1 F10\nM123\nG5.1 Q1\n", InterpreterSettings(lenient=True), path="t.nc")
+    p = load_program(b"G1 X1 F10\nM123\nG5.2 Q1\n", InterpreterSettings(lenient=True), path="t.nc")
     assert len(p.records) == 1 and len(p.warnings) == 2
     assert "t.nc:2:1" in str(p.warnings[0])
 
@@ -254,3 +254,16 @@ def test_g92_offsets_program_coordinates():
     # a G28 return is a machine position: the G92 offset is taken out of it
     prog = load_program(b"G21 G90\nG0 X10\nG92 X0\nG28\nM2\n", path="t.ngc")
     assert prog.records["x"][-1] == -10.0 and prog.records["ox"][-1] == 10.0
+
+
+def test_fanuc_g80_restores_the_motion_mode_and_g08_is_a_control_switch():
+    text = b"G20 G90 G0 X0 Y0 Z1\nG08 P1\nG99 G81 X1 Z-0.1 R0.1 F10\nG80\nZ0.5\nG05.1 Q1\nX2\nM30\n"
+    prog = load_program(text, InterpreterSettings(dialect="fanuc"), path="t.nc")
+    last = prog.records[-2:]
+    assert last["kind"].tolist() == [RAPID, RAPID] and last["line"].tolist() == [5, 7]
+    # RS274NGC: G80 leaves no motion mode, and G8 is the lathe radius mode
+    with pytest.raises(GCodeError, match="without an active motion mode"):
+        load_program(text.replace(b"G08 P1\n", b"").replace(b"G05.1 Q1\n", b""),
+                     InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
+    with pytest.raises(GCodeError, match="G8"):
+        load_program(b"G8\n", InterpreterSettings(dialect="linuxcnc"), path="t.ngc")

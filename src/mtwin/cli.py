@@ -48,9 +48,13 @@ def _fail(exc: BaseException) -> None:
     if _state["traceback"]:
         raise exc
     if isinstance(exc, MtwinError):
-        err.print(f"[red]error:[/red] {exc}", markup=True, soft_wrap=True)
+        from rich.markup import escape
+
+        err.print(f"[red]error:[/red] {escape(str(exc))}", markup=True, soft_wrap=True)
         raise typer.Exit(exc.exit_code)
-    err.print(f"[red]internal error:[/red] {type(exc).__name__}: {exc} (run with --traceback and report it)")
+    from rich.markup import escape
+
+    err.print(f"[red]internal error:[/red] {type(exc).__name__}: {escape(str(exc))} (run with --traceback and report it)")
     raise typer.Exit(EXIT_INTERNAL)
 
 
@@ -81,7 +85,9 @@ def _load(part: str, settings):
 
     prog = load_program(part, settings)
     for w in prog.warnings:
-        err.print(f"[yellow]{w}[/yellow]", soft_wrap=True)
+        from rich.markup import escape
+
+        err.print(f"[yellow]{escape(str(w))}[/yellow]", soft_wrap=True)
     return prog
 
 
@@ -280,7 +286,9 @@ def simulate(
         trace = simulate_plan(tw, prog, plan, every=every, cutting=not no_cutting, stock=box, tooth=tooth_resolution)
     s = trace.summary
     for w in s.warnings:
-        err.print(f"[yellow]warning: {w}[/yellow]", soft_wrap=True)
+        from rich.markup import escape
+
+        err.print(f"[yellow]warning: {escape(w)}[/yellow]", soft_wrap=True)
     if output:
         from . import __version__
 

@@ -182,6 +182,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     incremental = False
     ijk_abs = False
     motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
+    motion_base = -1  # the last G00/G01/G02/G03 mode (Fanuc restores it after G80)
     retract_old = dialect == 0  # power-on default: Fanuc G98, LinuxCNC G99
     tool_sel = 0
     canned_r = math.nan
@@ -274,6 +275,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_nonmodal_w = -1
         g_comp = -1
         g_comp_w = -1
+        g_lookahead = False
         g_motion = -1
         g_motion_w = -1
         g_dwell = False
@@ -368,6 +370,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if code == 960:
                     return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
                 grp = 99
+            elif (code == 80 or code == 51) and dialect == 0:
+                # Fanuc G08 P1/P0 look-ahead control and G05.1 Q1/Q0 AI contour control switch
+                # the control's planning mode, not the path (the twin's planner is configured)
+                g_lookahead = True
+                grp = 99
             elif code == 680 \
                     or code == 510 or code == 511 or code == 160 \
                     or code == 520 or code == 120 or code == 130 or code == 330 \
@@ -430,9 +437,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             return n, E_AMBIGUOUS_R, widx[_R], li, err_vals, nwarn
         if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
-        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19):
+        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
         if has[_P] and not ignored and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
+                                            or g_lookahead
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
         if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub):
@@ -571,9 +579,13 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             retract_old = g_retract == 980
         # motion mode update
         if g_cancel and (motion >= 730 and motion != 800):
-            motion = -1
+            # RS274NGC: G80 leaves no motion mode; Fanuc: canned cycles are a group of their
+            # own, so the G00/G01/G02/G03 mode from before the cycle is back in force
+            motion = motion_base if dialect == 0 else -1
         if g_motion >= 0:
             motion = g_motion
+            if g_motion < 730:
+                motion_base = g_motion
         has_axis = has[_X] or has[_Y] or has[_Z]
         if g_dwell and dialect == 0:
             has_axis = has[_Y] or has[_Z]  # Fanuc G4 X is the dwell time

@@ -232,7 +232,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
         cap = n + 16
     if err != K.E_OK:
         raise _interp_error(lexed, int(err), int(ew), int(eline), evals)
-    warnings = [_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(min(nwarn, 256))]
+    warnings = _dedupe([_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(min(nwarn, 256))])
     if nwarn > 256:
         warnings.append(GCodeWarning(SourceLocation(lexed.path, 0, 0), f"{nwarn - 256} more warnings"))
     records = out[:n]
@@ -241,6 +241,17 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
 
         records = apply(records, lexed.path)
     return Program(lexed, records, settings, dialect, warnings)
+
+
+def _dedupe(warnings: list) -> list:
+    """One warning per message: the first place it occurs, and how often."""
+    seen: dict = {}
+    for w in warnings:
+        if w.message in seen:
+            seen[w.message][1] += 1
+        else:
+            seen[w.message] = [w, 1]
+    return [w if n == 1 else GCodeWarning(w.location, f"{w.message} ({n} times)") for w, n in seen.values()]
 
 
 def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
