@@ -9,7 +9,7 @@ import pytest
 from mtwin.errors import GCodeError, WriteError
 from mtwin.gcode.interpreter import InterpreterSettings, load_program
 from mtwin.gcode.records import FL_SUB, LINEAR, RAPID
-from mtwin.gcode.writer import scale_feeds
+from mtwin.gcode.writer import Split, rewrite, scale_feeds
 
 
 def run(text, name="m.ngc", **kw):
@@ -87,12 +87,25 @@ def test_fanuc_m98_with_parameters_in_the_subprogram():
     assert set(prog.records["line"].tolist()) == {8}
 
 
-def test_macro_program_round_trip_and_rewrite_limits():
-    text = "G21 G90 F600\n#1 = 3\no1 repeat [2]\n  G1 X#1\n  #1 = [#1 * 2]\no1 endrepeat\nM2\n"
+def test_macro_program_round_trip_and_rewrite():
+    text = ("G21 G90 F600\n#1 = 3\no1 repeat [2]\n  G1 X#1\n  G1 Y5 F300\n  #1 = [#1 * 2]\no1 endrepeat\n"
+            "G1 X1 Y2 F500\nG1 X2 F[250*2]\nM2\n")
     prog = run(text)
     assert scale_feeds(prog, 1.0) == text.encode()
-    with pytest.raises(WriteError, match=r"m\.ngc:4: this is a macro program"):
-        scale_feeds(prog, 0.8)
+    # a literal F outside the loop is rewritten in place, the rest of the file untouched
+    feeds = prog.records["feed"].copy()
+    feeds[-2] = 700.0
+    out = rewrite(prog, feeds=feeds)
+    assert out == text.replace("X1 Y2 F500", "X1 Y2 F700").encode()
+    # an F given by an expression cannot be rewritten; nor a loop line run with two feeds
+    feeds = prog.records["feed"].copy()
+    feeds[-1] = 900.0
+    with pytest.raises(WriteError, match=r"m\.ngc:9: the F value of this line is a macro expression"):
+        rewrite(prog, feeds=feeds)
+    with pytest.raises(WriteError, match=r"m\.ngc:4: this line runs several moves"):
+        scale_feeds(prog, 0.5)
+    with pytest.raises(WriteError, match="cannot split moves of a macro program"):
+        rewrite(prog, splits={len(feeds) - 2: Split([0.5], [100.0, 200.0])})
 
 
 def test_endless_loop_is_an_error(monkeypatch):

@@ -758,3 +758,77 @@ def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offset
         raise GCodeError("expression nested too deeply", SourceLocation(path, 1, 1)) from None
     text = "\n".join(ex.out) + "\n"
     return Expanded(text.encode("ascii"), np.array(ex.out_line, np.int64), np.array(ex.out_sub, bool))
+
+
+_STATEMENT = re.compile(r"^(N\d+)?(O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|REPEAT|"
+                        r"ENDREPEAT|BREAK|CONTINUE)|IF\[|WHILE\[|GOTO|END\d|DO\d)")
+
+
+def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:
+    """The source with every macro construct blanked out, byte for byte the same length, so
+    that the ordinary lexer finds the literal words at their true positions (the writer edits
+    those).  Returns (masked bytes, locked lines, locked (line, letter) pairs): a locked line
+    is a statement or assignment, a locked word has an expression for its value."""
+    out = bytearray(data)
+    locked_lines: set = set()
+    locked_words: set = set()
+    pos = 0
+    for li, raw in enumerate(data.split(b"\n")):
+        text = raw.decode("latin-1")
+        n = len(text)
+        code_idx = []  # indices of code characters (outside comments)
+        depth = 0
+        for j, ch in enumerate(text):
+            if depth:
+                if ch == ")":
+                    depth = 0
+                continue
+            if ch == "(":
+                depth = 1
+                continue
+            if ch == ";" and dialect == "linuxcnc":
+                break
+            code_idx.append(j)
+        code = "".join(text[j] for j in code_idx).upper()
+        squeezed = code.replace(" ", "").replace("\t", "").replace("\r", "").lstrip("/")
+        whole = (bool(_STATEMENT.match(squeezed)) or "=" in squeezed or bool(re.search(r"G65(?!\d)", squeezed))
+                 or bool(re.search(r"M9[89](?!\d)", squeezed)))
+        if whole and ("#" in squeezed or "[" in squeezed or _STATEMENT.match(squeezed)
+                      or re.search(r"G65|M9[89]", squeezed)):
+            locked_lines.add(li)
+            for j in code_idx:
+                if text[j] not in "\r\t":
+                    out[pos + j] = 0x20
+        else:
+            # blank each word whose value is an expression
+            k = 0
+            while k < len(code_idx):
+                j = code_idx[k]
+                ch = text[j].upper()
+                if not ch.isalpha():
+                    k += 1
+                    continue
+                m = k + 1
+                while m < len(code_idx) and text[code_idx[m]] in " \t":
+                    m += 1
+                if m < len(code_idx) and text[code_idx[m]] in "#[":
+                    d = 0
+                    e = m
+                    while e < len(code_idx):
+                        c2 = text[code_idx[e]]
+                        if c2 == "[":
+                            d += 1
+                        elif c2 == "]":
+                            d -= 1
+                        elif d == 0 and c2.isalpha() and e > m and text[code_idx[e - 1]] not in "#<":
+                            if not re.match(r"[A-Z_0-9]*>", text[code_idx[e]:].upper()):
+                                break
+                        e += 1
+                    for q in range(k, e):
+                        out[pos + code_idx[q]] = 0x20
+                    locked_words.add((li, ch))
+                    k = e
+                    continue
+                k += 1
+        pos += len(raw) + 1
+    return bytes(out), locked_lines, locked_words

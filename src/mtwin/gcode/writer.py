@@ -84,9 +84,10 @@ def _point_at(r, t):
 
 
 class _Writer:
-    def __init__(self, prog: Program, style: NumberStyle | None):
+    def __init__(self, prog: Program, style: NumberStyle | None, lx=None):
         self.prog = prog
-        self.lx = prog.lexed
+        # macro programs: the lexed source with its macro constructs blanked (same offsets)
+        self.lx = lx if lx is not None else prog.lexed
         self.style = style or detect_style(self.lx)
         self.edits = _Edits()
         lx = self.lx
@@ -162,9 +163,18 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     if feeds.shape != (n,) or spindles.shape != (n,):
         raise WriteError(f"feeds and spindles must have one value per record ({n})")
     splits = dict(splits or {})
+    locked_lines, locked_words = set(), set()
+    lx_src = None
     if prog.is_macro:
-        return _rewrite_macro(prog, feeds, spindles, splits, check)
-    w = _Writer(prog, style)
+        from .macro import mask_source
+
+        if splits:
+            i = min(splits)
+            raise WriteError(f"{prog.path}:{int(rec['line'][i])}: cannot split moves of a macro program (their "
+                             f"coordinates may be expressions or run in loops)")
+        masked, locked_lines, locked_words = mask_source(prog.data, prog.dialect)
+        lx_src = lex(masked, prog.path)
+    w = _Writer(prog, style, lx_src)
     st = w.style
     lengths = move_lengths(rec)
     kinds = rec["kind"]
@@ -188,8 +198,24 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     changed_s = np.flatnonzero(~np.isclose(new_spindle, rec["spindle"], rtol=1e-12, atol=0))
     f_lines = set(line0[changed_f].tolist()) | set(line0[changed_s].tolist())
     # Every feed line gets a target once anything changes: a line that keeps its
-    # feed may still inherit a changed modal F and need its own word back.
-    for i in (np.flatnonzero(is_feed) if f_lines or splits else []):
+    # feed may still inherit a changed modal F and need its own word back.  In a macro
+    # program a line may run many times with different inherited feeds: there, only the
+    # lines whose feed changes, and the lines that ran with the feed a changed line had,
+    # get targets (the self-check proves the result).
+    candidates = np.flatnonzero(is_feed) if f_lines or splits else np.zeros(0, np.int64)
+    if prog.is_macro and len(candidates):
+        keep = np.zeros(n, bool)
+        keep[changed_f] = True
+        old_changed = set(np.round(rec["feed"][changed_f], 9).tolist())
+        same_line_feeds = {}
+        for i in candidates:
+            same_line_feeds.setdefault(int(line0[i]), set()).add(round(float(rec["feed"][i]), 9))
+        for i in candidates:
+            feeds_here = same_line_feeds[int(line0[i])]
+            if len(feeds_here) == 1 and feeds_here & old_changed:
+                keep[i] = True
+        candidates = candidates[keep[candidates]]
+    for i in candidates:
         li = int(line0[i])
         txt = st.feed(_feed_word(rec[i], new_feed[i], new_spindle[i], lengths[i]),
                       bool(rec[i]["flags"] & FL_F_INCH) and rec[i]["feed_mode"] != FEED_INVERSE_TIME)
@@ -226,8 +252,21 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
                              "fractions")
         split_lines[li] = i
 
-    _apply_modal(w, prog, "F", f_target, split_lines, splits)
-    _apply_modal(w, prog, "S", s_target, {}, {})
+    if prog.is_macro:
+        # a line whose F (or S) is an expression, or a macro statement, cannot be edited: it
+        # may keep its value only, and the modal value after it is unknown to the writer
+        for letter, targets, changed in (("F", f_target, changed_f), ("S", s_target, changed_s)):
+            changed_lines = set(line0[changed].tolist())
+            for li in list(targets):
+                if li in locked_lines or (li, letter) in locked_words:
+                    if li in changed_lines:
+                        raise WriteError(f"{prog.path}:{li + 1}: the {letter} value of this line is a macro "
+                                         f"expression; it cannot be rewritten")
+                    del targets[li]
+    unknown = {li for li, letter in locked_words if letter == "F"} | locked_lines
+    _apply_modal(w, prog, "F", f_target, split_lines, splits, unknown)
+    _apply_modal(w, prog, "S", s_target, {}, {},
+                 {li for li, letter in locked_words if letter == "S"} | locked_lines)
     for li, i in split_lines.items():
         _write_split(w, rec[i], li, splits[i], new_spindle[i], lengths[i])
     out = w.edits.apply(prog.data)
@@ -236,13 +275,18 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     return out
 
 
-def _apply_modal(w: _Writer, prog: Program, letter: str, targets: dict, split_lines: dict, splits: dict):
-    """Set F (or S) on the lines that need it, tracking the modal value in file order."""
+def _apply_modal(w: _Writer, prog: Program, letter: str, targets: dict, split_lines: dict, splits: dict,
+                 unknown: set = frozenset()):
+    """Set F (or S) on the lines that need it, tracking the modal value in file order.
+    ``unknown``: lines after which the modal value is not known (macro expressions)."""
     if not targets:
         return
     lx = w.lx
     ks = np.flatnonzero(lx.w_letter == ord(letter))
     word_lines = {int(lx.w_line[k]): float(lx.w_value[k]) for k in ks}
+    for li in unknown:
+        if li not in targets:
+            word_lines[li] = float("nan")
     modal = None
     for li in sorted(set(word_lines) | set(targets)):
         tgt = targets.get(li)
@@ -338,7 +382,12 @@ def _ijk(center, start, r):
 
 
 def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
-    new = interpret(lex(out, prog.path), prog.settings)
+    if prog.is_macro:
+        from .interpreter import load_program
+
+        new = load_program(out, prog.settings, path=prog.path)
+    else:
+        new = interpret(lex(out, prog.path), prog.settings)
     diff = compare(prog, new, tol=2e-3)
     if diff is not None:
         raise WriteError(f"internal check failed, nothing written: rewritten program differs in geometry: {diff}")
@@ -377,27 +426,6 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
         j = bad[0]
         raise WriteError(f"internal check failed, nothing written: line {nr['line'][j]} would run the spindle at "
                          f"{nr['spindle'][j]:g} rpm instead of {exp_s[j]:g}")
-
-
-def _rewrite_macro(prog: Program, feeds, spindles, splits, check: bool) -> bytes:
-    """Macro programs: their words may be expressions and their lines run many times, so the
-    only rewrite offered is the identity (proven like any other)."""
-    rec = prog.records
-    is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
-    f_changed = is_feed & ~np.isnan(feeds) & ~np.isclose(feeds, rec["feed"], rtol=1e-12, atol=0)
-    s_changed = ~np.isnan(spindles) & ~np.isclose(spindles, rec["spindle"], rtol=1e-12, atol=0)
-    if splits or f_changed.any() or s_changed.any():
-        i = int(np.flatnonzero(f_changed | s_changed)[0]) if (f_changed | s_changed).any() else min(splits)
-        raise WriteError(f"{prog.path}:{int(rec['line'][i])}: this is a macro program (parameters, expressions or "
-                         f"control flow); rewriting its F/S words or splitting its moves is not supported yet")
-    out = prog.data
-    if check:
-        from .interpreter import load_program
-
-        again = load_program(out, prog.settings, path=prog.path)
-        if again.records.size != rec.size or not np.array_equal(again.records, rec):
-            raise WriteError("internal check failed: the unchanged macro program does not re-interpret the same")
-    return out
 
 
 def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed: float | None = None,
