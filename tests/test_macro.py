@@ -153,3 +153,17 @@ def test_parse_and_simulate_a_macro_program_through_the_cli(tmp_path):
     assert [ln.split(",")[0] for ln in r.stdout.decode().splitlines()[1:]] == ["4"] * 4
     r = subprocess.run([sys.executable, "-m", "mtwin", "simulate", str(f), "--json", "--no-cutting"], capture_output=True)
     assert r.returncode == 0 and json.loads(r.stdout)["cutting_time"] > 0
+
+
+def test_subroutine_from_another_file(tmp_path):
+    # LinuxCNC looks for <name>.ngc beside the program (and in subs/, and on SUBROUTINE_PATH)
+    (tmp_path / "subs").mkdir()
+    (tmp_path / "subs" / "hop.ngc").write_text("o<hop> sub\n  G1 X#1 Y#2\no<hop> endsub\n")
+    main = tmp_path / "main.ngc"
+    main.write_text("G21 G90 F300\no<hop> call [1] [2]\no<hop> call [3] [4]\nM2\n")
+    prog = load_program(str(main), InterpreterSettings())
+    assert ends(prog)[:, :2].tolist() == [[1, 2], [3, 4]]
+    assert prog.records["line"].tolist() == [2, 3]  # the calling lines of this program
+    (tmp_path / "subs" / "hop.ngc").write_text("o<hop> sub\n  G1 X[1/0]\no<hop> endsub\n")
+    with pytest.raises(GCodeError, match=r"hop\.ngc:2:.*division by zero"):
+        load_program(str(main), InterpreterSettings())

@@ -67,6 +67,7 @@ class _Line:
     block_delete: bool
     nnum: int | None = None  # N number (Fanuc GOTO target)
     cols: list = field(default_factory=list)  # 1-based column in ``raw`` of each character of ``text``
+    src: str | None = None  # another file this line was read from (an external subroutine)
 
     def col(self, i: int) -> int:
         """Source column of position i (1-based) of ``text``."""
@@ -81,6 +82,7 @@ class _Frame:
     locals_: dict = field(default_factory=dict)  # #1..#30 of this call
     named: dict = field(default_factory=dict)
     name: str = ""
+    site: int = 0  # line of the program (not of a subroutine file) the call chain started from
 
 
 class _Expr:
@@ -239,14 +241,18 @@ class _Expr:
 
 
 class _Executor:
-    def __init__(self, data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: dict):
+    def __init__(self, data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: dict,
+                 sub_path: tuple = ()):
         self.path = path
+        self.sub_path = sub_path
+        self.loaded: set = set()
         self.dialect = dialect
         self.skip_bd = skip_block_delete
         self.params: dict[int, float] = {}
         self.globals_: dict[str, float] = {}
         self.frames: list[_Frame] = [_Frame(-1)]
         self.lines = self._split(data)
+        self.current: _Line | None = None
         self.out: list[str] = []
         self.out_line: list[int] = []
         self.out_sub: list[bool] = []
@@ -257,7 +263,7 @@ class _Executor:
         self._index()
 
     # ---------------------------------------------------------------- source
-    def _split(self, data: bytes) -> list[_Line]:
+    def _split(self, data: bytes, src: str | None = None) -> list[_Line]:
         text = data.decode("latin-1")
         out = []
         for no, raw in enumerate(text.splitlines(), start=1):
@@ -288,15 +294,19 @@ class _Executor:
             m = re.match(r"N(\d+)", code)
             if m:
                 nnum = int(m.group(1))
-            out.append(_Line(no, code, raw, bd, nnum, cols))
+            out.append(_Line(no, code, raw, bd, nnum, cols, src))
         return out
 
-    def _index(self):
+    def _index(self, start: int = 0):
         """Positions of subroutine definitions and of every O-word, for jumps."""
-        self.subs: dict[str, int] = {}
-        self.fanuc_progs: dict[int, int] = {}
-        self.nlines: dict[int, int] = {}
-        for k, ln in enumerate(self.lines):
+        if start == 0:
+            self.subs: dict[str, int] = {}
+            self.fanuc_progs: dict[int, int] = {}
+            self.nlines: dict[int, int] = {}
+        for k in range(start, len(self.lines)):
+            ln = self.lines[k]
+            if ln.src is not None and not re.match(r"O(<[^>]*>|\d+)SUB", ln.text):
+                continue
             m = re.match(r"O(<[^>]*>|\d+)SUB", ln.text)
             if m:
                 self.subs[m.group(1).strip("<>").lower()] = k
@@ -385,9 +395,31 @@ class _Executor:
         return v, e.p
 
     def emit(self, words: str, no: int):
+        # moves of a subroutine from another file belong to the line that called it
+        ln_src = self.current.src if self.current is not None else None
         self.out.append(words)
-        self.out_line.append(no)
+        self.out_line.append(self.frames[-1].site if ln_src is not None else no)
         self.out_sub.append(len(self.frames) > 1)
+
+    def load_external(self, label: str) -> bool:
+        """Find ``<label>.ngc`` beside the program, in its subs/ folder or on the configured
+        subroutine path (as LinuxCNC's SUBROUTINE_PATH), and add its lines."""
+        import os
+
+        base = os.path.dirname(os.path.abspath(self.path)) if self.path and not self.path.startswith("<") else None
+        dirs = ([base, os.path.join(base, "subs")] if base else []) + list(self.sub_path)
+        for d in dirs:
+            for name in (f"{label}.ngc", f"{label.upper()}.ngc", f"{label.lower()}.ngc"):
+                f = os.path.join(d, name)
+                if os.path.isfile(f) and f not in self.loaded:
+                    self.loaded.add(f)
+                    with open(f, "rb") as fh:
+                        start = len(self.lines)
+                        self.lines.extend(self._split(fh.read(), f))
+                    self._index(start)
+                    if label in self.subs:
+                        return True
+        return False
 
     def expand_words(self, text: str, no: int) -> str:
         """Evaluate every word's value and the line's assignments; return literal words."""
@@ -447,6 +479,7 @@ class _Executor:
                 raise GCodeError(f"more than {MAX_EXECUTED_LINES:,} lines executed (endless loop?)",
                                  SourceLocation(self.path, lines[k].no, 1))
             ln = lines[k]
+            self.current = ln
             t = ln.text
             try:
                 if ln.block_delete and self.skip_bd:
@@ -543,7 +576,7 @@ class _Executor:
                 k += 1
             except _Err as exc:
                 col = exc.col + (len(ln.text) - len(t))  # t may have lost its N word
-                raise GCodeError(str(exc), SourceLocation(self.path, ln.no, ln.col(col))) from None
+                raise GCodeError(str(exc), SourceLocation(ln.src or self.path, ln.no, ln.col(col))) from None
 
     def goto(self, target: str, k: int) -> int:
         v, _ = self.eval_at(target, 0)
@@ -611,9 +644,9 @@ class _Executor:
             fr = self.frames.pop()
             return fr.ret
         if kw == "CALL":
-            if label not in self.subs:
-                raise _Err(f"o<{label}> call: no o<{label}> sub in this file (subroutines in other files and "
-                           f"Python remaps are not supported)")
+            if label not in self.subs and not self.load_external(label):
+                raise _Err(f"o<{label}> call: no o<{label}> sub in this file, beside it or in its subs/ folder "
+                           f"(Python remaps are not supported)")
             args = {}
             pos = 0
             idx = 1
@@ -623,7 +656,8 @@ class _Executor:
                 v, pos = self.cond(rest, pos)
                 args[idx] = v
                 idx += 1
-            self.frames.append(_Frame(k + 1, args, {}, label))
+            site = self.frames[-1].site if self.current.src is not None else self.current.no
+            self.frames.append(_Frame(k + 1, args, {}, label, site))
             return self.subs[label] + 1
         if kw in ("IF", "ELSEIF"):
             if kw == "ELSEIF":
@@ -747,9 +781,10 @@ def _drop(words: str, codes: dict, letters: tuple = ()) -> str:
     return "".join(out)
 
 
-def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: list) -> Expanded:
+def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: list,
+           sub_path: tuple = ()) -> Expanded:
     """Run a macro program into a straight-line one (see the module docstring)."""
-    ex = _Executor(data, path, dialect, skip_block_delete, {"list": offsets})
+    ex = _Executor(data, path, dialect, skip_block_delete, {"list": offsets}, tuple(sub_path))
     try:
         ex.run()
     except _Err as exc:
