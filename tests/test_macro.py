@@ -167,3 +167,18 @@ def test_subroutine_from_another_file(tmp_path):
     (tmp_path / "subs" / "hop.ngc").write_text("o<hop> sub\n  G1 X[1/0]\no<hop> endsub\n")
     with pytest.raises(GCodeError, match=r"hop\.ngc:2:.*division by zero"):
         load_program(str(main), InterpreterSettings())
+
+
+def test_subroutine_path_from_the_twin_file(tmp_path):
+    from mtwin.config import interpreter_settings
+
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    (lib / "hop.ngc").write_text("o<hop> sub\n  G1 X#1\no<hop> endsub\n")
+    twin = tmp_path / "t.toml"
+    twin.write_text('[interpreter]\nsubroutine_path = ["lib"]\n')
+    main = tmp_path / "prog" / "main.ngc"
+    main.parent.mkdir()
+    main.write_text("G21 G90 F300\no<hop> call [7]\nM2\n")
+    prog = load_program(str(main), interpreter_settings(str(twin)))
+    assert prog.records["x"].tolist() == [7.0]

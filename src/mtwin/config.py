@@ -34,7 +34,7 @@ from .errors import ConfigError
 _SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "cutter_comp", "machine", "controller", "axes", "spindle",
              "timing",
              "tools", "materials", "cutting"}
-_INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30"}
+_INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30", "subroutine_path"}
 
 
 def _vec3(value, key):
@@ -99,6 +99,14 @@ def load_twin_file(path: str | None) -> dict:
         if not isinstance(interp["block_delete"], bool):
             raise ConfigError(f"{path}: interpreter.block_delete must be true or false")
         out["skip_block_delete"] = interp["block_delete"]
+    if "subroutine_path" in interp:
+        sp = interp["subroutine_path"]
+        if isinstance(sp, str):
+            sp = [sp]
+        if not (isinstance(sp, list) and all(isinstance(x, str) for x in sp)):
+            raise ConfigError(f"{path}: interpreter.subroutine_path: expected a directory or a list of directories")
+        base = Path(path).parent
+        out["subroutine_path"] = tuple(str((base / x).resolve()) for x in sp)
     for key in ("home_g28", "home_g30"):
         if key in interp:
             out[key] = _vec3(interp[key], f"{path}: interpreter.{key}")

@@ -54,6 +54,7 @@ class InterpreterSettings:
     home_g28: tuple = (0.0, 0.0, 0.0)
     home_g30: tuple = (0.0, 0.0, 0.0)
     comp_radii: dict = field(default_factory=dict)
+    subroutine_path: tuple = ()  # directories searched for o<name> subroutine files
 
 
 @dataclass
@@ -137,7 +138,7 @@ def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Progra
 
     dialect = _resolve_dialect(settings, name)
     offsets = [tuple(v) for v in _offsets_array(settings)]
-    ex = expand(data, name, dialect, settings.skip_block_delete, offsets)
+    ex = expand(data, name, dialect, settings.skip_block_delete, offsets, settings.subroutine_path)
     lexed = lex(ex.data, name)
     try:
         prog = interpret(lexed, dc_replace(settings, dialect=dialect))
