@@ -473,6 +473,7 @@ class _Executor:
         executed = 0
         loops: list = []  # LinuxCNC loop stack entries: (kind, start index, label, count)
         fanuc_loops: dict[int, int] = {}
+        seen_percent = False
         while 0 <= k < len(lines):
             executed += 1
             if executed > MAX_EXECUTED_LINES:
@@ -485,10 +486,13 @@ class _Executor:
                 if ln.block_delete and self.skip_bd:
                     k += 1
                     continue
-                if not t or t.startswith("%"):
-                    if t.startswith("%") and k > 0 and any(x.text for x in lines[:k]):
-                        if any(ll.text.startswith("%") for ll in lines[:k]):
-                            break
+                if t.startswith("%"):
+                    if seen_percent:
+                        break  # the second % ends the program
+                    seen_percent = True
+                    k += 1
+                    continue
+                if not t:
                     k += 1
                     continue
                 if t.startswith("N") and ln.nnum is not None:
