@@ -267,3 +267,54 @@ def test_fanuc_g80_restores_the_motion_mode_and_g08_is_a_control_switch():
                      InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
     with pytest.raises(GCodeError, match="G8"):
         load_program(b"G8\n", InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
+
+
+def test_coordinate_rotation_g10_r():
+    """G10 L2 R rotates the system about its origin: machine = G5x + Rot(R)·(program + G92)."""
+    from mtwin.gcode.records import machine_xyz
+
+    r = run("G21 G90 G10 L2 P1 X100 Y50 R30\nG54 G0 X0 Y0\nG1 X10 F100\nG2 X20 Y0 I5 J0\nM2\n",
+            dialect="linuxcnc")
+    m = machine_xyz(r)
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    # program coordinates stay those written; the machine sees them rotated about (100, 50)
+    assert xyz(r[1]) == [10, 0, 0] and r["rot"][1] == 30
+    np.testing.assert_allclose(m[1], [100 + 10 * c, 50 + 10 * s, 0], atol=1e-12)
+    np.testing.assert_allclose(m[2], [100 + 20 * c, 50 + 20 * s, 0], atol=1e-12)
+    # G18/G19 arcs in a rotated system would leave the machine's planes: refused
+    with pytest.raises(GCodeError, match="G18/G19"):
+        run("G10 L2 P1 R30\nG54 G18 G1 X0 Z0 F100\nG2 X10 Z0 I5 K0\n", dialect="linuxcnc")
+
+
+def test_g10_l20_and_l2_on_the_active_system_keep_the_machine_position():
+    # LinuxCNC g10-l20-while-active: after L20 X-1 the current point reads X-1
+    r = run("G20 G54\nG10 L2 P1 X0 Y0 Z0 R45\nG0 G53 X0 Y0 Z0\nG10 L20 P1 X-1\nG1 X0 F60\nM2\n",
+            dialect="linuxcnc")
+    assert float(r["sx"][1]) == pytest.approx(-25.4) and xyz(r[1])[:2] == [0.0, 0.0]
+    np.testing.assert_allclose([r["ox"][1] / 25.4, r["oy"][1] / 25.4], [0.70710678, 0.70710678])
+
+
+def test_tool_length_change_keeps_the_tool_where_it_is():
+    # G43 does not move the machine: the program position changes, so an incremental move
+    # after it moves 1 mm, not 1 mm plus the tool length
+    from mtwin.gcode.records import machine_xyz
+
+    r = run("G21 G90 G0 Z0\nT1 M6\nG43 H1\nG91 G1 Z-1 F100\nM2\n", tool_lengths={1: 80.0})
+    m = machine_xyz(r)
+    assert m[0][2] == 0.0 and m[1][2] == pytest.approx(-1.0)
+    assert float(r["sz"][1]) == -80.0 and float(r["z"][1]) == -81.0
+
+
+def test_g10_tool_table_forms_and_g43_1():
+    # L1 sets, L10 sets so the current point reads as given, G43.1 gives the offset directly
+    r = run("G21 G90 G0 X0 Y0 Z0\nG10 L1 P1 Z50\nT1 M6 G43\nG0 Z10\nG10 L10 P2 Z0\nT2 M6 G43\nG0 Z10\n"
+            "G43.1 Z5\nG0 Z10\nM2\n", dialect="linuxcnc")
+    assert list(r["tlo"][1:]) == [50.0, 60.0, 5.0]
+    # G10 L10 P2 Z0 at program Z10 with 50 active: tool 2 = 50 + 10 = 60
+    from mtwin.gcode.records import machine_xyz
+    assert list(machine_xyz(r)[1:, 2]) == [60.0, 70.0, 15.0]
+
+
+def test_g28_1_stores_the_current_machine_position():
+    r = run("G21 G90 G0 X10 Y20 Z5\nG28.1\nG0 X0 Y0 Z0\nG28\nM2\n", dialect="linuxcnc")
+    assert xyz(r[-1]) == [10, 20, 5]

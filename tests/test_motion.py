@@ -272,3 +272,23 @@ def test_torque_limit_saturates_without_blowing_up():
     assert np.abs(trace.torque[:, 0]).max() <= 4.2 + 1e-9
     assert np.isfinite(trace.err).all()
     assert abs(trace.err[-1, 0]) < 0.05  # it catches up after the move
+
+
+def test_rotated_and_switched_frames_make_one_continuous_path():
+    """A program that rotates its coordinate system or switches work offsets must not make the
+    twin jump: the path is mapped into one frame (the first feed move's)."""
+    twin = make_twin()
+    square = "G1 X20 F1200\nY20\nX0\nY0\n"
+    _, _, plain = run(twin, "G21 G90 G17 G0 X0 Y0 Z0\n" + square + "M2\n")
+    _, _, rot = run(twin, "G21 G90 G17 G10 L2 P1 R30\nG54 G0 X0 Y0 Z0\n" + square + "M2\n")
+    # a rigid rotation changes neither the path length nor the corner angles: the same time
+    assert rot.summary.cycle_time == pytest.approx(plain.summary.cycle_time, abs=2e-3)
+    # G55 5 mm along X from G54: the second square continues from where the tool is
+    prog, plan, tr = run(twin, "G21 G90 G17 G0 X0 Y0 Z0\n" + square + "G10 L2 P2 X5\nG55 G1 X0 Y0\n" + square
+                         + "M2\n")
+    seg = plan.seg[plan.seg["kind"] != 2]
+    gaps = np.linalg.norm(seg["p0"][1:] - seg["p1"][:-1], axis=1)
+    assert gaps.max() < 1e-9
+    # and the tool goes where the machine would: G55 X0 is 5 mm along X from G54 X0
+    assert seg["p1"][-1] == pytest.approx([5.0, 0.0, 0.0])
+    assert np.abs(np.diff(tr.cmd, axis=0)).max() < 1.0  # no jump between servo samples

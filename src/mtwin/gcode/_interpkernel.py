@@ -67,6 +67,7 @@ E_UNUSED_WORD = 31
 E_COMP_PLANE = 40
 E_COMP_ACTIVE = 41
 E_AMBIGUOUS_R = 32
+E_ROT_PLANE = 33
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -80,7 +81,7 @@ _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
 _N, _O, _P, _Q, _R, _S, _T, _U, _V, _W, _X, _Y, _Z = range(13, 26)
 
 # state indices (float)
-SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R = 0, 1, 2, 3, 4, 5
+SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
 # state indices (int)
 SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP = range(9)
 
@@ -128,11 +129,73 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.comp_r = st[SF_COMP_R]
         r.tlo = st[SF_TLO]
         w = si[SI_WCS]
-        # work offset plus the G92 offset (row 9): machine = program + offset (+ tool length)
-        r.ox = wcs_off[w, 0] + wcs_off[9, 0]
-        r.oy = wcs_off[w, 1] + wcs_off[9, 1]
+        # machine = G5x + Rot(G5x R)·(program + G92) (+ tool offsets): ox/oy/oz hold the
+        # G5x offset plus the rotated G92 offset, rot the rotation (LinuxCNC's order)
+        th = math.radians(wcs_off[w, 3])
+        cs = math.cos(th)
+        sn = math.sin(th)
+        r.ox = wcs_off[w, 0] + cs * wcs_off[9, 0] - sn * wcs_off[9, 1]
+        r.oy = wcs_off[w, 1] + sn * wcs_off[9, 0] + cs * wcs_off[9, 1]
         r.oz = wcs_off[w, 2] + wcs_off[9, 2]
+        r.rot = wcs_off[w, 3]
+        r.tox = st[SF_TOX]
+        r.toy = st[SF_TOY]
     return n + 1
+
+
+@njit
+def _to_machine(p, w, wcs_off, m):
+    """Machine position (without tool offsets) of program point ``p`` in system ``w``."""
+    th = math.radians(wcs_off[w, 3])
+    cs = math.cos(th)
+    sn = math.sin(th)
+    px = p[0] + wcs_off[9, 0]
+    py = p[1] + wcs_off[9, 1]
+    m[0] = wcs_off[w, 0] + cs * px - sn * py
+    m[1] = wcs_off[w, 1] + sn * px + cs * py
+    m[2] = wcs_off[w, 2] + p[2] + wcs_off[9, 2]
+
+
+@njit
+def _from_machine(m, w, wcs_off, p):
+    """Inverse of :func:`_to_machine`."""
+    th = math.radians(wcs_off[w, 3])
+    cs = math.cos(th)
+    sn = math.sin(th)
+    dx = m[0] - wcs_off[w, 0]
+    dy = m[1] - wcs_off[w, 1]
+    p[0] = cs * dx + sn * dy - wcs_off[9, 0]
+    p[1] = -sn * dx + cs * dy - wcs_off[9, 1]
+    p[2] = m[2] - wcs_off[w, 2] - wcs_off[9, 2]
+
+
+@njit
+def _unrotate(w, wcs_off, vx, vy):
+    """A machine-frame XY vector in the rotated frame of system ``w``."""
+    th = math.radians(wcs_off[w, 3])
+    cs = math.cos(th)
+    sn = math.sin(th)
+    return cs * vx + sn * vy, -sn * vx + cs * vy
+
+
+@njit
+def _set_tool_offset(pos, st, w, wcs_off, tlo, tox, toy):
+    """G43/G49: the tool does not move, so its program position changes by the offset change."""
+    dx, dy = _unrotate(w, wcs_off, tox - st[SF_TOX], toy - st[SF_TOY])
+    pos[0] -= dx
+    pos[1] -= dy
+    pos[2] -= tlo - st[SF_TLO]
+    st[SF_TLO] = tlo
+    st[SF_TOX] = tox
+    st[SF_TOY] = toy
+
+
+@njit
+def _rotate(w, wcs_off, vx, vy):
+    th = math.radians(wcs_off[w, 3])
+    cs = math.cos(th)
+    sn = math.sin(th)
+    return cs * vx - sn * vy, sn * vx + cs * vy
 
 
 @njit
@@ -171,10 +234,21 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     nwarn = 0
     err_vals = np.zeros(4)
     # rows 0..8: G54..G59.3; row 9: the active G92 offset; row 10: the saved one (G92.3)
-    wcs_off = np.zeros((11, 3))
-    wcs_off[:9] = wcs_init
+    # column 3: the XY rotation of each system, degrees (G10 L2/L20 R)
+    wcs_off = np.zeros((11, 4))
+    wcs_off[:9, :3] = wcs_init
+    # the tool table can be changed by G10 L1/L10/L11: work on copies
+    tool_len = tool_len.copy()
+    tool_known = tool_known.copy()
+    tool_xy = np.zeros((tool_len.size, 2))
+    comp_r = comp_r.copy()
+    comp_known = comp_known.copy()
+    home28 = home28.copy()
+    home30 = home30.copy()
+    mach = np.zeros(3)
+    tmp = np.zeros(3)
 
-    st = np.zeros(6)
+    st = np.zeros(8)
     si = np.zeros(9, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
@@ -272,6 +346,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_ijk = -1
         g_retract = -1
         g_nonmodal = -1
+        g_nonmodal_code = -1
         g_nonmodal_w = -1
         g_comp = -1
         g_comp_w = -1
@@ -321,7 +396,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 g_comp = code
                 g_comp_w = kw
                 grp = 7
-            elif code == 430 or code == 490:
+            elif code == 430 or code == 490 or code == 431 or code == 432:
                 if g_tlo >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_tlo = code
@@ -358,9 +433,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 g_retract = code
                 grp = 10
             elif code == 100 or code == 280 or code == 300 or code == 530 or code == 920 or code == 921 \
-                    or code == 922 or code == 923:
+                    or code == 922 or code == 923 or code == 281 or code == 301:
                 if g_nonmodal >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_nonmodal_code = code
+                if code == 281 or code == 301:
+                    code = code - 1
                 g_nonmodal = code
                 g_nonmodal_w = kw
                 grp = 0
@@ -510,9 +588,24 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 hn = int(val[_H])
             if hn < 0 or hn >= tool_len.size or (have_tool_table and not tool_known[hn]):
                 return n, E_TOOL_OFFSET_MISSING, widx[_H] if has[_H] else -1, li, err_vals, nwarn
-            st[SF_TLO] = tool_len[hn]
+            _set_tool_offset(pos, st, si[SI_WCS], wcs_off, tool_len[hn], tool_xy[hn, 0], tool_xy[hn, 1])
         elif g_tlo == 490:
-            st[SF_TLO] = 0.0
+            _set_tool_offset(pos, st, si[SI_WCS], wcs_off, 0.0, 0.0, 0.0)
+        elif g_tlo == 431:
+            # G43.1: dynamic offsets given by the axis words (which do not move the tool)
+            _set_tool_offset(pos, st, si[SI_WCS], wcs_off,
+                             val[_Z] * scale if has[_Z] else 0.0,
+                             val[_X] * scale if has[_X] else 0.0,
+                             val[_Y] * scale if has[_Y] else 0.0)
+        elif g_tlo == 432:
+            # G43.2 H: add another tool's offsets to the active ones
+            if not has[_H]:
+                return n, E_TOOL_OFFSET_MISSING, -1, li, err_vals, nwarn
+            hn = int(val[_H])
+            if hn < 0 or hn >= tool_len.size or (have_tool_table and not tool_known[hn]):
+                return n, E_TOOL_OFFSET_MISSING, widx[_H], li, err_vals, nwarn
+            _set_tool_offset(pos, st, si[SI_WCS], wcs_off, st[SF_TLO] + tool_len[hn],
+                             st[SF_TOX] + tool_xy[hn, 0], st[SF_TOY] + tool_xy[hn, 1])
         # 10b. cutter radius compensation (G17 only); the offset path is computed after
         # interpretation from the records' side and radius (gcode/cutcomp.py)
         if g_comp == 400:
@@ -544,9 +637,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 st[SF_COMP_R] = comp_r[dn]
         # 11. work offsets: positions stay in program coordinates of the new frame
         if g_wcs >= 0:
-            ow = si[SI_WCS]
-            for a in range(3):
-                pos[a] += wcs_off[ow, a] - wcs_off[g_wcs, a]
+            _to_machine(pos, si[SI_WCS], wcs_off, mach)
+            _from_machine(mach, g_wcs, wcs_off, pos)
             si[SI_WCS] = g_wcs
         # 12. path mode
         if g_path == 610:
@@ -587,6 +679,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if g_motion < 730:
                 motion_base = g_motion
         has_axis = has[_X] or has[_Y] or has[_Z]
+        if g_tlo == 431:
+            has_axis = False
         if g_dwell and dialect == 0:
             has_axis = has[_Y] or has[_Z]  # Fanuc G4 X is the dwell time
         saved_path_mode = si[SI_PATH_MODE]
@@ -596,23 +690,90 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
 
         # 15. G10 / G28 / G30 / G53
         if g_nonmodal == 100:
-            if not (has[_L] and val[_L] == 2 and has[_P]):
+            lv = int(val[_L]) if has[_L] else -1
+            if not has[_P] or not (lv == 1 or lv == 2 or lv == 10 or lv == 11 or lv == 20) \
+                    or (has[_L] and val[_L] != lv):
                 return n, E_BAD_G10, g_nonmodal_w, li, err_vals, nwarn
-            if has[_R] and val[_R] != 0.0:
-                return n, E_GEOMETRY_G, widx[_R], li, err_vals, nwarn
-            p = int(val[_P])
-            if p < 0 or p > 9:
-                return n, E_BAD_WCS, widx[_P], li, err_vals, nwarn
-            p = si[SI_WCS] if p == 0 else p - 1
-            if has[_X]:
-                wcs_off[p, 0] = val[_X] * scale
-            if has[_Y]:
-                wcs_off[p, 1] = val[_Y] * scale
-            if has[_Z]:
-                wcs_off[p, 2] = val[_Z] * scale
+            if lv == 2 or lv == 20:
+                p = int(val[_P])
+                if p < 0 or p > 9 or val[_P] != p:
+                    return n, E_BAD_WCS, widx[_P], li, err_vals, nwarn
+                p = si[SI_WCS] if p == 0 else p - 1
+                active = p == si[SI_WCS]
+                # the machine position of the tool does not move; its program position may
+                _to_machine(pos, si[SI_WCS], wcs_off, mach)
+                if lv == 2:
+                    if has[_R]:
+                        wcs_off[p, 3] = val[_R]
+                    for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                        if has[L]:
+                            wcs_off[p, a] = val[L] * scale
+                else:
+                    # L20: the origin is placed so that the current point reads as the given values
+                    _from_machine(mach, p, wcs_off, tmp)
+                    if has[_R]:
+                        wcs_off[p, 3] = val[_R]
+                    for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                        if has[L]:
+                            tmp[a] = val[L] * scale
+                    rx, ry = _rotate(p, wcs_off, tmp[0] + wcs_off[9, 0], tmp[1] + wcs_off[9, 1])
+                    wcs_off[p, 0] = mach[0] - rx
+                    wcs_off[p, 1] = mach[1] - ry
+                    wcs_off[p, 2] = mach[2] - tmp[2] - wcs_off[9, 2]
+                if active:
+                    _from_machine(mach, p, wcs_off, pos)
+            else:
+                # tool table: L1 sets the offsets, L10/L11 so that the current point reads as given
+                t = int(val[_P])
+                if t < 0 or t >= tool_len.size or val[_P] != t:
+                    return n, E_BAD_VALUE, widx[_P], li, err_vals, nwarn
+                if has[_R]:
+                    if t < comp_r.size:
+                        comp_r[t] = abs(val[_R]) * scale
+                        comp_known[t] = True
+                if lv == 1:
+                    if has[_X]:
+                        tool_xy[t, 0] = val[_X] * scale
+                    if has[_Y]:
+                        tool_xy[t, 1] = val[_Y] * scale
+                    if has[_Z]:
+                        tool_len[t] = val[_Z] * scale
+                else:
+                    # work in the rotated frame of the reference system (LinuxCNC keeps the
+                    # offsets of axes not given, as seen in that frame)
+                    ref = si[SI_WCS] if lv == 10 else 8
+                    ox, oy = _unrotate(ref, wcs_off, tool_xy[t, 0], tool_xy[t, 1])
+                    if lv == 10:
+                        ax, ay = _unrotate(ref, wcs_off, st[SF_TOX], st[SF_TOY])
+                        cx = pos[0] + ax
+                        cy = pos[1] + ay
+                        cz = pos[2] + st[SF_TLO]
+                    else:
+                        # G59.3 without G92: the tool-setter fixture
+                        _to_machine(pos, si[SI_WCS], wcs_off, mach)
+                        ax, ay = _unrotate(8, wcs_off, mach[0] + st[SF_TOX] - wcs_off[8, 0],
+                                           mach[1] + st[SF_TOY] - wcs_off[8, 1])
+                        cx = ax
+                        cy = ay
+                        cz = mach[2] + st[SF_TLO] - wcs_off[8, 2]
+                    if has[_X]:
+                        ox = cx - val[_X] * scale
+                    if has[_Y]:
+                        oy = cy - val[_Y] * scale
+                    if has[_Z]:
+                        tool_len[t] = cz - val[_Z] * scale
+                    tool_xy[t, 0], tool_xy[t, 1] = _rotate(ref, wcs_off, ox, oy)
+                tool_known[t] = True
             has_axis = False
         elif g_nonmodal == 280 or g_nonmodal == 300:
             home = home28 if g_nonmodal == 280 else home30
+            if g_nonmodal_code == 281 or g_nonmodal_code == 301:
+                # G28.1 / G30.1: remember the current machine position
+                _to_machine(pos, si[SI_WCS], wcs_off, mach)
+                home[0] = mach[0] + st[SF_TOX]
+                home[1] = mach[1] + st[SF_TOY]
+                home[2] = mach[2] + st[SF_TLO]
+                has_axis = False
             for a in range(3):
                 s[a] = pos[a]
                 e[a] = pos[a]
@@ -625,12 +786,17 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 first_flag = 0
             for a in range(3):
                 s[a] = e[a]
-            for a, L in ((0, _X), (1, _Y), (2, _Z)):
-                if has[L] or not has_axis:
-                    e[a] = home[a] - wcs_off[si[SI_WCS], a] - wcs_off[9, a] - (st[SF_TLO] if a == 2 else 0.0)
-            n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
-            for a in range(3):
-                pos[a] = e[a]
+            if g_nonmodal_code != 281 and g_nonmodal_code != 301:
+                # the named axes (all when none is named) go to the stored machine position
+                _to_machine(e, si[SI_WCS], wcs_off, mach)
+                tofs = (st[SF_TOX], st[SF_TOY], st[SF_TLO])
+                for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                    if has[L] or not has_axis:
+                        mach[a] = home[a] - tofs[a]
+                _from_machine(mach, si[SI_WCS], wcs_off, e)
+                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
+                for a in range(3):
+                    pos[a] = e[a]
             has_axis = False
         elif g_nonmodal == 920:
             # G92: offset the coordinates so that the current point reads as the given values
@@ -654,10 +820,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 return n, E_G53_MODE, g_nonmodal_w, li, err_vals, nwarn
             for a in range(3):
                 s[a] = pos[a]
-                e[a] = pos[a]
+            _to_machine(pos, si[SI_WCS], wcs_off, mach)
+            tofs = (st[SF_TOX], st[SF_TOY], st[SF_TLO])
             for a, L in ((0, _X), (1, _Y), (2, _Z)):
                 if has[L]:
-                    e[a] = val[L] * scale - wcs_off[si[SI_WCS], a] - wcs_off[9, a] - (st[SF_TLO] if a == 2 else 0.0)
+                    mach[a] = val[L] * scale - tofs[a]
+            _from_machine(mach, si[SI_WCS], wcs_off, e)
             if has_axis:
                 kind = RAPID if motion == 0 else LINEAR
                 if kind == LINEAR and st[SF_FEED] <= 0.0:
@@ -696,6 +864,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                                                         + (e[2] - s[2]) ** 2) * st[SF_FEED]
                     else:
                         pl = si[SI_PLANE]
+                        if pl != 0 and wcs_off[si[SI_WCS], 3] != 0.0:
+                            return n, E_ROT_PLANE, g_motion_w, li, err_vals, nwarn
                         a1 = (0, 2, 1)[pl]
                         a2 = (1, 0, 2)[pl]
                         an = (2, 1, 0)[pl]

@@ -306,7 +306,9 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_GEOMETRY_G: (f"{w} is not supported: it changes the toolpath geometry (cutter compensation, "
                          "rotation, scaling, polar or lathe modes), which mtwin does not model yet"),
         K.E_BAD_WCS: f"work offset number {w} out of range",
-        K.E_BAD_G10: f"{w}: only G10 L2 P<n> (set work offset) is supported; other G10 forms are not supported",
+        K.E_BAD_G10: (f"{w}: supported G10 forms are L1/L10/L11 P<tool> (tool table) and L2/L20 P<n> "
+                      "(work offsets, R rotation)"),
+        K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
         K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
         K.E_BAD_VALUE: f"invalid value in word {w}",
         K.E_G53_MODE: "G53 needs G0 or G1 motion",

@@ -37,6 +37,11 @@ _MACRO_HINT = re.compile(rb"#|\[|^[ \t]*/?[ \t]*[oO][ \t]*(<[^>\n]*>|\d+)[ \t]*(
                          rb"|^[ \t]*/?[ \t]*(N\d+[ \t]*)?(IF|WHILE|GOTO|END\d|G65)", re.MULTILINE | re.IGNORECASE)
 
 
+# a word value that is an expression: [..], #.., or a function call, possibly signed
+_FUNC_CALL = re.compile(r"((?:ABS|ACOS|ASIN|ATAN|COS|EXP|FIX|FUP|ROUND|LN|SIN|SQRT|TAN|EXISTS|BIN|BCD)[ \t]*)\[")
+_EXPR_START = re.compile(r"[-+]?[ \t]*(#|\[|" + _FUNC_CALL.pattern + ")")
+
+
 def looks_like_macro(data: bytes) -> bool:
     """Cheap test: does the program use anything this module handles?"""
     return _MACRO_HINT.search(_strip_comments_bytes(data)) is not None
@@ -850,7 +855,8 @@ def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:
                 m = k + 1
                 while m < len(code_idx) and text[code_idx[m]] in " \t":
                     m += 1
-                if m < len(code_idx) and text[code_idx[m]] in "#[":
+                rest = "".join(text[q] for q in code_idx[m:]).upper()
+                if _EXPR_START.match(rest):
                     d = 0
                     e = m
                     while e < len(code_idx):
@@ -859,7 +865,12 @@ def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:
                             d += 1
                         elif c2 == "]":
                             d -= 1
-                        elif d == 0 and c2.isalpha() and e > m and text[code_idx[e - 1]] not in "#<":
+                        elif d == 0 and c2.isalpha() and text[code_idx[e - 1]] not in "#<":
+                            tail = "".join(text[q] for q in code_idx[e:]).upper()
+                            fn = _FUNC_CALL.match(tail)
+                            if fn:
+                                e += len(fn.group(1))  # a function name: its [ follows
+                                continue
                             if not re.match(r"[A-Z_0-9]*>", text[code_idx[e]:].upper()):
                                 break
                         e += 1

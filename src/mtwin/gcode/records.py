@@ -61,6 +61,8 @@ MOVE_DTYPE = np.dtype(
         ("cam_tol", np.float64),  # G64 Q (naive-CAM merge) tolerance, mm; P when Q is absent
         ("comp", np.int8),  # cutter compensation: 0 off (G40), 1 left (G41), 2 right (G42)
         ("comp_r", np.float64),  # its radius, mm
+        ("rot", np.float64),  # XY rotation of the coordinate system (G10 L2 R), degrees CCW
+        ("tox", np.float64), ("toy", np.float64),  # active tool X/Y offsets (G10 L1/L10 + G43), mm
     ]
 )
 
@@ -76,8 +78,59 @@ def end_points(rec: np.ndarray) -> np.ndarray:
 
 
 def machine_xyz(rec: np.ndarray) -> np.ndarray:
-    """End points in machine coordinates: program + work offset + tool length (Z)."""
-    return np.stack([rec["x"] + rec["ox"], rec["y"] + rec["oy"], rec["z"] + rec["oz"] + rec["tlo"]], axis=1)
+    """End points in machine coordinates: offset + rotation·program + tool offsets."""
+    th = np.radians(rec["rot"])
+    c, s = np.cos(th), np.sin(th)
+    return np.stack([rec["ox"] + c * rec["x"] - s * rec["y"] + rec["tox"],
+                     rec["oy"] + s * rec["x"] + c * rec["y"] + rec["toy"],
+                     rec["z"] + rec["oz"] + rec["tlo"]], axis=1)
+
+
+def in_common_frame(rec: np.ndarray, path: str = "<program>", ref: int | None = None) -> np.ndarray:
+    """The records with every point expressed in one work frame.
+
+    A program may switch work offsets (G54 -> G55), move them (G10 L2/L20, G92) or
+    rotate them (G10 R) between moves; its program coordinates then jump while the
+    tool does not.  The twin needs one continuous path: every record is mapped to
+    machine coordinates (tool offsets left out: the path is the tool tip's) and back
+    into the frame of record ``ref`` (default: the first feed move).  Returns ``rec``
+    itself when all records share one frame.
+    """
+    if len(rec) == 0:
+        return rec
+    keys = ("ox", "oy", "oz", "rot")
+    same = all(np.all(rec[k] == rec[k][0]) for k in keys)
+    if same:
+        return rec
+    if ref is None:
+        feed = np.flatnonzero((rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW))
+        ref = int(feed[0]) if len(feed) else 0
+    out = rec.copy()
+    th = np.radians(rec["rot"] - rec["rot"][ref])
+    c, s = np.cos(th), np.sin(th)
+    th0 = np.radians(rec["rot"][ref])
+    c0, s0 = np.cos(th0), np.sin(th0)
+    # offset difference, seen in the reference frame
+    dx0 = rec["ox"] - rec["ox"][ref]
+    dy0 = rec["oy"] - rec["oy"][ref]
+    dx = c0 * dx0 + s0 * dy0
+    dy = -s0 * dx0 + c0 * dy0
+    dz = rec["oz"] - rec["oz"][ref]
+    isarc = (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
+    tilted = isarc & (rec["plane"] != PLANE_XY) & (np.abs(th) > 1e-12)
+    if tilted.any():
+        from ..errors import GCodeError, SourceLocation
+        i = int(np.argmax(tilted))
+        raise GCodeError("a G18/G19 arc in a coordinate system rotated against the program's first one is "
+                         "not supported", SourceLocation(path, int(rec["line"][i]), 1))
+    for px, py, pz in (("sx", "sy", "sz"), ("x", "y", "z"), ("cx", "cy", "cz")):
+        x, y = rec[px], rec[py]
+        out[px] = dx + c * x - s * y
+        out[py] = dy + s * x + c * y
+        out[pz] = rec[pz] + dz
+    for k in keys:
+        out[k] = rec[k][ref]
+    return out
 
 
 def arc_sweep(rec: np.ndarray) -> np.ndarray:

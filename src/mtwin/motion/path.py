@@ -143,8 +143,18 @@ def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str) -> None:
     """Every point of the path (end points and arc extremes) must lie inside the axis travel."""
     lo = np.array([ax.min_travel for ax in machine.axes])
     hi = np.array([ax.max_travel for ax in machine.axes])
-    off = np.stack([rec["ox"], rec["oy"], rec["oz"] + rec["tlo"]], axis=1)
-    pts = [seg["p0"] + off, seg["p1"] + off]
+    th = np.radians(rec["rot"])
+    cs, sn = np.cos(th), np.sin(th)
+
+    def to_machine(p, rows):
+        """Program points of records ``rows`` in machine coordinates (with the tool offsets)."""
+        r = rec[rows]
+        return np.stack([r["ox"] + r["tox"] + cs[rows] * p[:, 0] - sn[rows] * p[:, 1],
+                         r["oy"] + r["toy"] + sn[rows] * p[:, 0] + cs[rows] * p[:, 1],
+                         r["oz"] + r["tlo"] + p[:, 2]], axis=1)
+
+    every = np.arange(len(rec))
+    pts = [to_machine(seg["p0"], every), to_machine(seg["p1"], every)]
     arcs = np.nonzero(seg["kind"] == ARC)[0]
     if len(arcs):
         # extremes of a circle along each axis: c ± r·|component of the in-plane basis|
@@ -152,11 +162,12 @@ def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str) -> None:
         rmax = np.maximum(a["r0"], a["r1"])[:, None]
         span = rmax * np.sqrt(a["e1"] ** 2 + a["e2"] ** 2)
         # only full or large arcs reach the extremes; checking the whole circle is the safe side
-        lo_pt = a["c"] - span + np.minimum(a["h"], 0) + off[arcs]
-        hi_pt = a["c"] + span + np.maximum(a["h"], 0) + off[arcs]
+        # (a rotated frame only carries G17 arcs, whose span is r along X and Y either way)
+        lo_pt = to_machine(a["c"] + np.minimum(a["h"], 0), arcs) - span
+        hi_pt = to_machine(a["c"] + np.maximum(a["h"], 0), arcs) + span
         full = a["theta"] >= math.pi  # for short arcs the end points bound it well enough
-        pts.append(np.where(full[:, None], lo_pt, a["p0"] + off[arcs]))
-        pts.append(np.where(full[:, None], hi_pt, a["p1"] + off[arcs]))
+        pts.append(np.where(full[:, None], lo_pt, to_machine(a["p0"], arcs)))
+        pts.append(np.where(full[:, None], hi_pt, to_machine(a["p1"], arcs)))
         recs = [np.arange(len(rec)), np.arange(len(rec)), arcs, arcs]
     else:
         recs = [np.arange(len(rec)), np.arange(len(rec))]

@@ -336,7 +336,8 @@ def _filter_hold(c) -> tuple[int, float]:
 
 def plan_program(program, machine) -> Plan:
     """Plan a program on a machine: geometry, limits, corners, look-ahead, timing."""
-    rec = program.records
+    # one continuous frame even when the program switches, moves or rotates work offsets
+    rec = R.in_common_frame(program.records, program.path)
     warnings: list[str] = []
     c = machine.controller
     motion = rec["kind"] != R.DWELL
