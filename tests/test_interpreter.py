@@ -6,7 +6,7 @@ import pytest
 
 from mtwin.errors import GCodeError
 from mtwin.gcode.interpreter import InterpreterSettings, load_program
-from mtwin.gcode.records import ARC_CCW, ARC_CW, DWELL, LINEAR, RAPID, arc_sweep, move_lengths
+from mtwin.gcode.records import ARC_CCW, ARC_CW, DWELL, FL_POLAR, LINEAR, RAPID, arc_sweep, move_lengths
 
 
 def run(text, **kw):
@@ -318,3 +318,27 @@ def test_g10_tool_table_forms_and_g43_1():
 def test_g28_1_stores_the_current_machine_position():
     r = run("G21 G90 G0 X10 Y20 Z5\nG28.1\nG0 X0 Y0 Z0\nG28\nM2\n", dialect="linuxcnc")
     assert xyz(r[-1]) == [10, 20, 5]
+
+
+def test_polar_words():
+    # LinuxCNC manual: "G1 @.5 ^90" then "G91 ^90" four times is a square (diamond) about the
+    # origin; "G91 @.5 ^90" grows the distance each time
+    r = run("G20 F100 G1 @.5 ^90\nG91 ^90\n^90\n^90\n^90\nG90 G0 X0 Y0\nM2\n", dialect="linuxcnc")
+    pts = np.round(np.stack([r["x"], r["y"]], 1)[:5] / 25.4, 12)
+    np.testing.assert_allclose(pts, [[0, .5], [-.5, 0], [0, -.5], [.5, 0], [0, .5]], atol=1e-12)
+    assert all(r["flags"][:5] & FL_POLAR)
+    r = run("G20 F100 G1 @.5 ^90\nG91 @.5 ^90\n@.5 ^90\nM2\n", dialect="linuxcnc")
+    np.testing.assert_allclose(np.hypot(r["x"], r["y"]) / 25.4, [.5, 1.0, 1.5], atol=1e-12)
+    # G90 with one word: the other is the current point's (polar.ngc's bolt holes)
+    r = run("G21 G0 X10 Y0\nG1 ^90 F100\n@20\nM2\n", dialect="linuxcnc")
+    np.testing.assert_allclose([xyz(r[1])[:2], xyz(r[2])[:2]], [[0, 10], [0, 20]], atol=1e-12)
+    # a bolt circle: G91 canned cycle with ^ and L repeats adds the angle each time
+    r = run("G20 G17 G90 G0 X1.5 Y0 Z0\nG91 G81 R.1 Z-.5 ^60 L6 F10\nM2\n", dialect="linuxcnc")
+    holes = r[r["kind"] == LINEAR]
+    np.testing.assert_allclose(np.hypot(holes["x"], holes["y"]) / 25.4, 1.5, atol=1e-12)
+    ang = np.degrees(np.arctan2(holes["y"], holes["x"]))
+    np.testing.assert_allclose((ang - [60, 120, 180, 240, 300, 360] + 180) % 360 - 180, 0, atol=1e-9)
+    with pytest.raises(GCodeError, match="polar"):
+        run("G1 X1 @1 F100\n", dialect="linuxcnc")
+    with pytest.raises(GCodeError, match="polar"):
+        run("G18 G1 @1 F100\n", dialect="linuxcnc")

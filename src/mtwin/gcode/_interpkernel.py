@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_R_ARC, FL_SUB, FL_F_INCH, LINEAR, RAPID,
+    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_SUB, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -68,6 +68,7 @@ E_COMP_PLANE = 40
 E_COMP_ACTIVE = 41
 E_AMBIGUOUS_R = 32
 E_ROT_PLANE = 33
+E_POLAR = 34
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -79,6 +80,7 @@ W_COMP_RADIUS_UNKNOWN = 5
 # letters
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
 _N, _O, _P, _Q, _R, _S, _T, _U, _V, _W, _X, _Y, _Z = range(13, 26)
+_AT, _CARET = 26, 27  # polar words '@' (distance) and '^' (angle, degrees)
 
 # state indices (float)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
@@ -191,6 +193,22 @@ def _set_tool_offset(pos, st, w, wcs_off, tlo, tox, toy):
 
 
 @njit
+def _polar_xy(px, py, has_r, r, has_t, t_deg, incremental):
+    """XY end point of a polar move (LinuxCNC): distance and angle about the origin of
+    the program coordinates; in G91 they add to the current point's distance and angle,
+    in G90 a missing one is the current point's."""
+    cr = math.hypot(px, py)
+    ct = math.atan2(py, px)
+    if incremental:
+        rr = cr + (r if has_r else 0.0)
+        tt = ct + (math.radians(t_deg) if has_t else 0.0)
+    else:
+        rr = r if has_r else cr
+        tt = math.radians(t_deg) if has_t else ct
+    return rr * math.cos(tt), rr * math.sin(tt)
+
+
+@njit
 def _rotate(w, wcs_off, vx, vy):
     th = math.radians(wcs_off[w, 3])
     cs = math.cos(th)
@@ -264,9 +282,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     canned_q = math.nan
     canned_p = 0.0
 
-    has = np.zeros(26, np.bool_)
-    val = np.zeros(26)
-    widx = np.zeros(26, np.int64)
+    has = np.zeros(28, np.bool_)
+    val = np.zeros(28)
+    widx = np.zeros(28, np.int64)
     gcodes = np.zeros(16, np.int64)
     gword = np.zeros(16, np.int64)
     mcodes = np.zeros(16, np.int64)
@@ -299,12 +317,16 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             continue
         w0 = line_w0[li]
         # ---- gather words ----
-        for k in range(26):
+        for k in range(28):
             has[k] = False
         ng = 0
         nm = 0
         for k in range(w0, w0 + nw):
             L = w_letter[k] - 65
+            if L == -1:
+                L = _AT
+            elif L == 29:
+                L = _CARET
             v = w_value[k]
             if L == _G or L == _M:
                 code = int(round(v * 10.0))
@@ -678,7 +700,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             motion = g_motion
             if g_motion < 730:
                 motion_base = g_motion
-        has_axis = has[_X] or has[_Y] or has[_Z]
+        polar = has[_AT] or has[_CARET]
+        if polar and (has[_X] or has[_Y] or si[SI_PLANE] != 0 or g_nonmodal >= 0):
+            return n, E_POLAR, widx[_AT] if has[_AT] else widx[_CARET], li, err_vals, nwarn
+        has_axis = has[_X] or has[_Y] or has[_Z] or polar
         if g_tlo == 431:
             has_axis = False
         if g_dwell and dialect == 0:
@@ -848,6 +873,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
                     else:
                         e[a] = pos[a]
+                if polar:
+                    e[0], e[1] = _polar_xy(pos[0], pos[1], has[_AT], val[_AT] * scale, has[_CARET], val[_CARET],
+                                           incremental)
+                    first_flag |= FL_POLAR
                 if motion == 0:
                     n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
                 else:
@@ -989,7 +1018,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     for a in range(3):
                         s[a] = pos[a]
                         e[a] = pos[a]
-                    if incremental:
+                    if polar:
+                        # each repetition adds the polar increments again (a bolt circle)
+                        e[0], e[1] = _polar_xy(pos[0], pos[1], has[_AT], val[_AT] * scale, has[_CARET],
+                                               val[_CARET], incremental)
+                        fl |= FL_POLAR
+                    elif incremental:
                         if has[L1]:
                             e[a1] = pos[a1] + val[L1] * scale
                         if has[L2]:

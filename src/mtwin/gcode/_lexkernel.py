@@ -69,7 +69,7 @@ def lex_kernel(buf, pow10):
         c = buf[i]
         if c == 10:
             nl += 1
-        elif _is_letter(c):
+        elif _is_letter(c) or c == 64 or c == 94:
             nletters += 1
     if n > 0 and buf[n - 1] != 10:
         nl += 1
@@ -142,7 +142,8 @@ def lex_kernel(buf, pow10):
                 err_code = LEX_MACRO
                 err_pos = p
                 break
-            if not _is_letter(c):
+            # '@' and '^' are LinuxCNC's polar distance and angle words
+            if not (_is_letter(c) or c == 64 or c == 94):
                 err_code = LEX_BAD_CHAR
                 err_pos = p
                 break

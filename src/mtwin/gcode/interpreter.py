@@ -308,6 +308,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_BAD_WCS: f"work offset number {w} out of range",
         K.E_BAD_G10: (f"{w}: supported G10 forms are L1/L10/L11 P<tool> (tool table) and L2/L20 P<n> "
                       "(work offsets, R rotation)"),
+        K.E_POLAR: (f"polar word {w}: polar moves (@ distance, ^ angle) need G17 and no X or Y word on the "
+                    "block, and cannot be G10/G28/G30/G53/G92"),
         K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
         K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
         K.E_BAD_VALUE: f"invalid value in word {w}",

@@ -85,8 +85,6 @@ def _lex_message(code: int, data: bytes, pos: int) -> str:
     if code == K.LEX_NO_NUMBER:
         return f"malformed word: letter {ch!r} is not followed by a number"
     if code == K.LEX_BAD_CHAR:
-        if ch in "@^":
-            return f"polar coordinate word {rest[:12]!r} is not supported"
         if ch.isprintable() and ch.isascii():
             return f"unexpected character {ch!r}"
         return f"unexpected byte 0x{data[pos]:02x} outside a comment"

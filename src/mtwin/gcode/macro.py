@@ -456,7 +456,7 @@ class _Executor:
                 assigns.append((key, v))
                 p = e.p
                 continue
-            if not c.isalpha():
+            if not (c.isalpha() or c in "@^"):  # @ ^: LinuxCNC polar words
                 raise _Err(f"unexpected {c!r}", p + 1)
             letter = c
             if letter == "O" and p == 0:
@@ -849,7 +849,7 @@ def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:
             while k < len(code_idx):
                 j = code_idx[k]
                 ch = text[j].upper()
-                if not ch.isalpha():
+                if not (ch.isalpha() or ch in "@^"):
                     k += 1
                     continue
                 m = k + 1

@@ -34,6 +34,7 @@ FL_SUB = 64  # executed inside an M98 subprogram call
 FL_FIRST_IN_LINE = 128  # first record produced by its source line
 FL_F_INCH = 256  # an F word on this line is read in inches (units before this line's G20/G21)
 FL_COMP = 512  # geometry moved by cutter compensation (the programmed path differs)
+FL_POLAR = 1024  # end point given by polar words (@ distance, ^ angle)
 
 MOVE_DTYPE = np.dtype(
     [

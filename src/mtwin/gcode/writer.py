@@ -22,6 +22,7 @@ from .lexer import lex
 from .numfmt import NumberStyle, detect_style
 from .records import (
     FL_COMP,
+    FL_POLAR,
     ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
     FL_F_INCH, FL_INCH, FL_INCREMENTAL, FL_R_ARC, FL_SUB, LINEAR, PLANE_AXES, RAPID, move_lengths, arc_sweep,
 )
@@ -242,6 +243,9 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             # the programmed path and the tool-centre path differ: a split point on one is not
             # the same fraction of the other
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
+        if r["flags"] & FL_POLAR:
+            # a G91 polar word is relative to the polar coordinates of the move's start
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move given in polar words (@ ^)")
         if lengths[i] <= 0.0:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a zero-length move")
         if (line0 == li).sum() != 1:
