@@ -1,4 +1,5 @@
 """Writer: byte-identical round trips on real programs, feed changes, splits, and self-proof."""
+import math
 import re
 import subprocess
 import sys
@@ -122,3 +123,22 @@ def test_verify_detects_changed_geometry():
     assert compare(a, c) is None  # a split of line 1
     d = load_program(b"G0 X10 Y0\nG1 Y10 F100\n", path="d.nc")
     assert compare(a, d) is not None  # rapid instead of feed
+
+
+def test_spiral_arcs_split_on_the_spiral():
+    # a radius mismatch within LinuxCNC's tolerance (10 -> 10.02 mm) is a spiral; --lenient
+    # takes larger ones (a post rounding to 0.05 mm) the same way, with a warning
+    src = b"G21 G90 G17 F500\nG0 X10 Y0 Z0\nG3 X0 Y10.02 I-10 J0\nM30\n"
+    prog = load_program(src, path="t.nc")
+    out = rewrite(prog, splits={1: Split([0.5], [400.0, 300.0])})
+    new = load_program(out, path="t.nc")
+    assert compare(prog, new) is None
+    mid = new.records[1]
+    assert math.hypot(mid["x"], mid["y"]) == pytest.approx(10.01, abs=2e-4)
+    coarse = b"G21 G90 G17 F500\nG0 X0.3 Y0 Z0\nG3 X0 Y0.27 I-0.3 J0\nM30\n"
+    with pytest.raises(GCodeError, match="radius"):
+        load_program(coarse, path="t.nc")
+    lenient = load_program(coarse, InterpreterSettings(lenient=True), path="t.nc")
+    assert "spiral" in str(lenient.warnings[0])
+    with pytest.raises(GCodeError, match="radius"):  # 3 mm off: not a rounding error
+        load_program(b"G0 X10 Y0\nG3 X0 Y13 I-10 J0 F100\n", InterpreterSettings(lenient=True), path="t.nc")

@@ -26,6 +26,10 @@ RADIUS_TOL_MM = 0.00127
 CENTER_TOL_MM = 2 * 0.01 * math.sqrt(2.0)
 CENTER_TOL_INCH_MM = 2 * 0.001 * math.sqrt(2.0) * MM_PER_INCH
 SPIRAL_REL_TOL = 0.001
+# --lenient accepts radius mismatches up to this fraction of the radius as a spiral
+# (or up to 0.1 mm: posts that round coordinates to 0.05 mm mis-state small arcs by that much)
+LENIENT_SPIRAL_REL = 0.1
+LENIENT_SPIRAL_ABS_MM = 0.1
 # Peck clearance of G73/G83 (LinuxCNC: 0.010 in or 0.254 mm)
 PECK_CLEAR_MM = 0.254
 PECK_CLEAR_INCH_MM = 0.010 * MM_PER_INCH
@@ -76,6 +80,7 @@ W_IGNORED_M = 2
 W_M99_IN_MAIN = 3
 W_AXIS_LETTER_ZERO = 4
 W_COMP_RADIUS_UNKNOWN = 5
+W_ARC_SPIRAL = 6
 
 # letters
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
@@ -942,7 +947,17 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                             if r1 < RADIUS_TOL_MM or r2 < RADIUS_TOL_MM:
                                 return n, E_ARC_ZERO_RADIUS, g_motion_w, li, err_vals, nwarn
                             aerr = abs(r1 - r2)
-                            if aerr > 100.0 * ctol or (aerr > ctol and aerr / max(r1, r2) > SPIRAL_REL_TOL):
+                            bad = aerr > 100.0 * ctol or (aerr > ctol and aerr / max(r1, r2) > SPIRAL_REL_TOL)
+                            if bad and lenient and (aerr <= LENIENT_SPIRAL_REL * max(r1, r2)
+                                                    or aerr <= LENIENT_SPIRAL_ABS_MM):
+                                # controls such as Mach3 and Grbl run these (as a spiral, or
+                                # with a jump at the end): --lenient takes the spiral
+                                bad = False
+                                if nwarn < warn_code.size:
+                                    warn_code[nwarn] = W_ARC_SPIRAL
+                                    warn_word[nwarn] = g_motion_w if g_motion_w >= 0 else widx[L1]
+                                nwarn += 1
+                            if bad:
                                 err_vals[0] = r1
                                 err_vals[1] = r2
                                 err_vals[2] = aerr

@@ -265,6 +265,9 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
     elif code == K.W_COMP_RADIUS_UNKNOWN:
         msg = (f"cutter compensation with {w or 'the current tool'}: no radius known ([cutter_comp] in the twin "
                f"file), taken as 0 (a CAM-compensated path)")
+    elif code == K.W_ARC_SPIRAL:
+        msg = ("arc end point is off the circle by more than the control's tolerance: taken as a spiral "
+               "from the start radius to the end radius (--lenient)")
     elif code == K.W_M99_IN_MAIN:
         msg = "M99 in the main program ends it here (a Fanuc control would loop to the start)"
     else:

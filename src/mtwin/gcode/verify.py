@@ -45,14 +45,16 @@ def _param(kind, a1, a2, an, s, e, c, sweep, p):
         dy = p[1] - (s[1] + tc * d1)
         dz = p[2] - (s[2] + tc * d2)
         return t, math.sqrt(dx * dx + dy * dy + dz * dz)
-    r = math.hypot(s[a1] - c[a1], s[a2] - c[a2])
+    r0 = math.hypot(s[a1] - c[a1], s[a2] - c[a2])
+    r1 = math.hypot(e[a1] - c[a1], e[a2] - c[a2])
     t0 = math.atan2(s[a2] - c[a2], s[a1] - c[a1])
     tp = math.atan2(p[a2] - c[a2], p[a1] - c[a1])
     phi = (tp - t0) if kind == ARC_CCW else (t0 - tp)
     phi = phi % (2 * math.pi)
     t = phi / sweep
     zr = s[an] + t * (e[an] - s[an])
-    dr = math.hypot(p[a1] - c[a1], p[a2] - c[a2]) - r
+    # a tolerated radius mismatch makes the arc a spiral, radius linear in the angle
+    dr = math.hypot(p[a1] - c[a1], p[a2] - c[a2]) - (r0 + min(max(t, 0.0), 1.0) * (r1 - r0))
     return t, math.hypot(dr, p[an] - zr)
 
 

@@ -77,6 +77,11 @@ def _point_at(r, t):
     sweep = float(arc_sweep(r.reshape(1))[0])
     th = t * sweep * (1.0 if r["kind"] == ARC_CCW else -1.0)
     v1, v2 = s[a1] - c[a1], s[a2] - c[a2]
+    # a tolerated radius mismatch is a spiral: radius linear in the angle (as the twin's path)
+    r0 = math.hypot(v1, v2)
+    if r0 > 0:
+        k = (r0 + t * (math.hypot(e[a1] - c[a1], e[a2] - c[a2]) - r0)) / r0
+        v1, v2 = v1 * k, v2 * k
     p = s.copy()
     p[a1] = c[a1] + v1 * math.cos(th) - v2 * math.sin(th)
     p[a2] = c[a2] + v1 * math.sin(th) + v2 * math.cos(th)
