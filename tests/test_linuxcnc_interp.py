@@ -59,17 +59,18 @@ def our_motion(prog):
         # LinuxCNC reports inverse-time moves (G93) with their equivalent feed per minute
         fw = r["feed"] if r["feed_mode"] == 2 else r["feed_word"]
         end = np.array([r["x"], r["y"], r["z"]]) * k
+        abc = [r["a"], r["b"], r["c"]]  # degrees, in any units mode
         if r["kind"] == RAPID:
-            out.append(("STRAIGHT_TRAVERSE", list(end), None))
+            out.append(("STRAIGHT_TRAVERSE", list(end) + abc, None))
         elif r["kind"] == LINEAR:
-            out.append(("STRAIGHT_FEED", list(end), fw * k))
+            out.append(("STRAIGHT_FEED", list(end) + abc, fw * k))
         elif r["kind"] == DWELL:
             out.append(("DWELL", [r["dwell"]], None))
         else:
             a1, a2, an = PLANE_AXES[r["plane"]]
             c = np.array([r["cx"], r["cy"], r["cz"]]) * k
             rot = (1 if r["kind"] == ARC_CCW else -1) * (r["turns"] + 1)
-            out.append(("ARC_FEED", [end[a1], end[a2], c[a1], c[a2], rot, end[an]], fw * k))
+            out.append(("ARC_FEED", [end[a1], end[a2], c[a1], c[a2], rot, end[an]] + abc, fw * k))
     return out
 
 
@@ -97,7 +98,7 @@ def test_linuxcnc_suite(ngc):
         return
     assert [k for k, _, _ in ours] == [k for k, _, _ in expected]
     for (k, ev, ef), (_, ov, of) in zip(expected, ours):
-        n = 6 if k == "ARC_FEED" else (1 if k == "DWELL" else 3)
+        n = 9 if k == "ARC_FEED" else (1 if k == "DWELL" else 6)  # rotary axes included
         np.testing.assert_allclose(ov[:n], ev[:n], atol=6e-5, err_msg=k)
         if k in ("STRAIGHT_FEED", "ARC_FEED"):
             assert of == pytest.approx(ef, abs=1e-4)

@@ -142,3 +142,23 @@ def test_spiral_arcs_split_on_the_spiral():
     assert "spiral" in str(lenient.warnings[0])
     with pytest.raises(GCodeError, match="radius"):  # 3 mm off: not a rounding error
         load_program(b"G0 X10 Y0\nG3 X0 Y13 I-10 J0 F100\n", InterpreterSettings(lenient=True), path="t.nc")
+
+
+def test_rotary_axes_are_kept_and_compared():
+    src = b"G21 G90 G0 X0 Y0 Z5 A0\nG1 X10 A90 F300\nG91 B15\nG90 G1 Y10 F200\nM30\n"
+    prog = load_program(src, path="t.nc")
+    r = prog.records
+    assert list(r["a"]) == [0, 90, 90, 90] and list(r["b"]) == [0, 0, 15, 15]
+    assert scale_feeds(prog, 1.0) == src
+    # the same path with a different A end: verify names the rotary axis
+    other = load_program(src.replace(b"A90", b"A45"), path="u.nc")
+    assert "rotary" in str(compare(prog, other))
+    # feeds scale; a move turning a rotary axis is never split; the 3-axis twin refuses it
+    assert compare(prog, load_program(scale_feeds(prog, 0.5), path="t.nc")) is None
+    with pytest.raises(WriteError, match="rotary"):
+        rewrite(prog, splits={1: Split([0.5], [100.0, 50.0])})
+    out = rewrite(prog, splits={3: Split([0.5], [100.0, 50.0])})
+    assert compare(prog, load_program(out, path="t.nc")) is None
+    from mtwin.twin import Twin
+    with pytest.raises(GCodeError, match="rotary axis"):
+        Twin().plan(prog)

@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_SUB, FL_F_INCH, LINEAR, RAPID,
+    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_ROTARY, FL_SUB, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -73,6 +73,7 @@ E_COMP_ACTIVE = 41
 E_AMBIGUOUS_R = 32
 E_ROT_PLANE = 33
 E_POLAR = 34
+E_ROTARY_USE = 35
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -89,6 +90,7 @@ _AT, _CARET = 26, 27  # polar words '@' (distance) and '^' (angle, degrees)
 
 # state indices (float)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
+SF_A, SF_B, SF_C = 8, 9, 10  # rotary axis positions, degrees (not scaled by G20/G21)
 # state indices (int)
 SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP = range(9)
 
@@ -147,6 +149,9 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.rot = wcs_off[w, 3]
         r.tox = st[SF_TOX]
         r.toy = st[SF_TOY]
+        r.a = st[SF_A]
+        r.b = st[SF_B]
+        r.c = st[SF_C]
     return n + 1
 
 
@@ -214,6 +219,19 @@ def _polar_xy(px, py, has_r, r, has_t, t_deg, incremental):
 
 
 @njit
+def _move_rotary(st, has, val, incremental):
+    """Apply A/B/C words (degrees, G90/G91); FL_ROTARY when one of them changes."""
+    fl = 0
+    for q, L in ((SF_A, _A), (SF_B, _B), (SF_C, _C)):
+        if has[L]:
+            nv = st[q] + val[L] if incremental else val[L]
+            if nv != st[q]:
+                fl = FL_ROTARY
+            st[q] = nv
+    return fl
+
+
+@njit
 def _rotate(w, wcs_off, vx, vy):
     th = math.radians(wcs_off[w, 3])
     cs = math.cos(th)
@@ -266,12 +284,17 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     tool_xy = np.zeros((tool_len.size, 2))
     comp_r = comp_r.copy()
     comp_known = comp_known.copy()
-    home28 = home28.copy()
-    home30 = home30.copy()
+    # X, Y, Z (mm) and A, B, C (degrees) of the G28 and G30 positions
+    h28 = home28
+    h30 = home30
+    home28 = np.zeros(6)
+    home30 = np.zeros(6)
+    home28[:3] = h28
+    home30[:3] = h30
     mach = np.zeros(3)
     tmp = np.zeros(3)
 
-    st = np.zeros(8)
+    st = np.zeros(11)
     si = np.zeros(9, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
@@ -355,7 +378,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 has[L] = True
                 val[L] = v
                 widx[L] = k
-        for L in (_A, _B, _C, _U, _V, _W):
+        for L in (_U, _V, _W):
             if has[L]:
                 return n, E_ROTARY, widx[L], li, err_vals, nwarn
         if has[_E]:
@@ -705,10 +728,15 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             motion = g_motion
             if g_motion < 730:
                 motion_base = g_motion
+        rotary = has[_A] or has[_B] or has[_C]
+        if rotary and (g_nonmodal == 100 or g_nonmodal == 920):
+            # rotary work offsets are not modelled
+            return n, E_ROTARY_USE, widx[_A] if has[_A] else (widx[_B] if has[_B] else widx[_C]), li, \
+                err_vals, nwarn
         polar = has[_AT] or has[_CARET]
         if polar and (has[_X] or has[_Y] or si[SI_PLANE] != 0 or g_nonmodal >= 0):
             return n, E_POLAR, widx[_AT] if has[_AT] else widx[_CARET], li, err_vals, nwarn
-        has_axis = has[_X] or has[_Y] or has[_Z] or polar
+        has_axis = has[_X] or has[_Y] or has[_Z] or polar or rotary
         if g_tlo == 431:
             has_axis = False
         if g_dwell and dialect == 0:
@@ -803,20 +831,22 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 home[0] = mach[0] + st[SF_TOX]
                 home[1] = mach[1] + st[SF_TOY]
                 home[2] = mach[2] + st[SF_TLO]
-                has_axis = False
-            for a in range(3):
-                s[a] = pos[a]
-                e[a] = pos[a]
-            # intermediate point, in the active distance mode
-            for a, L in ((0, _X), (1, _Y), (2, _Z)):
-                if has[L]:
-                    e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
-            if has_axis:
-                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
+                for q in range(3):
+                    home[3 + q] = st[SF_A + q]
+            else:
+                for a in range(3):
+                    s[a] = pos[a]
+                    e[a] = pos[a]
+                # intermediate point, in the active distance mode (LinuxCNC moves there even
+                # when it is where the tool is)
+                for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                    if has[L]:
+                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+                rfl = _move_rotary(st, has, val, incremental) if rotary else 0
+                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | rfl)
                 first_flag = 0
-            for a in range(3):
-                s[a] = e[a]
-            if g_nonmodal_code != 281 and g_nonmodal_code != 301:
+                for a in range(3):
+                    s[a] = e[a]
                 # the named axes (all when none is named) go to the stored machine position
                 _to_machine(e, si[SI_WCS], wcs_off, mach)
                 tofs = (st[SF_TOX], st[SF_TOY], st[SF_TLO])
@@ -824,7 +854,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     if has[L] or not has_axis:
                         mach[a] = home[a] - tofs[a]
                 _from_machine(mach, si[SI_WCS], wcs_off, e)
-                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
+                rfl = 0
+                for q, L in ((0, _A), (1, _B), (2, _C)):
+                    if (has[L] or not has_axis) and st[SF_A + q] != home[3 + q]:
+                        st[SF_A + q] = home[3 + q]
+                        rfl = FL_ROTARY
+                n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, FL_MACHINE | rfl)
                 for a in range(3):
                     pos[a] = e[a]
             has_axis = False
@@ -856,6 +891,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if has[L]:
                     mach[a] = val[L] * scale - tofs[a]
             _from_machine(mach, si[SI_WCS], wcs_off, e)
+            if rotary:
+                first_flag |= _move_rotary(st, has, val, False)  # no rotary offsets: machine = program
             if has_axis:
                 kind = RAPID if motion == 0 else LINEAR
                 if kind == LINEAR and st[SF_FEED] <= 0.0:
@@ -882,6 +919,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     e[0], e[1] = _polar_xy(pos[0], pos[1], has[_AT], val[_AT] * scale, has[_CARET], val[_CARET],
                                            incremental)
                     first_flag |= FL_POLAR
+                if rotary:
+                    first_flag |= _move_rotary(st, has, val, incremental)
                 if motion == 0:
                     n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
                 else:
@@ -973,6 +1012,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     pos[a] = e[a]
             else:
                 # ---- canned cycles ----
+                if rotary:
+                    return n, E_ROTARY_USE, widx[_A] if has[_A] else (widx[_B] if has[_B] else widx[_C]), li, \
+                        err_vals, nwarn
                 pl = si[SI_PLANE]
                 a1 = (0, 2, 1)[pl]
                 a2 = (1, 0, 2)[pl]

@@ -16,7 +16,7 @@ import numpy as np
 from .._jit import njit
 from .records import ARC_CCW, DWELL, LINEAR, RAPID
 
-OK, MISSING, EXTRA, KIND, TOOL, OFF_PATH, BACKWARDS, CENTER, OVERSHOOT = range(9)
+OK, MISSING, EXTRA, KIND, TOOL, OFF_PATH, BACKWARDS, CENTER, OVERSHOOT, ROTARY = range(10)
 _REASONS = {
     MISSING: "the optimised program ends before this move",
     EXTRA: "the optimised program has extra moves",
@@ -26,6 +26,7 @@ _REASONS = {
     BACKWARDS: "pieces go backwards along the original move",
     CENTER: "arc centre, plane or direction differs",
     OVERSHOOT: "piece runs past the end of the original move",
+    ROTARY: "rotary axis (A/B/C) positions differ",
 }
 
 
@@ -59,7 +60,7 @@ def _param(kind, a1, a2, an, s, e, c, sweep, p):
 
 
 @njit
-def compare_kernel(ka, pa, sa, ea, ca, ta, sw_a, tool_a, kb, pb, sb, eb, cb, tb, tool_b, tol):
+def compare_kernel(ka, pa, sa, ea, ca, ta, sw_a, tool_a, kb, pb, sb, eb, cb, tb, tool_b, tol, abc_a, abc_b):
     na = ka.size
     nb = kb.size
     ib = 0
@@ -85,8 +86,16 @@ def compare_kernel(ka, pa, sa, ea, ca, ta, sw_a, tool_a, kb, pb, sb, eb, cb, tb,
             if de <= tol and (k < 2 or tb[ib] <= ta[ia]):
                 if (k == 2 or k == 3) and tb[ib] != ta[ia] and t_prev == 0.0:
                     return CENTER, ia, ib
+                for q in range(3):
+                    if abs(abc_b[ib, q] - abc_a[ia, q]) > tol:
+                        return ROTARY, ia, ib
                 ib += 1
                 break
+            # a piece short of the end: rotary axes still where the move started (the
+            # writer never splits a move that turns one)
+            for q in range(3):
+                if abs(abc_b[ib, q] - (abc_a[ia - 1, q] if ia > 0 else 0.0)) > tol:
+                    return ROTARY, ia, ib
             if k == DWELL:
                 return OFF_PATH, ia, ib
             t, d = _param(k, a1, a2, an, sa[ia], ea[ia], ca[ia], sw_a[ia], p)
@@ -119,7 +128,10 @@ def compare(a, b, tol: float = 1e-3):
     ka, pa, sa, ea, ca, ta, tool_a = _arrays(ra)
     kb, pb, sb, eb, cb, tb, tool_b = _arrays(rb)
     sweep = arc_sweep(ra) if ra.size else np.zeros(0)
-    code, ia, ib = compare_kernel(ka, pa, sa, ea, ca, ta, sweep, tool_a, kb, pb, sb, eb, cb, tb, tool_b, float(tol))
+    abc_a = np.ascontiguousarray(np.stack([ra["a"], ra["b"], ra["c"]], 1)) if ra.size else np.zeros((0, 3))
+    abc_b = np.ascontiguousarray(np.stack([rb["a"], rb["b"], rb["c"]], 1)) if rb.size else np.zeros((0, 3))
+    code, ia, ib = compare_kernel(ka, pa, sa, ea, ca, ta, sweep, tool_a, kb, pb, sb, eb, cb, tb, tool_b, float(tol),
+                                  abc_a, abc_b)
     if code == OK:
         return None
     la = int(ra["line"][ia]) if 0 <= ia < ra.size else 0

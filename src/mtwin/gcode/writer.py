@@ -23,6 +23,7 @@ from .numfmt import NumberStyle, detect_style
 from .records import (
     FL_COMP,
     FL_POLAR,
+    FL_ROTARY,
     ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
     FL_F_INCH, FL_INCH, FL_INCREMENTAL, FL_R_ARC, FL_SUB, LINEAR, PLANE_AXES, RAPID, move_lengths, arc_sweep,
 )
@@ -248,6 +249,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             # the programmed path and the tool-centre path differ: a split point on one is not
             # the same fraction of the other
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
+        if r["flags"] & FL_ROTARY:
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move that turns a rotary axis")
         if r["flags"] & FL_POLAR:
             # a G91 polar word is relative to the polar coordinates of the move's start
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move given in polar words (@ ^)")
