@@ -162,3 +162,21 @@ def test_rotary_axes_are_kept_and_compared():
     from mtwin.twin import Twin
     with pytest.raises(GCodeError, match="rotary axis"):
         Twin().plan(prog)
+
+
+def test_lenient_control_bytes_and_feeds_left_to_the_caller():
+    src = b"\x01G21 G90\nG0 X0 Y0\nG1 X10\nG1 Y10 F100\nM30\n"
+    with pytest.raises(GCodeError, match="0x01"):
+        load_program(src, path="t.nc")
+    with pytest.raises(GCodeError, match="zero feed"):
+        load_program(src[1:], path="t.nc")
+    prog = load_program(src, InterpreterSettings(lenient=True), path="t.nc")
+    msgs = " | ".join(str(w) for w in prog.warnings)
+    assert "t.nc:1:1: warning: control byte 0x01" in msgs and "t.nc:3:1: warning: feed move with no F" in msgs
+    assert list(prog.records["feed"]) == [0.0, 0.0, 100.0]
+    # the file is written back byte for byte, the known feed scaled, the unknown one left alone
+    assert scale_feeds(prog, 1.0) == src
+    assert scale_feeds(prog, 0.5) == src.replace(b"F100", b"F50")
+    from mtwin.twin import Twin
+    with pytest.raises(GCodeError, match="feed rate 0"):
+        Twin().plan(prog)

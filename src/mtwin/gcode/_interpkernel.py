@@ -82,6 +82,8 @@ W_M99_IN_MAIN = 3
 W_AXIS_LETTER_ZERO = 4
 W_COMP_RADIUS_UNKNOWN = 5
 W_ARC_SPIRAL = 6
+W_NO_FEED = 7
+W_CONTROL_BYTE = 8
 
 # letters
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
@@ -896,7 +898,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if has_axis:
                 kind = RAPID if motion == 0 else LINEAR
                 if kind == LINEAR and st[SF_FEED] <= 0.0:
-                    return n, E_ZERO_FEED, g_nonmodal_w, li, err_vals, nwarn
+                    if not (lenient and not has[_F]):
+                        return n, E_ZERO_FEED, g_nonmodal_w, li, err_vals, nwarn
+                    if nwarn < warn_code.size:
+                        warn_code[nwarn] = W_NO_FEED
+                        warn_word[nwarn] = g_nonmodal_w
+                    nwarn += 1
                 n = _emit(out, n, kind, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
                 for a in range(3):
                     pos[a] = e[a]
@@ -928,8 +935,14 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         if not has[_F]:
                             return n, E_INVERSE_NO_F, g_motion_w, li, err_vals, nwarn
                     if st[SF_FEED] <= 0.0:
-                        return n, E_ZERO_FEED, g_motion_w if g_motion >= 0 else (widx[_F] if has[_F] else -1), \
-                            li, err_vals, nwarn
+                        kw = g_motion_w if g_motion >= 0 else (widx[_F] if has[_F] else -1)
+                        if not (lenient and not has[_F]):
+                            return n, E_ZERO_FEED, kw, li, err_vals, nwarn
+                        # a called macro whose feed comes from its caller: readable, not simulable
+                        if nwarn < warn_code.size:
+                            warn_code[nwarn] = W_NO_FEED
+                            warn_word[nwarn] = kw if kw >= 0 else w0
+                        nwarn += 1
                     if motion == 10:
                         n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
                         if si[SI_FEED_MODE] == 2 and n <= out.size:

@@ -121,12 +121,36 @@ def load_program(source, settings: InterpreterSettings | None = None, *, path: s
         data = read_source(source)
         if name == "-":
             name = "<stdin>"
+    from dataclasses import replace as dc_replace
+
     from .macro import looks_like_macro
 
-    if looks_like_macro(data):
-        return _load_macro(data, name, settings)
-    lexed = lex(data, name)
-    return interpret(lexed, settings)
+    clean, where = _blank_control_bytes(data) if settings.lenient else (data, -1)
+    if looks_like_macro(clean):
+        prog = _load_macro(clean, name, settings)
+    else:
+        prog = interpret(lex(clean, name), settings)
+    if where >= 0:
+        # control characters (tape leaders, a stray SOH) read as blanks; the file keeps them
+        line = data.count(b"\n", 0, where) + 1
+        col = where - (data.rfind(b"\n", 0, where) + 1) + 1
+        w = GCodeWarning(SourceLocation(name, line, col),
+                         f"control byte 0x{data[where]:02x} read as a blank (--lenient)")
+        prog = dc_replace(prog, source=data, warnings=[w] + prog.warnings)
+    return prog
+
+
+_CONTROL = bytes(range(0, 9)) + b"\x0b\x0c" + bytes(range(14, 32)) + b"\x7f"
+
+
+def _blank_control_bytes(data: bytes) -> tuple[bytes, int]:
+    """``data`` with ASCII control bytes (other than tab, CR, LF) replaced by spaces, and the
+    offset of the first one (-1 when there is none)."""
+    table = bytes.maketrans(_CONTROL, b" " * len(_CONTROL))
+    clean = data.translate(table)
+    if clean == data:
+        return data, -1
+    return clean, next(i for i, (a, b) in enumerate(zip(data, clean)) if a != b)
 
 
 def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Program:
@@ -265,6 +289,9 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
     elif code == K.W_COMP_RADIUS_UNKNOWN:
         msg = (f"cutter compensation with {w or 'the current tool'}: no radius known ([cutter_comp] in the twin "
                f"file), taken as 0 (a CAM-compensated path)")
+    elif code == K.W_NO_FEED:
+        msg = ("feed move with no F word in effect, kept with feed 0 (--lenient): the program can be read, "
+               "scaled and verified, but not simulated")
     elif code == K.W_ARC_SPIRAL:
         msg = ("arc end point is off the circle by more than the control's tolerance: taken as a spiral "
                "from the start radius to the end radius (--lenient)")

@@ -188,7 +188,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     is_feed = (kinds == LINEAR) | (kinds == ARC_CW) | (kinds == ARC_CCW)
     new_spindle = np.where(np.isnan(spindles), rec["spindle"], spindles)
     new_feed = np.where(np.isnan(feeds), rec["feed"], feeds)
-    if (new_feed[is_feed] <= 0).any() or not np.isfinite(new_feed[is_feed]).all():
+    asked = is_feed & ~np.isnan(feeds)  # (a zero feed left to the caller, --lenient, may stay)
+    if (new_feed[asked] <= 0).any() or not np.isfinite(new_feed[asked]).all():
         raise WriteError("feeds must be positive and finite")
     if (new_spindle < 0).any() or not np.isfinite(new_spindle).all():
         raise WriteError("spindle speeds must be non-negative and finite")
@@ -209,7 +210,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     # program a line may run many times with different inherited feeds: there, only the
     # lines whose feed changes, and the lines that ran with the feed a changed line had,
     # get targets (the self-check proves the result).
-    candidates = np.flatnonzero(is_feed) if f_lines or splits else np.zeros(0, np.int64)
+    # (a zero feed is one the program leaves to its caller, --lenient: nothing to keep)
+    candidates = np.flatnonzero(is_feed & (new_feed > 0)) if f_lines or splits else np.zeros(0, np.int64)
     if prog.is_macro and len(candidates):
         keep = np.zeros(n, bool)
         keep[changed_f] = True
@@ -394,7 +396,7 @@ def _ijk(center, start, r):
 
 
 def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
-    if prog.is_macro:
+    if prog.is_macro or prog.source is not None:
         from .interpreter import load_program
 
         new = load_program(out, prog.settings, path=prog.path)
@@ -453,6 +455,7 @@ def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed
     feeds = np.full(rec.size, np.nan)
     spindles = np.full(rec.size, np.nan)
     is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
+    is_feed &= rec["feed"] > 0  # a feed the program leaves to its caller (--lenient) stays as it is
     if feed != 1.0 or max_feed is not None or spindle != 1.0:
         # in G95 the feed per revolution is kept, so mm/min follows the spindle
         f = rec["feed"] * feed * np.where(rec["feed_mode"] == FEED_PER_REV, spindle, 1.0)
