@@ -165,7 +165,7 @@ def lex_kernel(buf, pow10):
                 flags |= LF_PROGRAM_NAME
                 p = q
                 continue
-            if p + 1 < end and _is_letter(buf[p + 1]):
+            if _is_letter(c) and p + 1 < end and _is_letter(buf[p + 1]):
                 err_code = LEX_KEYWORD
                 err_pos = p
                 break
