@@ -39,6 +39,8 @@ def canon_motion(expected: Path):
     """(kind, values) for each motion call of LinuxCNC's trace, plus feed rates."""
     out = []
     feed = None
+    sync = None  # pitch while feed is synchronised to the spindle (G33, G33.1)
+    here = [0.0] * 6
     for line in expected.read_text().splitlines():
         m = CALL.match(line)
         if not m:
@@ -46,9 +48,20 @@ def canon_motion(expected: Path):
         name, args = m.group(1), m.group(2)
         if name == "SET_FEED_RATE":
             feed = float(args)
+        elif name == "START_SPEED_FEED_SYNC":
+            sync = float(args.split(",")[0])
+        elif name == "STOP_SPEED_FEED_SYNCH":
+            sync = None
+        elif name == "RIGID_TAP":
+            # in to the point at the pitch, spindle reversed, back out to where it started
+            vals = [float(v) for v in args.split(",")[:3]]
+            out.append(("STRAIGHT_FEED", vals + here[3:], sync))
+            out.append(("STRAIGHT_FEED", list(here), sync))
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "DWELL"):
             vals = [float(v) for v in args.split(",")]
-            out.append((name, vals, feed))
+            out.append((name, vals, sync if (sync is not None and name == "STRAIGHT_FEED") else feed))
+            if name.startswith("STRAIGHT"):
+                here = vals[:6]
     return out
 
 

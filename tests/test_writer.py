@@ -181,3 +181,23 @@ def test_lenient_control_bytes_and_feeds_left_to_the_caller():
     from mtwin.twin import Twin
     with pytest.raises(GCodeError, match="feed rate 0"):
         Twin().plan(prog)
+
+
+def test_spindle_synchronised_moves():
+    # G33.1 rigid tap: in and back out at pitch x speed; G33 a single thread pass
+    src = b"G21 G90 G0 X0 Y0 Z1\nS1000 M3\nG1 X5 F300\nG33.1 Z-1.2 K0.1\nG0 Z5\nG33 Z-10 K1.5\nM2\n"
+    prog = load_program(src, InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
+    r = prog.records
+    assert [float(z) for z in r["z"][2:4]] == [-1.2, 1.0]
+    assert list(r["feed"][2:4]) == [100.0, 100.0] and r["feed"][-1] == 1500.0
+    # a feed override leaves them alone; a spindle override moves them with the spindle
+    out = scale_feeds(prog, 0.5)
+    assert out == src.replace(b"F300", b"F150")
+    new = load_program(scale_feeds(prog, 1.0, spindle=2.0), InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
+    assert new.records["feed"][-1] == 3000.0
+    feeds = np.full(r.size, np.nan)
+    feeds[2] = 50.0
+    with pytest.raises(WriteError, match="synchronised"):
+        rewrite(prog, feeds)
+    with pytest.raises(GCodeError, match="pitch"):
+        load_program(b"G33.1 Z-1 K0.1\n", path="t.ngc")  # no spindle speed

@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_ROTARY, FL_SUB, FL_F_INCH, LINEAR, RAPID,
+    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_ROTARY, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -74,6 +74,7 @@ E_AMBIGUOUS_R = 32
 E_ROT_PLANE = 33
 E_POLAR = 34
 E_ROTARY_USE = 35
+E_SYNC = 36
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -418,7 +419,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 grp = 9
             elif code == 0 or code == 10 or code == 20 or code == 30 \
                     or code == 810 or code == 820 or code == 830 or code == 730 \
-                    or code == 850 or code == 890 or code == 840 or code == 860:
+                    or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331:
                 if g_motion >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_motion = code
@@ -507,7 +508,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 grp = 99
             elif code == 680 \
                     or code == 510 or code == 511 or code == 160 \
-                    or code == 520 or code == 120 or code == 130 or code == 330 \
+                    or code == 520 or code == 120 or code == 130 \
                     or code == 760 or code == 70 or code == 80 or code == 681 \
                     or code == 650 or code == 660 or code == 661:
                 return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
@@ -575,8 +576,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
         if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub):
             return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
+        is_sync = mm == 330 or mm == 331
         for L in (_I, _J, _K):
-            if has[L] and not is_arc:
+            if has[L] and not is_arc and not (is_sync and L == _K) and not (mm == 331 and L == _I):
                 return n, E_UNUSED_WORD, widx[L], li, err_vals, nwarn
 
         scale = MM_PER_INCH if inch else 1.0
@@ -916,7 +918,31 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 return n, E_NO_MOTION_MODE, kw, li, err_vals, nwarn
             for a in range(3):
                 s[a] = pos[a]
-            if motion <= 30:
+            if motion == 330 or motion == 331:
+                # spindle-synchronised: G33 a thread, G33.1 a rigid tap (in, spindle reversed,
+                # back out to the start at the same pitch); feed = K (per rev) x S
+                if polar or rotary or not has[_K] or val[_K] <= 0.0 or st[SF_SPINDLE] <= 0.0:
+                    return n, E_SYNC, g_motion_w if g_motion_w >= 0 else widx[_K] if has[_K] else -1, li, \
+                        err_vals, nwarn
+                for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                    if has[L]:
+                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+                    else:
+                        e[a] = pos[a]
+                fmode = si[SI_FEED_MODE]
+                fword = st[SF_FEED]
+                si[SI_FEED_MODE] = 1
+                st[SF_FEED] = val[_K] * scale
+                n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_SYNC)
+                if motion == 331:
+                    n = _emit(out, n, LINEAR, li, e, s, s, 0, 0.0, st, si, wcs_off, FL_SYNC)
+                    for a in range(3):
+                        e[a] = s[a]
+                si[SI_FEED_MODE] = fmode
+                st[SF_FEED] = fword
+                for a in range(3):
+                    pos[a] = e[a]
+            elif motion <= 30:
                 for a, L in ((0, _X), (1, _Y), (2, _Z)):
                     if has[L]:
                         e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale

@@ -342,6 +342,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
                     "block, and cannot be G10/G28/G30/G53/G92"),
         K.E_ROTARY_USE: (f"rotary axis word {w}: rotary work offsets (G10, G92) and rotary axes in canned "
                          "cycles are not supported"),
+        K.E_SYNC: (f"{w}: spindle-synchronised motion (G33, G33.1) needs a positive K pitch, a turning spindle "
+                   "(S) and plain X/Y/Z words"),
         K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
         K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
         K.E_BAD_VALUE: f"invalid value in word {w}",

@@ -24,6 +24,7 @@ from .records import (
     FL_COMP,
     FL_POLAR,
     FL_ROTARY,
+    FL_SYNC,
     ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
     FL_F_INCH, FL_INCH, FL_INCREMENTAL, FL_R_ARC, FL_SUB, LINEAR, PLANE_AXES, RAPID, move_lengths, arc_sweep,
 )
@@ -189,6 +190,12 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     new_spindle = np.where(np.isnan(spindles), rec["spindle"], spindles)
     new_feed = np.where(np.isnan(feeds), rec["feed"], feeds)
     asked = is_feed & ~np.isnan(feeds)  # (a zero feed left to the caller, --lenient, may stay)
+    sync = asked & ((rec["flags"] & FL_SYNC) != 0)
+    if sync.any():
+        i = int(np.argmax(sync))
+        raise WriteError(f"{prog.path}:{int(rec['line'][i])}: a spindle-synchronised move (G33/G33.1) runs at its "
+                         "pitch times the spindle speed: its feed cannot be changed")
+    is_feed = is_feed & ((rec["flags"] & FL_SYNC) == 0)
     if (new_feed[asked] <= 0).any() or not np.isfinite(new_feed[asked]).all():
         raise WriteError("feeds must be positive and finite")
     if (new_spindle < 0).any() or not np.isfinite(new_spindle).all():
@@ -421,7 +428,8 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
     nr = new.records
     if nr.size != exp_f.size:
         raise WriteError(f"internal check failed, nothing written: {nr.size} moves instead of {exp_f.size}")
-    isf = (nr["kind"] != RAPID) & (nr["kind"] != DWELL)
+    # (spindle-synchronised moves follow the spindle speed: their feed is checked through it)
+    isf = (nr["kind"] != RAPID) & (nr["kind"] != DWELL) & ((nr["flags"] & FL_SYNC) == 0)
     # tolerance: half a unit of the last written digit, relative to the feed
     style = detect_style(prog.lexed)
     inch_f = (nr["flags"] & (FL_F_INCH | FL_INCH)) != 0
@@ -456,6 +464,7 @@ def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed
     spindles = np.full(rec.size, np.nan)
     is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
     is_feed &= rec["feed"] > 0  # a feed the program leaves to its caller (--lenient) stays as it is
+    is_feed &= (rec["flags"] & FL_SYNC) == 0  # a thread or rigid tap runs at pitch x spindle speed
     if feed != 1.0 or max_feed is not None or spindle != 1.0:
         # in G95 the feed per revolution is kept, so mm/min follows the spindle
         f = rec["feed"] * feed * np.where(rec["feed_mode"] == FEED_PER_REV, spindle, 1.0)
