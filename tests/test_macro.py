@@ -182,3 +182,10 @@ def test_subroutine_path_from_the_twin_file(tmp_path):
     main.write_text("G21 G90 F300\no<hop> call [7]\nM2\n")
     prog = load_program(str(main), interpreter_settings(str(twin)))
     assert prog.records["x"].tolist() == [7.0]
+
+
+def test_computed_o_word_call():
+    prog = run("o1 sub\nG0 X1\no1 endsub\no2 sub\nG0 X2\no2 endsub\n#<n> = 2\no#<n> call\no[#<n> - 1] call\nM2\n")
+    assert list(prog.records["x"]) == [2.0, 1.0]
+    with pytest.raises(GCodeError, match="computed O-word"):
+        run("#<n> = 1.5\no#<n> call\nM2\n")

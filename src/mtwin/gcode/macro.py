@@ -504,7 +504,12 @@ class _Executor:
                     t = t[re.match(r"N\d+", t).end():]
                 # ---- LinuxCNC O-words
                 if t.startswith("O#") or t.startswith("O["):
-                    raise _Err("O-words with a computed number (o#<n> call) are not supported")
+                    # o#<n> call / o[expr] call: the number is computed (LinuxCNC)
+                    e = _Expr(self, t, 1)
+                    v = e.primary()
+                    if not t[e.p:].startswith("CALL") or v != int(v) or v < 0:
+                        raise _Err("a computed O-word number is only allowed for a call of a numbered sub", 2)
+                    t = f"O{int(v)}{t[e.p:]}"
                 m = re.match(r"O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|"
                              r"REPEAT|ENDREPEAT|BREAK|CONTINUE)(.*)$", t)
                 if m:
