@@ -10,7 +10,7 @@ import pytest
 from conftest import SAMPLES, realdata_files
 from mtwin.errors import GCodeError, WriteError
 from mtwin.gcode.interpreter import InterpreterSettings, load_program
-from mtwin.gcode.records import ARC_CCW, ARC_CW, LINEAR
+from mtwin.gcode.records import ARC_CCW, ARC_CW, FL_ROTARY, LINEAR
 from mtwin.gcode.verify import compare
 from mtwin.gcode.writer import Split, rewrite, scale_feeds
 
@@ -153,15 +153,15 @@ def test_rotary_axes_are_kept_and_compared():
     assert scale_feeds(prog, 1.0) == src
     # the same path with a different A end: verify names the rotary axis
     other = load_program(src.replace(b"A90", b"A45"), path="u.nc")
-    assert "rotary" in str(compare(prog, other))
+    assert "A/B/C" in str(compare(prog, other))
     # feeds scale; a move turning a rotary axis is never split; the 3-axis twin refuses it
     assert compare(prog, load_program(scale_feeds(prog, 0.5), path="t.nc")) is None
-    with pytest.raises(WriteError, match="rotary"):
+    with pytest.raises(WriteError, match="beyond X/Y/Z"):
         rewrite(prog, splits={1: Split([0.5], [100.0, 50.0])})
     out = rewrite(prog, splits={3: Split([0.5], [100.0, 50.0])})
     assert compare(prog, load_program(out, path="t.nc")) is None
     from mtwin.twin import Twin
-    with pytest.raises(GCodeError, match="rotary axis"):
+    with pytest.raises(GCodeError, match="rotary A/B/C"):
         Twin().plan(prog)
 
 
@@ -201,3 +201,9 @@ def test_spindle_synchronised_moves():
         rewrite(prog, feeds)
     with pytest.raises(GCodeError, match="pitch"):
         load_program(b"G33.1 Z-1 K0.1\n", path="t.ngc")  # no spindle speed
+
+
+def test_secondary_linear_axes_follow_the_units():
+    prog = load_program(b"G20 G90 G0 X0 W0\nG1 W1 F10\nG91 W-0.5\nM30\n", path="t.ngc")
+    assert list(prog.records["w"]) == [0.0, 25.4, 12.7]
+    assert list(prog.records["flags"] & FL_ROTARY != 0) == [False, True, True]

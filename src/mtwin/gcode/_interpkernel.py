@@ -66,7 +66,6 @@ E_INVERSE_NO_F = 26
 E_BAD_VALUE = 27
 E_G53_MODE = 28
 E_BAD_TURNS = 29
-E_ROTARY = 30
 E_UNUSED_WORD = 31
 E_COMP_PLANE = 40
 E_COMP_ACTIVE = 41
@@ -94,6 +93,7 @@ _AT, _CARET = 26, 27  # polar words '@' (distance) and '^' (angle, degrees)
 # state indices (float)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
 SF_A, SF_B, SF_C = 8, 9, 10  # rotary axis positions, degrees (not scaled by G20/G21)
+SF_U, SF_V, SF_W = 11, 12, 13  # secondary linear axes, mm
 # state indices (int)
 SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP = range(9)
 
@@ -155,6 +155,9 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.a = st[SF_A]
         r.b = st[SF_B]
         r.c = st[SF_C]
+        r.u = st[SF_U]
+        r.v = st[SF_V]
+        r.w = st[SF_W]
     return n + 1
 
 
@@ -222,12 +225,21 @@ def _polar_xy(px, py, has_r, r, has_t, t_deg, incremental):
 
 
 @njit
-def _move_rotary(st, has, val, incremental):
-    """Apply A/B/C words (degrees, G90/G91); FL_ROTARY when one of them changes."""
-    fl = 0
-    for q, L in ((SF_A, _A), (SF_B, _B), (SF_C, _C)):
+def _first_extra_word(has, widx):
+    for L in (_A, _B, _C, _U, _V, _W):
         if has[L]:
-            nv = st[q] + val[L] if incremental else val[L]
+            return widx[L]
+    return -1
+
+
+@njit
+def _move_rotary(st, has, val, incremental, scale):
+    """Apply A/B/C (degrees) and U/V/W (lengths) words in G90/G91; FL_ROTARY when one moves."""
+    fl = 0
+    for q, L in ((SF_A, _A), (SF_B, _B), (SF_C, _C), (SF_U, _U), (SF_V, _V), (SF_W, _W)):
+        if has[L]:
+            v = val[L] * scale if q >= SF_U else val[L]
+            nv = st[q] + v if incremental else v
             if nv != st[q]:
                 fl = FL_ROTARY
             st[q] = nv
@@ -287,17 +299,17 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     tool_xy = np.zeros((tool_len.size, 2))
     comp_r = comp_r.copy()
     comp_known = comp_known.copy()
-    # X, Y, Z (mm) and A, B, C (degrees) of the G28 and G30 positions
+    # X, Y, Z (mm), A, B, C (degrees) and U, V, W (mm) of the G28 and G30 positions
     h28 = home28
     h30 = home30
-    home28 = np.zeros(6)
-    home30 = np.zeros(6)
+    home28 = np.zeros(9)
+    home30 = np.zeros(9)
     home28[:3] = h28
     home30[:3] = h30
     mach = np.zeros(3)
     tmp = np.zeros(3)
 
-    st = np.zeros(11)
+    st = np.zeros(14)
     si = np.zeros(9, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
@@ -381,9 +393,6 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 has[L] = True
                 val[L] = v
                 widx[L] = k
-        for L in (_U, _V, _W):
-            if has[L]:
-                return n, E_ROTARY, widx[L], li, err_vals, nwarn
         if has[_E]:
             return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
 
@@ -732,11 +741,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             motion = g_motion
             if g_motion < 730:
                 motion_base = g_motion
-        rotary = has[_A] or has[_B] or has[_C]
+        rotary = has[_A] or has[_B] or has[_C] or has[_U] or has[_V] or has[_W]
         if rotary and (g_nonmodal == 100 or g_nonmodal == 920):
             # rotary work offsets are not modelled
-            return n, E_ROTARY_USE, widx[_A] if has[_A] else (widx[_B] if has[_B] else widx[_C]), li, \
-                err_vals, nwarn
+            return n, E_ROTARY_USE, _first_extra_word(has, widx), li, err_vals, nwarn
         polar = has[_AT] or has[_CARET]
         if polar and (has[_X] or has[_Y] or si[SI_PLANE] != 0 or g_nonmodal >= 0):
             return n, E_POLAR, widx[_AT] if has[_AT] else widx[_CARET], li, err_vals, nwarn
@@ -835,7 +843,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 home[0] = mach[0] + st[SF_TOX]
                 home[1] = mach[1] + st[SF_TOY]
                 home[2] = mach[2] + st[SF_TLO]
-                for q in range(3):
+                for q in range(6):
                     home[3 + q] = st[SF_A + q]
             else:
                 for a in range(3):
@@ -846,7 +854,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 for a, L in ((0, _X), (1, _Y), (2, _Z)):
                     if has[L]:
                         e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
-                rfl = _move_rotary(st, has, val, incremental) if rotary else 0
+                rfl = _move_rotary(st, has, val, incremental, scale) if rotary else 0
                 n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | rfl)
                 first_flag = 0
                 for a in range(3):
@@ -859,7 +867,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         mach[a] = home[a] - tofs[a]
                 _from_machine(mach, si[SI_WCS], wcs_off, e)
                 rfl = 0
-                for q, L in ((0, _A), (1, _B), (2, _C)):
+                for q, L in ((0, _A), (1, _B), (2, _C), (3, _U), (4, _V), (5, _W)):
                     if (has[L] or not has_axis) and st[SF_A + q] != home[3 + q]:
                         st[SF_A + q] = home[3 + q]
                         rfl = FL_ROTARY
@@ -896,7 +904,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     mach[a] = val[L] * scale - tofs[a]
             _from_machine(mach, si[SI_WCS], wcs_off, e)
             if rotary:
-                first_flag |= _move_rotary(st, has, val, False)  # no rotary offsets: machine = program
+                first_flag |= _move_rotary(st, has, val, False, scale)  # no rotary offsets: machine = program
             if has_axis:
                 kind = RAPID if motion == 0 else LINEAR
                 if kind == LINEAR and st[SF_FEED] <= 0.0:
@@ -953,7 +961,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                                            incremental)
                     first_flag |= FL_POLAR
                 if rotary:
-                    first_flag |= _move_rotary(st, has, val, incremental)
+                    first_flag |= _move_rotary(st, has, val, incremental, scale)
                 if motion == 0:
                     n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
                 else:
@@ -1052,8 +1060,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             else:
                 # ---- canned cycles ----
                 if rotary:
-                    return n, E_ROTARY_USE, widx[_A] if has[_A] else (widx[_B] if has[_B] else widx[_C]), li, \
-                        err_vals, nwarn
+                    return n, E_ROTARY_USE, _first_extra_word(has, widx), li, err_vals, nwarn
                 pl = si[SI_PLANE]
                 a1 = (0, 2, 1)[pl]
                 a2 = (1, 0, 2)[pl]

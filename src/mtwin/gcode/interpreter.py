@@ -340,8 +340,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
                       "(work offsets, R rotation)"),
         K.E_POLAR: (f"polar word {w}: polar moves (@ distance, ^ angle) need G17 and no X or Y word on the "
                     "block, and cannot be G10/G28/G30/G53/G92"),
-        K.E_ROTARY_USE: (f"rotary axis word {w}: rotary work offsets (G10, G92) and rotary axes in canned "
-                         "cycles are not supported"),
+        K.E_ROTARY_USE: (f"axis word {w}: work offsets (G10, G92) and canned cycles for the axes beyond "
+                         "X/Y/Z (A/B/C, U/V/W) are not supported"),
         K.E_SYNC: (f"{w}: spindle-synchronised motion (G33, G33.1) needs a positive K pitch, a turning spindle "
                    "(S) and plain X/Y/Z words"),
         K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
@@ -354,6 +354,5 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_COMP_PLANE: ("cutter compensation outside the XY plane (G18/G19) is not supported; G41.1/G42.1 "
                          "need a D diameter"),
         K.E_COMP_ACTIVE: "cutter compensation is already on: G40 first (a control refuses to switch sides here)",
-        K.E_ROTARY: f"secondary linear axis word {w} (U/V/W) is not supported",
     }
     return GCodeError(msgs.get(code, f"interpreter error {code}"), loc)

@@ -810,7 +810,7 @@ def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offset
 
 
 _STATEMENT = re.compile(r"^(N\d+)?(O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|REPEAT|"
-                        r"ENDREPEAT|BREAK|CONTINUE)|IF\[|WHILE\[|GOTO|END\d|DO\d)")
+                        r"ENDREPEAT|BREAK|CONTINUE)|O[#\[].*CALL|IF\[|WHILE\[|GOTO|END\d|DO\d)")
 
 
 def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:

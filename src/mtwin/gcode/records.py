@@ -35,7 +35,7 @@ FL_FIRST_IN_LINE = 128  # first record produced by its source line
 FL_F_INCH = 256  # an F word on this line is read in inches (units before this line's G20/G21)
 FL_COMP = 512  # geometry moved by cutter compensation (the programmed path differs)
 FL_POLAR = 1024  # end point given by polar words (@ distance, ^ angle)
-FL_ROTARY = 2048  # a rotary axis (A, B or C) moves
+FL_ROTARY = 2048  # an axis beyond X/Y/Z moves: rotary A, B, C or secondary linear U, V, W
 FL_SYNC = 4096  # spindle-synchronised (G33 thread, G33.1 rigid tap): feed = pitch x spindle speed
 
 MOVE_DTYPE = np.dtype(
@@ -67,6 +67,7 @@ MOVE_DTYPE = np.dtype(
         ("rot", np.float64),  # XY rotation of the coordinate system (G10 L2 R), degrees CCW
         ("tox", np.float64), ("toy", np.float64),  # active tool X/Y offsets (G10 L1/L10 + G43), mm
         ("a", np.float64), ("b", np.float64), ("c", np.float64),  # rotary axes at the end, degrees
+        ("u", np.float64), ("v", np.float64), ("w", np.float64),  # secondary linear axes at the end, mm
     ]
 )
 

@@ -26,7 +26,7 @@ _REASONS = {
     BACKWARDS: "pieces go backwards along the original move",
     CENTER: "arc centre, plane or direction differs",
     OVERSHOOT: "piece runs past the end of the original move",
-    ROTARY: "rotary axis (A/B/C) positions differ",
+    ROTARY: "positions of the axes beyond X/Y/Z (A/B/C, U/V/W) differ",
 }
 
 
@@ -86,14 +86,14 @@ def compare_kernel(ka, pa, sa, ea, ca, ta, sw_a, tool_a, kb, pb, sb, eb, cb, tb,
             if de <= tol and (k < 2 or tb[ib] <= ta[ia]):
                 if (k == 2 or k == 3) and tb[ib] != ta[ia] and t_prev == 0.0:
                     return CENTER, ia, ib
-                for q in range(3):
+                for q in range(6):
                     if abs(abc_b[ib, q] - abc_a[ia, q]) > tol:
                         return ROTARY, ia, ib
                 ib += 1
                 break
             # a piece short of the end: rotary axes still where the move started (the
             # writer never splits a move that turns one)
-            for q in range(3):
+            for q in range(6):
                 if abs(abc_b[ib, q] - (abc_a[ia - 1, q] if ia > 0 else 0.0)) > tol:
                     return ROTARY, ia, ib
             if k == DWELL:
@@ -128,8 +128,9 @@ def compare(a, b, tol: float = 1e-3):
     ka, pa, sa, ea, ca, ta, tool_a = _arrays(ra)
     kb, pb, sb, eb, cb, tb, tool_b = _arrays(rb)
     sweep = arc_sweep(ra) if ra.size else np.zeros(0)
-    abc_a = np.ascontiguousarray(np.stack([ra["a"], ra["b"], ra["c"]], 1)) if ra.size else np.zeros((0, 3))
-    abc_b = np.ascontiguousarray(np.stack([rb["a"], rb["b"], rb["c"]], 1)) if rb.size else np.zeros((0, 3))
+    extra = ("a", "b", "c", "u", "v", "w")
+    abc_a = np.ascontiguousarray(np.stack([ra[k] for k in extra], 1)) if ra.size else np.zeros((0, 6))
+    abc_b = np.ascontiguousarray(np.stack([rb[k] for k in extra], 1)) if rb.size else np.zeros((0, 6))
     code, ia, ib = compare_kernel(ka, pa, sa, ea, ca, ta, sweep, tool_a, kb, pb, sb, eb, cb, tb, tool_b, float(tol),
                                   abc_a, abc_b)
     if code == OK:

@@ -259,7 +259,7 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             # the same fraction of the other
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
         if r["flags"] & FL_ROTARY:
-            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move that turns a rotary axis")
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move that drives an axis beyond X/Y/Z (A/B/C, U/V/W)")
         if r["flags"] & FL_POLAR:
             # a G91 polar word is relative to the polar coordinates of the move's start
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move given in polar words (@ ^)")

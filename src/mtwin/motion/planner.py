@@ -339,8 +339,9 @@ def plan_program(program, machine) -> Plan:
     rot = (program.records["flags"] & R.FL_ROTARY) != 0
     if rot.any():
         from ..errors import GCodeError, SourceLocation
-        raise GCodeError("this move turns a rotary axis (A/B/C): the twin models a 3-axis machine, so the "
-                         "program can be parsed, scaled and verified but not simulated",
+        raise GCodeError("this move drives an axis beyond X/Y/Z (rotary A/B/C or secondary U/V/W): the twin "
+                         "models a 3-axis machine, so the program can be parsed, scaled and verified but not "
+                         "simulated",
                          SourceLocation(program.path, int(program.records["line"][int(np.argmax(rot))]), 1))
     # one continuous frame even when the program switches, moves or rotates work offsets
     rec = R.in_common_frame(program.records, program.path)
