@@ -342,3 +342,30 @@ def test_polar_words():
         run("G1 X1 @1 F100\n", dialect="linuxcnc")
     with pytest.raises(GCodeError, match="polar"):
         run("G18 G1 @1 F100\n", dialect="linuxcnc")
+
+
+def test_g5_splines_followed_within_a_micron():
+    r = run("G21 G17 G90 F100\nG0 X0 Y0\nG5.1 X10 Y0 I5 J5\nG5 X20 Y0 I2 J5 P-2 Q5\nG5 X30 Y0 P-2 Q-5\nM2\n",
+            dialect="linuxcnc")
+
+    def bez(ctrl, t):
+        ctrl = np.asarray(ctrl, float)
+        k = len(ctrl) - 1
+        coef = [math.comb(k, i) * t ** i * (1 - t) ** (k - i) for i in range(k + 1)]
+        return sum(c[:, None] * p[None, :] for c, p in zip(coef, ctrl))
+
+    curves = {3: [(0, 0), (5, 5), (10, 0)], 4: [(10, 0), (12, 5), (18, 5), (20, 0)],
+              # no I J: the first control point mirrors the last one of the G5 before
+              5: [(20, 0), (22, -5), (28, -5), (30, 0)]}
+    t = np.linspace(0, 1, 20001)
+    for line, ctrl in curves.items():
+        seg = r[r["line"] == line]
+        assert seg[0]["sx"] == ctrl[0][0] and (seg["x"][-1], seg["y"][-1]) == ctrl[-1]
+        dense = bez(ctrl, t)
+        pts = np.stack([seg["x"], seg["y"]], 1)
+        # every piece end lies on the curve, every piece within 1 um of it
+        assert np.min(np.linalg.norm(dense[None, :, :] - pts[:, None, :], axis=2), axis=1).max() < 1e-3
+        mids = 0.5 * (pts + np.stack([seg["sx"], seg["sy"]], 1))
+        assert np.min(np.linalg.norm(dense[None, :, :] - mids[:, None, :], axis=2), axis=1).max() < 1.01e-3
+    with pytest.raises(GCodeError, match="G5"):
+        run("G21 G17 F100\nG5 X1 Y1 P1 Q1\n", dialect="linuxcnc")  # no I J and no G5 before

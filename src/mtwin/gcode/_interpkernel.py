@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_ROTARY, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
+    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -30,6 +30,9 @@ SPIRAL_REL_TOL = 0.001
 # (or up to 0.1 mm: posts that round coordinates to 0.05 mm mis-state small arcs by that much)
 LENIENT_SPIRAL_REL = 0.1
 LENIENT_SPIRAL_ABS_MM = 0.1
+# G5/G5.1 splines are followed by lines within this chord error, mm (at most SPLINE_MAX_PIECES)
+SPLINE_TOL_MM = 0.001
+SPLINE_MAX_PIECES = 10000
 # Peck clearance of G73/G83 (LinuxCNC: 0.010 in or 0.254 mm)
 PECK_CLEAR_MM = 0.254
 PECK_CLEAR_INCH_MM = 0.010 * MM_PER_INCH
@@ -74,6 +77,7 @@ E_ROT_PLANE = 33
 E_POLAR = 34
 E_ROTARY_USE = 35
 E_SYNC = 36
+E_SPLINE = 37
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -318,6 +322,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     ijk_abs = False
     motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
     motion_base = -1  # the last G00/G01/G02/G03 mode (Fanuc restores it after G80)
+    spline_c2 = np.zeros(2)  # last control point of the previous G5 (for a G5 without I J)
+    spline_prev = False
     retract_old = dialect == 0  # power-on default: Fanuc G98, LinuxCNC G99
     tool_sel = 0
     canned_r = math.nan
@@ -428,7 +434,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 grp = 9
             elif code == 0 or code == 10 or code == 20 or code == 30 \
                     or code == 810 or code == 820 or code == 830 or code == 730 \
-                    or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331:
+                    or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331 \
+                    or code == 50 or code == 51:
                 if g_motion >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_motion = code
@@ -577,17 +584,20 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             return n, E_AMBIGUOUS_R, widx[_R], li, err_vals, nwarn
         if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
-        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead):
+        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead or mm == 50):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
         if has[_P] and not ignored and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
+                                            or mm == 50
                                             or g_lookahead
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
         if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub):
             return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
         is_sync = mm == 330 or mm == 331
+        is_spline = mm == 50 or mm == 51
         for L in (_I, _J, _K):
-            if has[L] and not is_arc and not (is_sync and L == _K) and not (mm == 331 and L == _I):
+            if has[L] and not is_arc and not (is_sync and L == _K) and not (mm == 331 and L == _I) \
+                    and not (is_spline and L != _K):
                 return n, E_UNUSED_WORD, widx[L], li, err_vals, nwarn
 
         scale = MM_PER_INCH if inch else 1.0
@@ -926,6 +936,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 return n, E_NO_MOTION_MODE, kw, li, err_vals, nwarn
             for a in range(3):
                 s[a] = pos[a]
+            prev_g5 = spline_prev
+            spline_prev = False
             if motion == 330 or motion == 331:
                 # spindle-synchronised: G33 a thread, G33.1 a rigid tap (in, spindle reversed,
                 # back out to the start at the same pitch); feed = K (per rev) x S
@@ -950,6 +962,68 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 st[SF_FEED] = fword
                 for a in range(3):
                     pos[a] = e[a]
+            elif motion == 50 or motion == 51:
+                # G5 cubic / G5.1 quadratic B-spline in the XY plane, followed by short lines
+                if si[SI_PLANE] != 0 or has[_Z] or polar or rotary or si[SI_FEED_MODE] == 2 \
+                        or (motion == 51 and not (has[_I] or has[_J])) \
+                        or (motion == 50 and not (has[_P] and has[_Q])) \
+                        or (motion == 50 and not (has[_I] or has[_J]) and not prev_g5):
+                    return n, E_SPLINE, g_motion_w if g_motion_w >= 0 else -1, li, err_vals, nwarn
+                if st[SF_FEED] <= 0.0:
+                    return n, E_ZERO_FEED, g_motion_w, li, err_vals, nwarn
+                for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                    if has[L]:
+                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+                    else:
+                        e[a] = pos[a]
+                if has[_I] or has[_J]:
+                    c1x = pos[0] + (val[_I] * scale if has[_I] else 0.0)
+                    c1y = pos[1] + (val[_J] * scale if has[_J] else 0.0)
+                else:
+                    # a G5 without I J continues smoothly: the last control point mirrored
+                    c1x = 2 * pos[0] - spline_c2[0]
+                    c1y = 2 * pos[1] - spline_c2[1]
+                if motion == 50:
+                    c2x = e[0] + val[_P] * scale
+                    c2y = e[1] + val[_Q] * scale
+                    spline_c2[0] = c2x
+                    spline_c2[1] = c2y
+                    ddx = max(abs(pos[0] - 2 * c1x + c2x), abs(c1x - 2 * c2x + e[0]))
+                    ddy = max(abs(pos[1] - 2 * c1y + c2y), abs(c1y - 2 * c2y + e[1]))
+                    curv = 6.0 * math.hypot(ddx, ddy)
+                else:
+                    c2x = c1x
+                    c2y = c1y
+                    curv = 2.0 * math.hypot(pos[0] - 2 * c1x + e[0], pos[1] - 2 * c1y + e[1])
+                # chord error of a piece dt long is at most |B''| dt^2 / 8
+                pieces = int(math.ceil(math.sqrt(curv / (8.0 * SPLINE_TOL_MM))))
+                pieces = min(max(pieces, 1), SPLINE_MAX_PIECES)
+                x0 = pos[0]
+                y0 = pos[1]
+                for a in range(3):
+                    c[a] = pos[a]
+                fl = first_flag | FL_SPLINE
+                for q in range(1, pieces + 1):
+                    t = q / pieces
+                    u = 1.0 - t
+                    if motion == 50:
+                        px = u * u * u * x0 + 3 * u * u * t * c1x + 3 * u * t * t * c2x + t * t * t * e[0]
+                        py = u * u * u * y0 + 3 * u * u * t * c1y + 3 * u * t * t * c2y + t * t * t * e[1]
+                    else:
+                        px = u * u * x0 + 2 * u * t * c1x + t * t * e[0]
+                        py = u * u * y0 + 2 * u * t * c1y + t * t * e[1]
+                    if q == pieces:
+                        px = e[0]
+                        py = e[1]
+                    s[0] = c[0]
+                    s[1] = c[1]
+                    c[0] = px
+                    c[1] = py
+                    n = _emit(out, n, LINEAR, li, s, c, c, 0, 0.0, st, si, wcs_off, fl)
+                    fl = FL_SPLINE
+                for a in range(3):
+                    pos[a] = e[a]
+                spline_prev = motion == 50
             elif motion <= 30:
                 for a, L in ((0, _X), (1, _Y), (2, _Z)):
                     if has[L]:

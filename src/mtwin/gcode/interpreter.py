@@ -344,6 +344,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
                          "X/Y/Z (A/B/C, U/V/W) are not supported"),
         K.E_SYNC: (f"{w}: spindle-synchronised motion (G33, G33.1) needs a positive K pitch, a turning spindle "
                    "(S) and plain X/Y/Z words"),
+        K.E_SPLINE: (f"{w}: G5.1 needs X/Y and I/J, G5 X/Y, I/J (or a G5 just before) and P/Q; splines are "
+                     "XY-plane only (G17), with no Z, polar or rotary words, and not in inverse time (G93)"),
         K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
         K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
         K.E_BAD_VALUE: f"invalid value in word {w}",
