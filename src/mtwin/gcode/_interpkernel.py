@@ -435,7 +435,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             elif code == 0 or code == 10 or code == 20 or code == 30 \
                     or code == 810 or code == 820 or code == 830 or code == 730 \
                     or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331 \
-                    or code == 50 or code == 51:
+                    or ((code == 50 or code == 51) and dialect != 0):
                 if g_motion >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_motion = code
@@ -517,8 +517,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if code == 960:
                     return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
                 grp = 99
-            elif (code == 80 or code == 51) and dialect == 0:
-                # Fanuc G08 P1/P0 look-ahead control and G05.1 Q1/Q0 AI contour control switch
+            elif (code == 80 or code == 51 or code == 50) and dialect == 0:
+                # Fanuc G08 P1/P0 look-ahead control, G05.1 Q1/Q0 AI contour control and G05 P10000/P0
+                # high-speed machining (LinuxCNC reads G5/G5.1 as splines) switch
                 # the control's planning mode, not the path (the twin's planner is configured)
                 g_lookahead = True
                 grp = 99
