@@ -126,10 +126,19 @@ def load_program(source, settings: InterpreterSettings | None = None, *, path: s
     from .macro import looks_like_macro
 
     clean, where = _blank_control_bytes(data) if settings.lenient else (data, -1)
-    if looks_like_macro(clean):
+    # The numba lexer stops at every macro construct ('#', '[', keywords, O-word control
+    # flow); a plain program lexes through, and only a G65 call can hide in it.  So the
+    # slower whole-file macro scan runs only when the lexer says there may be one.
+    try:
+        lexed = lex(clean, name)
+        maybe_macro = bool(np.any((lexed.w_letter == ord("G")) & (lexed.w_value == 65.0)))
+    except GCodeError:
+        lexed = None
+        maybe_macro = True
+    if maybe_macro and looks_like_macro(clean):
         prog = _load_macro(clean, name, settings)
     else:
-        prog = interpret(lex(clean, name), settings)
+        prog = interpret(lexed if lexed is not None else lex(clean, name), settings)
     if where >= 0:
         # control characters (tape leaders, a stray SOH) read as blanks; the file keeps them
         line = data.count(b"\n", 0, where) + 1

@@ -43,7 +43,9 @@ _EXPR_START = re.compile(r"[-+]?[ \t]*(#|\[|" + _FUNC_CALL.pattern + ")")
 
 
 def looks_like_macro(data: bytes) -> bool:
-    """Cheap test: does the program use anything this module handles?"""
+    """Does the program use anything this module handles?  (A regular-expression scan of
+    the whole file: the interpreter asks only when the fast lexer has stopped at a macro
+    construct or found a G65.)"""
     return _MACRO_HINT.search(_strip_comments_bytes(data)) is not None
 
 
