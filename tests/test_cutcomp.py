@@ -73,7 +73,7 @@ def test_unknown_d_is_radius_zero_with_a_warning():
 @pytest.mark.parametrize("text,message", [
     (b"G21 G90 F100\nG41 D1 G1 X1 Y0\nG1 X20\nM2\n", "must be longer than the tool radius"),
     (b"G21 G90 F100\nG0 X-10\nG41 D1 G1 X0 Y0\nG3 X0 Y0 I1 J0\nM2\n", "does not fit inside the arc"),
-    (b"G21 G90 F100\nG18 G41 D1 G1 X10\nM2\n", "not supported"),
+    (b"G21 G90 F100\nG19 G41 D1 G1 Y10\nM2\n", "XY and XZ planes"),
     (b"G21 G90 F100\nG0 X-10\nG41 D1 G1 X0\nG42 D1 G1 X5\nM2\n", "already on"),
     (b"G21 G90 F100\nG0 X-10 Y-10\nG41 D1 G2 X0 Y0 I5 J5\nG1 X10\nM2\n", r"entry move\) must be a line"),
 ])
@@ -105,3 +105,66 @@ def test_stored_traces_are_what_rs274_prints(name, tmp_path):
     subprocess.run(["rs274", "-g", "-t", "tool.tbl", f"{name}.ngc", "out.txt"], cwd=tmp_path, capture_output=True,
                    timeout=60, check=True)
     assert canon_points((tmp_path / "out.txt").read_text()) == canon_points((DATA / f"{name}.expected").read_text())
+
+
+def _canon_xz(text: str):
+    """(x, y, z, centre x, centre z) of each motion in an XZ-plane trace (ARC_FEED lists Z first)."""
+    pts = []
+    for ln in text.splitlines():
+        m = CANON.search(ln)
+        if m:
+            v = [float(x) for x in m.group(2).split(",")]
+            if m.group(1) == "ARC_FEED":
+                pts.append((v[1], v[5], v[0], v[3], v[2]))
+            else:
+                pts.append((v[0], v[1], v[2], None, None))
+    return pts
+
+
+def test_g18_compensation_matches_linuxcnc():
+    # compensation in the XZ plane: the same rules in the plane's own axes (Z first, X second)
+    prog = load_program(str(DATA / "g18_comp.ngc"))
+    ref = _canon_xz((DATA / "g18_comp.expected").read_text())
+    r = prog.records
+    assert len(r) == len(ref) == 13
+    for k, (x, y, z, cx, cz) in enumerate(ref):
+        assert (r["x"][k], r["y"][k], r["z"][k]) == pytest.approx((x, y, z), abs=1e-4)
+        if cx is not None:
+            assert (r["cx"][k], r["cz"][k]) == pytest.approx((cx, cz), abs=1e-4)
+    # G19 compensation is refused, as LinuxCNC does
+    with pytest.raises(GCodeError, match="XY and XZ planes"):
+        load_program(b"G21 G19 G41.1 D2 G1 Y10 Z0 F100\n", path="t.ngc")
+
+
+@pytest.mark.skipif(shutil.which("rs274") is None, reason="LinuxCNC's rs274 is not installed; stored traces are used")
+def test_stored_g18_trace_is_what_rs274_prints(tmp_path):
+    shutil.copy(DATA / "g18_comp.ngc", tmp_path / "g18_comp.ngc")
+    subprocess.run(["rs274", "-g", "g18_comp.ngc", "out.txt"], cwd=tmp_path, capture_output=True, timeout=60,
+                   check=True)
+    assert _canon_xz((tmp_path / "out.txt").read_text()) == _canon_xz((DATA / "g18_comp.expected").read_text())
+
+
+@pytest.mark.skipif(shutil.which("rs274") is None, reason="LinuxCNC's rs274 is not installed")
+def test_linuxcnc_comp_example_g17_and_g18_live(tmp_path):
+    """LinuxCNC's own comp.ngc (G17 and G18 compensation, read from ../shared) against rs274 run
+    on it here with the shared inch tool table (T1: D 6 mm)."""
+    from conftest import REALDATA, SHARED
+
+    ngc = REALDATA / "gcode_corpus" / "linuxcnc_nc_files" / "comp.ngc"
+    tbl = SHARED / "linuxcnc" / "config" / "tool_rs274_inch.tbl"
+    if not (ngc.is_file() and tbl.is_file()):
+        pytest.skip("shared LinuxCNC files not present")
+    import sys
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_linuxcnc_interp import canon_motion, our_motion
+
+    shutil.copy(tbl, tmp_path / "tool.tbl")
+    subprocess.run(["rs274", "-g", "-t", "tool.tbl", str(ngc), "out.txt"], cwd=tmp_path, capture_output=True,
+                   timeout=60, check=True)
+    expected = canon_motion(tmp_path / "out.txt")
+    radii = {1: 0.23622047 / 2 * INCH, 2: 0.11811024 / 2 * INCH, 3: 0.39370079 / 2 * INCH}
+    ours = our_motion(load_program(ngc, InterpreterSettings(dialect="linuxcnc", comp_radii=radii)))
+    assert [k for k, _, _ in ours] == [k for k, _, _ in expected] and len(ours) == 45
+    for (k, ev, _), (_, ov, _) in zip(expected, ours):
+        n = 9 if k == "ARC_FEED" else 6
+        np.testing.assert_allclose(ov[:n], ev[:n], atol=2e-4)

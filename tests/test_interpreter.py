@@ -202,7 +202,7 @@ def test_coolant_and_spindle_stop():
     ("G1 F100\nG1 X1 Q2\n", "not used", 2, 7),
     ("G1 X1\n", "zero feed", 1, 1),
     ("G2 X1 F1\n", "neither", 1, 1),
-    ("G18 G41 D1\n", "not supported", 1, 5),
+    ("G19 G41 D1\n", "XY and XZ planes", 1, 5),
     ("G92 A5\n", "work offsets", 1, 5),
     ("G99.5 X1\n", "unsupported G-code", 1, 1),
     ("M123\n", "unsupported M-code", 1, 1),

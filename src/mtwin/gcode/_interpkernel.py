@@ -72,6 +72,7 @@ E_BAD_TURNS = 29
 E_UNUSED_WORD = 31
 E_COMP_PLANE = 40
 E_COMP_ACTIVE = 41
+E_COMP_YZ = 42
 E_AMBIGUOUS_R = 32
 E_ROT_PLANE = 33
 E_POLAR = 34
@@ -686,8 +687,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             si[SI_COMP] = 0
             st[SF_COMP_R] = 0.0
         elif g_comp >= 410:
-            if si[SI_PLANE] != 0:
-                return n, E_COMP_PLANE, g_comp_w, li, err_vals, nwarn
+            if si[SI_PLANE] == 2:
+                return n, E_COMP_YZ, g_comp_w, li, err_vals, nwarn
             if si[SI_COMP] != 0:
                 return n, E_COMP_ACTIVE, g_comp_w, li, err_vals, nwarn
             si[SI_COMP] = 1 if (g_comp == 410 or g_comp == 411) else 2

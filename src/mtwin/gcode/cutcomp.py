@@ -1,4 +1,4 @@
-"""Cutter radius compensation (G41/G42, G17): the tool centre path from the programmed contour.
+"""Cutter radius compensation (G41/G42 in G17, G18, G19): the tool centre path from the programmed contour.
 
 The interpreter marks every record with its compensation side and radius; this pass turns
 runs of compensated moves into the path of the tool centre, the way a control does:
@@ -170,7 +170,14 @@ def apply(rec: np.ndarray, path: str) -> np.ndarray:
         side, r = int(comp[i]), float(rec["comp_r"][i])
         while j < n and comp[j] == side and rec["comp_r"][j] == r:
             j += 1
-        block = _run(rec, i, j, side, r, path)
+        planes = rec["plane"][i:j]
+        if (planes != planes[0]).any():
+            k = i + int(np.argmax(planes != planes[0]))
+            raise GCodeError("cutter compensation: the plane (G17/G18/G19) cannot change while it is on",
+                             SourceLocation(path, int(rec["line"][k]), 1))
+        pl = int(planes[0])
+        # G18/G19: compensate in the plane's own axes (first, second, normal), then map back
+        block = _unpermute(_run(_permute(rec[i:j + 1], pl), 0, j - i, side, r, path), pl)
         out.append(block)
         if j < n:
             # the exit move (G40, or a change of side/radius) starts where the tool is
@@ -178,7 +185,8 @@ def apply(rec: np.ndarray, path: str) -> np.ndarray:
                 raise GCodeError("cutter compensation: the move that turns it off (G40) must be a straight line, "
                                  "not an arc", SourceLocation(path, int(rec["line"][j]), 1))
             nxt = rec[j:j + 1].copy()
-            nxt["sx"], nxt["sy"] = block["x"][-1], block["y"][-1]
+            for ax in _AXES[pl][:2]:
+                nxt["s" + ax] = block[ax][-1]
             nxt["flags"] |= FL_COMP
             out.append(nxt)
             i = j + 1
@@ -186,6 +194,31 @@ def apply(rec: np.ndarray, path: str) -> np.ndarray:
             i = j
     # inverse-time feeds (G93) keep the feed per minute of the programmed move, as LinuxCNC
     return np.concatenate(out)
+
+
+# record columns of each plane's (first, second, normal) axis: G17 XY, G18 ZX, G19 YZ
+_AXES = ("xyz", "zxy", "yzx")
+
+
+def _permute(rec: np.ndarray, plane: int) -> np.ndarray:
+    """A copy whose x, y, z columns hold the plane's first, second and normal axes."""
+    out = rec.copy()
+    if plane == 0:
+        return out
+    for pre in ("s", "", "c"):
+        for dst, src in zip("xyz", _AXES[plane]):
+            out[pre + dst] = rec[pre + src]
+    return out
+
+
+def _unpermute(rec: np.ndarray, plane: int) -> np.ndarray:
+    if plane == 0:
+        return rec
+    out = rec.copy()
+    for pre in ("s", "", "c"):
+        for src, dst in zip("xyz", _AXES[plane]):
+            out[pre + dst] = rec[pre + src]
+    return out
 
 
 def _run(rec, i0, i1, side, r, path):

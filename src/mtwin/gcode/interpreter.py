@@ -362,8 +362,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_BAD_TURNS: f"arc turn count {w} must be a positive integer",
         K.E_UNUSED_WORD: f"word {w} is not used by any code on this block",
         K.E_AMBIGUOUS_R: "R word is ambiguous on a block with both G64 and M19; use separate blocks",
-        K.E_COMP_PLANE: ("cutter compensation outside the XY plane (G18/G19) is not supported; G41.1/G42.1 "
-                         "need a D diameter"),
+        K.E_COMP_PLANE: "G41.1/G42.1 need a D word (the tool diameter)",
+        K.E_COMP_YZ: "cutter compensation is allowed in the XY and XZ planes only (G17, G18), as in LinuxCNC",
         K.E_COMP_ACTIVE: "cutter compensation is already on: G40 first (a control refuses to switch sides here)",
     }
     return GCodeError(msgs.get(code, f"interpreter error {code}"), loc)
