@@ -26,6 +26,7 @@ from ..errors import GCodeError, SourceLocation
 from .records import ARC_CCW, ARC_CW, DWELL, FL_COMP, LINEAR, RAPID
 
 _EPS = 1e-9
+_SMALL = 0.05  # rad: corners turning less than this are straight on (RS274NGC's threshold)
 
 
 def _unit(v):
@@ -71,6 +72,11 @@ def _param(o, p):
         return ((p[0] - o.s[0]) * d[0] + (p[1] - o.s[1]) * d[1]) / dd if dd > 0 else 0.0
     total = _sweep_to(o.el, o.el.e) or 2 * math.pi
     return _sweep_to(o.el, p) / total
+
+
+def _tool_inside(el, side: int) -> bool:
+    """The tool runs inside arc ``el`` (G41 on a CCW arc, G42 on a CW one)."""
+    return el.arc and ((side == 1) == el.ccw)
 
 
 def _left(t):
@@ -249,16 +255,25 @@ def _run(rec, i0, i1, side, r, path):
         corner = a.el.e
         # the corner is classified on the programmed path, as RS274NGC does
         t1, t2 = a.el.tangent(True), b.el.tangent(False)
-        cross = t1[0] * t2[1] - t1[1] * t2[0]
-        dot = t1[0] * t2[0] + t1[1] * t2[1]
-        if abs(cross) < 1e-9 and dot > 0:
-            # tangent: the offset ends meet already (same side of both)
+        turn = math.atan2(t1[0] * t2[1] - t1[1] * t2[0], t1[0] * t2[0] + t1[1] * t2[1])
+        # RS274NGC's corner angle: how far the new element turns away from the tool's side
+        # (0 straight on, > 0 away from the tool: convex, < 0 towards it: concave), in
+        # [-pi/2, 3pi/2), with LinuxCNC's 0.05 rad threshold
+        bb = -turn if side == 1 else turn
+        if bb >= 1.5 * math.pi:
+            bb -= 2 * math.pi
+        elif bb < -0.5 * math.pi:
+            bb += 2 * math.pi
+        concave = (bb < -_SMALL or bb > math.pi + _SMALL
+                   # (almost) doubling back with the tool outside an arc: the offsets cross
+                   # (LinuxCNC's "m" and "h" shapes: the tool stays on the outside)
+                   or (b.el.arc and abs(bb - math.pi) < _SMALL and not _tool_inside(b.el, side))
+                   or (not b.el.arc and a.el.arc and bb > math.pi - _SMALL and not _tool_inside(a.el, side)))
+        if not concave and bb <= _SMALL:
+            # (nearly) straight on: the new element starts where the tool is, no corner arc
             b.s = a.e
             continue
-        # G41 (tool on the left): a left turn is an inside corner; a reversal doubles back
-        # over the same side, so its offsets cross as at an inside corner
-        inside = (cross > 0) == (side == 1) if abs(cross) >= 1e-9 else True
-        if inside:
+        if concave:
             p = _intersect(a, b, corner)
             if p is None:
                 raise GCodeError("cutter compensation: the compensated moves do not meet at this inside corner "
