@@ -124,7 +124,7 @@ def test_endless_loop_is_an_error(monkeypatch):
     ("G21\nGOTO 77\nM2\n", "no block N77"),
     ("G21\nWHILE [0] DO1\nM2\n", "without END1"),
     ("G21\n#7000=1\nM2\n", "does not exist"),
-    ("G21\nG38.2 Z-5 F100\nG0 X#5061\nM2\n", "probing"),
+    ("G21\nG38.2 Z-5 F100\nG0 X#5061\nM2\n", "probe"),
 ])
 def test_macro_errors_name_the_line(text, message):
     with pytest.raises(GCodeError, match=message) as info:

@@ -207,3 +207,21 @@ def test_secondary_linear_axes_follow_the_units():
     prog = load_program(b"G20 G90 G0 X0 W0\nG1 W1 F10\nG91 W-0.5\nM30\n", path="t.ngc")
     assert list(prog.records["w"]) == [0.0, 25.4, 12.7]
     assert list(prog.records["flags"] & FL_ROTARY != 0) == [False, True, True]
+
+
+def test_probe_moves_under_lenient():
+    src = b"G21 G90 G0 X0 Y0 Z5\nG38.2 Z-10 F50\nG0 Z5\nG1 X10 F300\nM30\n"
+    with pytest.raises(GCodeError, match="probe"):
+        load_program(src, path="t.ngc")
+    prog = load_program(src, InterpreterSettings(lenient=True), path="t.ngc")
+    r = prog.records
+    assert r["z"][1] == -10.0 and r["feed"][1] == 50.0 and "probe move taken" in str(prog.warnings[0])
+    # the probing feed is part of the measurement: scaling leaves it, changing it is refused
+    assert scale_feeds(prog, 0.5) == src.replace(b"F300", b"F150")
+    feeds = np.full(r.size, np.nan)
+    feeds[1] = 100.0
+    with pytest.raises(WriteError, match="probe"):
+        rewrite(prog, feeds)
+    from mtwin.twin import Twin
+    with pytest.raises(GCodeError, match="probe"):
+        Twin().plan(prog)

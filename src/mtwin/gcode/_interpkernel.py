@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_POLAR, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
+    FL_MACHINE, FL_POLAR, FL_PROBE, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -79,6 +79,7 @@ E_POLAR = 34
 E_ROTARY_USE = 35
 E_SYNC = 36
 E_SPLINE = 37
+E_PROBE = 38
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -89,6 +90,7 @@ W_COMP_RADIUS_UNKNOWN = 5
 W_ARC_SPIRAL = 6
 W_NO_FEED = 7
 W_CONTROL_BYTE = 8
+W_PROBE = 9
 
 # letters
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
@@ -436,7 +438,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             elif code == 0 or code == 10 or code == 20 or code == 30 \
                     or code == 810 or code == 820 or code == 830 or code == 730 \
                     or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331 \
-                    or ((code == 50 or code == 51) and dialect != 0):
+                    or ((code == 50 or code == 51) and dialect != 0) \
+                    or code == 382 or code == 383 or code == 384 or code == 385:
                 if g_motion >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_motion = code
@@ -763,6 +766,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         has_axis = has[_X] or has[_Y] or has[_Z] or polar or rotary
         if g_tlo == 431:
             has_axis = False
+        if g_motion >= 382 and g_motion <= 385 and not (has[_X] or has[_Y] or has[_Z]):
+            return n, E_PROBE, g_motion_w, li, err_vals, nwarn  # a probe move needs a target
         if g_dwell and dialect == 0:
             has_axis = has[_Y] or has[_Z]  # Fanuc G4 X is the dwell time
         saved_path_mode = si[SI_PATH_MODE]
@@ -962,6 +967,26 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         e[a] = s[a]
                 si[SI_FEED_MODE] = fmode
                 st[SF_FEED] = fword
+                for a in range(3):
+                    pos[a] = e[a]
+            elif motion >= 382 and motion <= 385:
+                # G38.2-G38.5: where the probe trips is known only on the machine
+                if not lenient:
+                    return n, E_PROBE, g_motion_w if g_motion_w >= 0 else -1, li, err_vals, nwarn
+                if polar or rotary:
+                    return n, E_PROBE, g_motion_w if g_motion_w >= 0 else -1, li, err_vals, nwarn
+                if st[SF_FEED] <= 0.0:
+                    return n, E_ZERO_FEED, g_motion_w, li, err_vals, nwarn
+                for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                    if has[L]:
+                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+                    else:
+                        e[a] = pos[a]
+                n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_PROBE)
+                if nwarn < warn_code.size:
+                    warn_code[nwarn] = W_PROBE
+                    warn_word[nwarn] = g_motion_w if g_motion_w >= 0 else w0
+                nwarn += 1
                 for a in range(3):
                     pos[a] = e[a]
             elif motion == 50 or motion == 51:

@@ -301,6 +301,9 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
     elif code == K.W_NO_FEED:
         msg = ("feed move with no F word in effect, kept with feed 0 (--lenient): the program can be read, "
                "scaled and verified, but not simulated")
+    elif code == K.W_PROBE:
+        msg = ("probe move taken to its programmed end (--lenient): where the probe touches is known only on "
+               "the machine; the program can be read, scaled and verified, not simulated")
     elif code == K.W_ARC_SPIRAL:
         msg = ("arc end point is off the circle by more than the control's tolerance: taken as a spiral "
                "from the start radius to the end radius (--lenient)")
@@ -355,6 +358,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
                    "(S) and plain X/Y/Z words"),
         K.E_SPLINE: (f"{w}: G5.1 needs X/Y and I/J, G5 X/Y, I/J (or a G5 just before) and P/Q; splines are "
                      "XY-plane only (G17), with no Z, polar or rotary words, and not in inverse time (G93)"),
+        K.E_PROBE: (f"{w}: a probe move stops where the probe touches, which is known only on the machine; "
+                    "--lenient takes it to its programmed end (plain X/Y/Z words)"),
         K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
         K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
         K.E_BAD_VALUE: f"invalid value in word {w}",

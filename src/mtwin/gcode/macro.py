@@ -567,8 +567,6 @@ class _Executor:
                 codes = re.findall(r"([A-Z])([-+]?\d*\.?\d*)", words)
                 gs = [float(v) for c, v in codes if c == "G" and v]
                 ms = [float(v) for c, v in codes if c == "M" and v]
-                if any(38.0 <= g < 39.0 for g in gs):
-                    raise _Err("probing (G38.x) is not supported: the twin has no probe")
                 if 65.0 in gs:
                     k = self.g65(codes, k)
                     continue

@@ -23,6 +23,7 @@ from .numfmt import NumberStyle, detect_style
 from .records import (
     FL_COMP,
     FL_POLAR,
+    FL_PROBE,
     FL_ROTARY,
     FL_SYNC,
     ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
@@ -195,7 +196,12 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
         i = int(np.argmax(sync))
         raise WriteError(f"{prog.path}:{int(rec['line'][i])}: a spindle-synchronised move (G33/G33.1) runs at its "
                          "pitch times the spindle speed: its feed cannot be changed")
-    is_feed = is_feed & ((rec["flags"] & FL_SYNC) == 0)
+    probe = asked & ((rec["flags"] & FL_PROBE) != 0)
+    if probe.any():
+        i = int(np.argmax(probe))
+        raise WriteError(f"{prog.path}:{int(rec['line'][i])}: the feed of a probe move (G38.x) is part of the "
+                         "measurement: it cannot be changed")
+    is_feed = is_feed & ((rec["flags"] & (FL_SYNC | FL_PROBE)) == 0)
     if (new_feed[asked] <= 0).any() or not np.isfinite(new_feed[asked]).all():
         raise WriteError("feeds must be positive and finite")
     if (new_spindle < 0).any() or not np.isfinite(new_spindle).all():
@@ -465,6 +471,7 @@ def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed
     is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
     is_feed &= rec["feed"] > 0  # a feed the program leaves to its caller (--lenient) stays as it is
     is_feed &= (rec["flags"] & FL_SYNC) == 0  # a thread or rigid tap runs at pitch x spindle speed
+    is_feed &= (rec["flags"] & FL_PROBE) == 0  # a probing feed is part of the measurement
     if feed != 1.0 or max_feed is not None or spindle != 1.0:
         # in G95 the feed per revolution is kept, so mm/min follows the spindle
         f = rec["feed"] * feed * np.where(rec["feed_mode"] == FEED_PER_REV, spindle, 1.0)

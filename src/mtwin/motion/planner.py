@@ -336,6 +336,12 @@ def _filter_hold(c) -> tuple[int, float]:
 
 def plan_program(program, machine) -> Plan:
     """Plan a program on a machine: geometry, limits, corners, look-ahead, timing."""
+    probe = (program.records["flags"] & R.FL_PROBE) != 0
+    if probe.any():
+        from ..errors import GCodeError, SourceLocation
+        raise GCodeError("a probe move (G38.x) stops where the probe touches, which is known only on the machine: "
+                         "the program can be parsed, scaled and verified but not simulated",
+                         SourceLocation(program.path, int(program.records["line"][int(np.argmax(probe))]), 1))
     rot = (program.records["flags"] & R.FL_ROTARY) != 0
     if rot.any():
         from ..errors import GCodeError, SourceLocation
