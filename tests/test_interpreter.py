@@ -369,3 +369,11 @@ def test_g5_splines_followed_within_a_micron():
         assert np.min(np.linalg.norm(dense[None, :, :] - mids[:, None, :], axis=2), axis=1).max() < 1.01e-3
     with pytest.raises(GCodeError, match="G5"):
         run("G21 G17 F100\nG5 X1 Y1 P1 Q1\n", dialect="linuxcnc")  # no I J and no G5 before
+
+
+def test_lenient_never_guesses_an_unknown_code_with_axis_words():
+    # an unknown code alone is passed over; with axis words it may be a motion of its own
+    r = run("G21 G1 X1 F100\nG17.1\nX2\nM2\n", lenient=True)
+    assert list(r["x"]) == [1.0, 2.0]
+    with pytest.raises(GCodeError, match="unsupported G-code G17.1"):
+        run("G21 G1 X1 F100\nG17.1 X2\nM2\n", lenient=True)

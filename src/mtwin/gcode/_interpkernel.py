@@ -534,7 +534,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     or code == 650 or code == 660 or code == 661:
                 return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
             if grp < 0:
-                if lenient:
+                # --lenient passes over an unknown code only on a block without axis words: with
+                # them it may be a motion of its own (a lathe cycle, a probe, a macro call)
+                if lenient and not (has[_X] or has[_Y] or has[_Z] or has[_AT] or has[_CARET]):
                     if nwarn < warn_code.size:
                         warn_code[nwarn] = W_IGNORED_G
                         warn_word[nwarn] = kw
