@@ -232,6 +232,16 @@ def _polar_xy(px, py, has_r, r, has_t, t_deg, incremental):
 
 
 @njit
+def _target(e, pos, has, val, scale, incremental):
+    """End point of a move from its X/Y/Z words (G90 or G91); unnamed axes stay."""
+    for a, L in ((0, _X), (1, _Y), (2, _Z)):
+        if has[L]:
+            e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
+        else:
+            e[a] = pos[a]
+
+
+@njit
 def _first_extra_word(has, widx):
     for L in (_A, _B, _C, _U, _V, _W):
         if has[L]:
@@ -953,11 +963,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if polar or rotary or not has[_K] or val[_K] <= 0.0 or st[SF_SPINDLE] <= 0.0:
                     return n, E_SYNC, g_motion_w if g_motion_w >= 0 else widx[_K] if has[_K] else -1, li, \
                         err_vals, nwarn
-                for a, L in ((0, _X), (1, _Y), (2, _Z)):
-                    if has[L]:
-                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
-                    else:
-                        e[a] = pos[a]
+                _target(e, pos, has, val, scale, incremental)
                 fmode = si[SI_FEED_MODE]
                 fword = st[SF_FEED]
                 si[SI_FEED_MODE] = 1
@@ -979,11 +985,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_PROBE, g_motion_w if g_motion_w >= 0 else -1, li, err_vals, nwarn
                 if st[SF_FEED] <= 0.0:
                     return n, E_ZERO_FEED, g_motion_w, li, err_vals, nwarn
-                for a, L in ((0, _X), (1, _Y), (2, _Z)):
-                    if has[L]:
-                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
-                    else:
-                        e[a] = pos[a]
+                _target(e, pos, has, val, scale, incremental)
                 n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_PROBE)
                 if nwarn < warn_code.size:
                     warn_code[nwarn] = W_PROBE
@@ -1000,11 +1002,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_SPLINE, g_motion_w if g_motion_w >= 0 else -1, li, err_vals, nwarn
                 if st[SF_FEED] <= 0.0:
                     return n, E_ZERO_FEED, g_motion_w, li, err_vals, nwarn
-                for a, L in ((0, _X), (1, _Y), (2, _Z)):
-                    if has[L]:
-                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
-                    else:
-                        e[a] = pos[a]
+                _target(e, pos, has, val, scale, incremental)
                 if has[_I] or has[_J]:
                     c1x = pos[0] + (val[_I] * scale if has[_I] else 0.0)
                     c1y = pos[1] + (val[_J] * scale if has[_J] else 0.0)
@@ -1054,11 +1052,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     pos[a] = e[a]
                 spline_prev = motion == 50
             elif motion <= 30:
-                for a, L in ((0, _X), (1, _Y), (2, _Z)):
-                    if has[L]:
-                        e[a] = pos[a] + val[L] * scale if incremental else val[L] * scale
-                    else:
-                        e[a] = pos[a]
+                _target(e, pos, has, val, scale, incremental)
                 if polar:
                     e[0], e[1] = _polar_xy(pos[0], pos[1], has[_AT], val[_AT] * scale, has[_CARET], val[_CARET],
                                            incremental)
