@@ -3,8 +3,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from mtwin.errors import MtwinError
-from mtwin.gcode.interpreter import load_program
-from mtwin.gcode.records import ARC_CCW, ARC_CW, LINEAR, move_lengths
+from mtwin.gcode.interpreter import InterpreterSettings, load_program
+from mtwin.gcode.records import ARC_CCW, ARC_CW, LINEAR, in_common_frame, machine_xyz, move_lengths
 from mtwin.gcode.verify import compare
 from mtwin.gcode.writer import Split, rewrite
 
@@ -86,11 +86,36 @@ def test_garbage_never_crashes(data):
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.text(alphabet="GXYZIJKRFSMTPQLN0123456789.- ()%;/\n#[]", max_size=200))
-def test_gcode_like_text_never_crashes(text):
+@given(st.text(alphabet="GXYZIJKRFSMTPQLNABW@^0123456789.- ()%;/\n#[]", max_size=200), st.booleans())
+def test_gcode_like_text_never_crashes(text, lenient):
     try:
-        prog = load_program(text.encode(), path="junk.nc")
+        prog = load_program(text.encode(), InterpreterSettings(lenient=lenient), path="junk.ngc")
     except MtwinError as exc:
         assert str(exc)
         return
     assert np.isfinite(prog.records["x"]).all()
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(programs(), coord, coord, st.integers(-180, 180), coord, coord)
+def test_rotated_frames_are_rigid_motions(src, ox, oy, rot, gx, gy):
+    """The same program in a frame moved by G10 L2 X Y R and G92: every machine point is the
+    rigid motion Rot(R)·(p + G92) + (X, Y) of the program point, and the twin's common frame
+    gives back the program's own points."""
+    head, _, body = src.partition(b"\n")
+    # at the start the tool is at 0,0: G92 X-gx makes the offset +gx; then the frame moves
+    moved = head + f"\nG92 X{-gx:.2f} Y{-gy:.2f}\nG10 L2 P1 X{ox:.2f} Y{oy:.2f} R{rot}\nG54\n".encode() + body
+    a = load_program(src, InterpreterSettings(dialect="linuxcnc"), path="a.ngc").records
+    b = load_program(moved, InterpreterSettings(dialect="linuxcnc"), path="b.ngc").records
+    assert len(a) == len(b)
+    inch = 25.4 if head.startswith(b"G20") else 1.0
+    c, s_ = np.cos(np.radians(rot)), np.sin(np.radians(rot))
+    # the machine sees Rot·(p + G92 offset) + G54 offset
+    px = a["x"] + gx * inch
+    py = a["y"] + gy * inch
+    want = np.stack([ox * inch + c * px - s_ * py, oy * inch + s_ * px + c * py, a["z"]], 1)
+    np.testing.assert_allclose(machine_xyz(b), want, atol=1e-9)
+    np.testing.assert_allclose(b["x"], a["x"], atol=1e-9)
+    np.testing.assert_allclose(b["y"], a["y"], atol=1e-9)
+    common = in_common_frame(b)
+    np.testing.assert_allclose(common["x"], b["x"], atol=1e-9)
