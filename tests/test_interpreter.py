@@ -261,12 +261,12 @@ def test_fanuc_g80_restores_the_motion_mode_and_g08_is_a_control_switch():
     prog = load_program(text, InterpreterSettings(dialect="fanuc"), path="t.nc")
     last = prog.records[-2:]
     assert last["kind"].tolist() == [RAPID, RAPID] and last["line"].tolist() == [5, 7]
-    # RS274NGC: G80 leaves no motion mode, and G8 is the lathe radius mode
+    # RS274NGC: G80 leaves no motion mode, and G8 is the lathe radius mode (a P word is unused)
     with pytest.raises(GCodeError, match="without an active motion mode"):
         load_program(text.replace(b"G08 P1\n", b"").replace(b"G05.1 Q1\n", b""),
                      InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
-    with pytest.raises(GCodeError, match="G8"):
-        load_program(b"G8\n", InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
+    with pytest.raises(GCodeError, match="P1 is not used"):
+        load_program(b"G8 P1\n", InterpreterSettings(dialect="linuxcnc"), path="t.ngc")
 
 
 def test_coordinate_rotation_g10_r():

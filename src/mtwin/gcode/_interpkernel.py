@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_MACHINE, FL_POLAR, FL_PROBE, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
+    FL_DIAMETER, FL_MACHINE, FL_POLAR, FL_PROBE, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -80,6 +80,7 @@ E_ROTARY_USE = 35
 E_SYNC = 36
 E_SPLINE = 37
 E_PROBE = 38
+E_THREAD = 39
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -242,6 +243,118 @@ def _target(e, pos, has, val, scale, incremental):
 
 
 @njit
+def _sync_move(out, n, li, s, e, pitch, st, si, wcs_off, flags):
+    """A spindle-synchronised line (feed = pitch x spindle speed)."""
+    fmode = si[SI_FEED_MODE]
+    fword = st[SF_FEED]
+    si[SI_FEED_MODE] = 1
+    st[SF_FEED] = pitch
+    n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, flags | FL_SYNC)
+    si[SI_FEED_MODE] = fmode
+    st[SF_FEED] = fword
+    return n
+
+
+@njit
+def _thread_cycle(out, n, li, pos, has, val, scale, st, si, wcs_off, first_flag):
+    """G76 (LinuxCNC) in G18: threading passes from the drive line (the current X) toward Z.
+
+    Pass depth from the drive line: |I| + J·n^(1/R) while below |I| + K, then the full depth
+    1 + H times; the compound angle Q shifts each pass along Z by (depth - |I|)·tan Q (the
+    last pass ends on Z); E with L tapers the entry (L1), the exit (L2) or both (L3) at the
+    pitch stretched by hypot(E, K)/E.  Each pass: rapid to the retract X at the start Z, in
+    to the depth (or tapered in), threaded to the end, out (or tapered out), rapid back.
+    Returns the new record count, or -(count)-1 for a bad word.
+    """
+    if si[SI_PLANE] != 1 or not (has[_P] and has[_Z] and has[_I] and has[_J] and has[_K]) or has[_X] \
+            or st[SF_SPINDLE] <= 0.0:
+        return -n - 1
+    pitch = val[_P] * scale
+    i_off = val[_I] * scale
+    j = val[_J] * scale
+    k = val[_K] * scale
+    degr = val[_R] if has[_R] else 1.0
+    q = math.radians(val[_Q]) if has[_Q] else 0.0
+    springs = int(val[_H]) if has[_H] else 0
+    taper = val[_E] * scale if has[_E] else 0.0
+    ends = int(val[_L]) if has[_L] else 0
+    if pitch <= 0.0 or j <= 0.0 or k <= 0.0 or degr < 1.0 or springs < 0 or taper < 0.0 or ends < 0 \
+            or ends > 3:
+        return -n - 1
+    boring = i_off > 0.0
+    sgn = 1.0 if boring else -1.0  # direction of cutting deeper, along X
+    safe_x = pos[0]
+    start_z = pos[2]
+    target_z = val[_Z] * scale
+    peak = abs(i_off)
+    full = peak + k
+    tq = math.tan(q)
+    z_full = (full - peak) * tq
+    entry = taper > 0.0 and (ends == 1 or ends == 3)
+    exit_ = taper > 0.0 and (ends == 2 or ends == 3)
+    taper_pitch = pitch * math.hypot(taper, k) / taper if taper > 0.0 else pitch
+    s = np.empty(3)
+    e = np.empty(3)
+    for a in range(3):
+        s[a] = pos[a]
+        e[a] = pos[a]
+    fl = first_flag | FL_CANNED
+    npass = 1
+    depth = peak + j
+    final = 0
+    while final <= springs:
+        if depth >= full:
+            depth = full
+        zoff = (depth - peak) * tq
+        x_in = safe_x + sgn * depth
+        x_back = safe_x - sgn * (full - depth)
+        z0 = start_z - zoff
+        z1 = target_z + z_full - zoff
+        # back to the retract X at the start of this pass
+        e[0] = x_back
+        e[2] = z0
+        n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+        fl = FL_CANNED
+        s[0] = e[0]
+        s[2] = e[2]
+        if entry:
+            e[0] = x_in - sgn * k
+            n = _sync_move(out, n, li, s, e, taper_pitch, st, si, wcs_off, fl)
+            s[0] = e[0]
+            e[0] = x_in
+            e[2] = z0 - taper
+            n = _sync_move(out, n, li, s, e, taper_pitch, st, si, wcs_off, fl)
+        else:
+            e[0] = x_in
+            n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+        s[0] = e[0]
+        s[2] = e[2]
+        e[2] = z1 + taper if exit_ else z1
+        n = _sync_move(out, n, li, s, e, pitch, st, si, wcs_off, fl)
+        s[2] = e[2]
+        if exit_:
+            e[0] = x_in - sgn * k
+            e[2] = z1
+            n = _sync_move(out, n, li, s, e, taper_pitch, st, si, wcs_off, fl)
+            s[0] = e[0]
+            s[2] = e[2]
+        e[0] = x_back
+        n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+        s[0] = e[0]
+        if depth >= full:
+            final += 1
+        else:
+            npass += 1
+            depth = peak + j * npass ** (1.0 / degr)
+    e[0] = safe_x
+    e[2] = target_z
+    n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
+    for a in range(3):
+        pos[a] = e[a]
+    return n
+
+
+@njit
 def _first_extra_word(has, widx):
     for L in (_A, _B, _C, _U, _V, _W):
         if has[L]:
@@ -331,6 +444,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
     inch = False
+    diameter = False  # G7: X words are diameters (X/2 is the position)
     incremental = False
     ijk_abs = False
     motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
@@ -412,14 +526,14 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 has[L] = True
                 val[L] = v
                 widx[L] = k
-        if has[_E]:
-            return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
+        e_word = has[_E]  # only G76 uses E (its taper length); checked once the mode is known
 
         nwarn_line = nwarn  # codes ignored by --lenient may own words we cannot check
         # ---- classify G codes ----
         g_feedmode = -1
         g_plane = -1
         g_units = -1
+        g_diam = -1
         g_tlo = -1
         g_wcs = -1
         g_path = -1
@@ -449,7 +563,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     or code == 810 or code == 820 or code == 830 or code == 730 \
                     or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331 \
                     or ((code == 50 or code == 51) and dialect != 0) \
-                    or code == 382 or code == 383 or code == 384 or code == 385:
+                    or code == 382 or code == 383 or code == 384 or code == 385 or code == 760:
                 if g_motion >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_motion = code
@@ -537,10 +651,16 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 # the control's planning mode, not the path (the twin's planner is configured)
                 g_lookahead = True
                 grp = 99
+            elif (code == 70 or code == 80) and dialect != 0:
+                # LinuxCNC lathe G7 diameter / G8 radius mode
+                if g_diam >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_diam = 1 if code == 70 else 0
+                grp = 15
             elif code == 680 \
                     or code == 510 or code == 511 or code == 160 \
                     or code == 520 or code == 120 or code == 130 \
-                    or code == 760 or code == 70 or code == 80 or code == 681 \
+                    or code == 70 or code == 681 \
                     or code == 650 or code == 660 or code == 661:
                 return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
             if grp < 0:
@@ -614,9 +734,15 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         is_spline = mm == 50 or mm == 51
         for L in (_I, _J, _K):
             if has[L] and not is_arc and not (is_sync and L == _K) and not (mm == 331 and L == _I) \
-                    and not (is_spline and L != _K):
+                    and not (is_spline and L != _K) and mm != 760:
                 return n, E_UNUSED_WORD, widx[L], li, err_vals, nwarn
+        if e_word and mm != 760:
+            return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
 
+        if g_diam >= 0:
+            diameter = g_diam == 1
+        if diameter and has[_X]:
+            val[_X] *= 0.5  # every X word, also G10/G53/G92 (as LinuxCNC); I stays a radius
         scale = MM_PER_INCH if inch else 1.0
         # 1. feed mode
         if g_feedmode >= 0:
@@ -652,6 +778,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         base = 0
         if inch:
             base |= FL_INCH
+        if diameter:
+            base |= FL_DIAMETER
         if f_inch:
             base |= FL_F_INCH
         # 8. dwell
@@ -977,6 +1105,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 st[SF_FEED] = fword
                 for a in range(3):
                     pos[a] = e[a]
+            elif motion == 760:
+                n = _thread_cycle(out, n, li, pos, has, val, scale, st, si, wcs_off, first_flag)
+                if n < 0:
+                    return -n - 1, E_THREAD, g_motion_w if g_motion_w >= 0 else -1, li, err_vals, nwarn
             elif motion >= 382 and motion <= 385:
                 # G38.2-G38.5: where the probe trips is known only on the machine
                 if not lenient:

@@ -38,6 +38,7 @@ FL_POLAR = 1024  # end point given by polar words (@ distance, ^ angle)
 FL_ROTARY = 2048  # an axis beyond X/Y/Z moves: rotary A, B, C or secondary linear U, V, W
 FL_SPLINE = 8192  # one of the lines that follow a G5/G5.1 spline
 FL_PROBE = 16384  # a G38.x probe move, taken to its programmed end (--lenient)
+FL_DIAMETER = 32768  # lathe diameter mode (G7): the program's X words are diameters
 FL_SYNC = 4096  # spindle-synchronised (G33 thread, G33.1 rigid tap): feed = pitch x spindle speed
 
 MOVE_DTYPE = np.dtype(

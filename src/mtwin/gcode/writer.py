@@ -23,6 +23,7 @@ from .numfmt import NumberStyle, detect_style
 from .records import (
     FL_COMP,
     FL_POLAR,
+    FL_DIAMETER,
     FL_PROBE,
     FL_ROTARY,
     FL_SYNC,
@@ -264,6 +265,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             # the programmed path and the tool-centre path differ: a split point on one is not
             # the same fraction of the other
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
+        if r["flags"] & FL_DIAMETER:
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move in lathe diameter mode (G7)")
         if r["flags"] & FL_ROTARY:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move that drives an axis beyond X/Y/Z (A/B/C, U/V/W)")
         if r["flags"] & FL_POLAR:
