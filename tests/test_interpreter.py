@@ -282,7 +282,7 @@ def test_coordinate_rotation_g10_r():
     np.testing.assert_allclose(m[1], [100 + 10 * c, 50 + 10 * s, 0], atol=1e-12)
     np.testing.assert_allclose(m[2], [100 + 20 * c, 50 + 20 * s, 0], atol=1e-12)
     # G18/G19 arcs in a rotated system would leave the machine's planes: refused
-    with pytest.raises(GCodeError, match="G18/G19"):
+    with pytest.raises(GCodeError, match="XY plane only"):
         run("G10 L2 P1 R30\nG54 G18 G1 X0 Z0 F100\nG2 X10 Z0 I5 K0\n", dialect="linuxcnc")
 
 
@@ -377,3 +377,19 @@ def test_lenient_never_guesses_an_unknown_code_with_axis_words():
     assert list(r["x"]) == [1.0, 2.0]
     with pytest.raises(GCodeError, match="unsupported G-code G17.1"):
         run("G21 G1 X1 F100\nG17.1 X2\nM2\n", lenient=True)
+
+
+def test_fanuc_g68_rotation_about_a_centre():
+    # G68 X10 Y10 R90: later points are turned 90 degrees about (10, 10); G69 cancels
+    from mtwin.gcode.records import machine_xyz
+
+    r = run("G21 G90 G17 G0 X0 Y0 Z5\nG68 X10 Y10 R90\nG1 X20 Y10 F100\nG91 X0 Y5\nG90 G2 X20 Y25 I0 J5\nG69\n"
+            "G1 X0 Y0\nM30\n", dialect="fanuc")
+    np.testing.assert_allclose(machine_xyz(r)[:, :2], [[0, 0], [10, 20], [5, 20], [-5, 20], [0, 0]], atol=1e-12)
+    assert list(r["rot"]) == [0, 90, 90, 90, 0]
+    # the arc's centre (20, 20) in the program lies at (0, 20) on the machine
+    centre = r[3:4].copy()
+    centre["x"], centre["y"] = r["cx"][3], r["cy"][3]
+    np.testing.assert_allclose(machine_xyz(centre)[0, :2], [0, 20], atol=1e-12)
+    with pytest.raises(GCodeError, match="G68 needs its R"):
+        run("G17 G68 X1 Y1\n", dialect="fanuc")

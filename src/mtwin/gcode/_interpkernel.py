@@ -154,10 +154,17 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         th = math.radians(wcs_off[w, 3])
         cs = math.cos(th)
         sn = math.sin(th)
-        r.ox = wcs_off[w, 0] + cs * wcs_off[9, 0] - sn * wcs_off[9, 1]
-        r.oy = wcs_off[w, 1] + sn * wcs_off[9, 0] + cs * wcs_off[9, 1]
+        # with a Fanuc G68 rotation (angle a about c) in front: machine =
+        # G5x + Rot_w·(c - Rot_a·c + G92) + Rot_(w+a)·p
+        t = math.radians(wcs_off[11, 3])
+        cx = wcs_off[11, 0]
+        cy = wcs_off[11, 1]
+        kx = cx - (math.cos(t) * cx - math.sin(t) * cy) + wcs_off[9, 0]
+        ky = cy - (math.sin(t) * cx + math.cos(t) * cy) + wcs_off[9, 1]
+        r.ox = wcs_off[w, 0] + cs * kx - sn * ky
+        r.oy = wcs_off[w, 1] + sn * kx + cs * ky
         r.oz = wcs_off[w, 2] + wcs_off[9, 2]
-        r.rot = wcs_off[w, 3]
+        r.rot = wcs_off[w, 3] + wcs_off[11, 3]
         r.tox = st[SF_TOX]
         r.toy = st[SF_TOY]
         r.a = st[SF_A]
@@ -172,11 +179,17 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
 @njit
 def _to_machine(p, w, wcs_off, m):
     """Machine position (without tool offsets) of program point ``p`` in system ``w``."""
+    # Fanuc G68 first: the program point turned about its centre
+    t = math.radians(wcs_off[11, 3])
+    dx = p[0] - wcs_off[11, 0]
+    dy = p[1] - wcs_off[11, 1]
+    qx = wcs_off[11, 0] + math.cos(t) * dx - math.sin(t) * dy
+    qy = wcs_off[11, 1] + math.sin(t) * dx + math.cos(t) * dy
     th = math.radians(wcs_off[w, 3])
     cs = math.cos(th)
     sn = math.sin(th)
-    px = p[0] + wcs_off[9, 0]
-    py = p[1] + wcs_off[9, 1]
+    px = qx + wcs_off[9, 0]
+    py = qy + wcs_off[9, 1]
     m[0] = wcs_off[w, 0] + cs * px - sn * py
     m[1] = wcs_off[w, 1] + sn * px + cs * py
     m[2] = wcs_off[w, 2] + p[2] + wcs_off[9, 2]
@@ -190,8 +203,11 @@ def _from_machine(m, w, wcs_off, p):
     sn = math.sin(th)
     dx = m[0] - wcs_off[w, 0]
     dy = m[1] - wcs_off[w, 1]
-    p[0] = cs * dx + sn * dy - wcs_off[9, 0]
-    p[1] = -sn * dx + cs * dy - wcs_off[9, 1]
+    qx = cs * dx + sn * dy - wcs_off[9, 0] - wcs_off[11, 0]
+    qy = -sn * dx + cs * dy - wcs_off[9, 1] - wcs_off[11, 1]
+    t = math.radians(wcs_off[11, 3])
+    p[0] = wcs_off[11, 0] + math.cos(t) * qx + math.sin(t) * qy
+    p[1] = wcs_off[11, 1] - math.sin(t) * qx + math.cos(t) * qy
     p[2] = m[2] - wcs_off[w, 2] - wcs_off[9, 2]
 
 
@@ -421,7 +437,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     err_vals = np.zeros(4)
     # rows 0..8: G54..G59.3; row 9: the active G92 offset; row 10: the saved one (G92.3)
     # column 3: the XY rotation of each system, degrees (G10 L2/L20 R)
-    wcs_off = np.zeros((11, 4))
+    # row 11: the Fanuc G68 program rotation (centre x, centre y, -, angle in degrees)
+    wcs_off = np.zeros((12, 4))
     wcs_off[:9, :3] = wcs_init
     # the tool table can be changed by G10 L1/L10/L11: work on copies
     tool_len = tool_len.copy()
@@ -534,6 +551,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_plane = -1
         g_units = -1
         g_diam = -1
+        g_rot68 = -1
+        g_rot68_w = -1
         g_tlo = -1
         g_wcs = -1
         g_path = -1
@@ -639,6 +658,13 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 g_nonmodal = code
                 g_nonmodal_w = kw
                 grp = 0
+            elif (code == 680 or code == 690) and dialect == 0:
+                # Fanuc G68 X Y R coordinate rotation / G69 cancel
+                if g_rot68 >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_rot68 = 1 if code == 680 else 0
+                g_rot68_w = kw
+                grp = 16
             elif code == 970 or code == 960 or code == 150 or code == 500 or code == 690 \
                     or code == 501 or code == 670:
                 # G97 rpm mode, G15/G50/G69/G50.1/G67 cancel codes: harmless
@@ -719,7 +745,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         ignored = nwarn > nwarn_line
         if has[_R] and m19 and g_path == 640:
             return n, E_AMBIGUOUS_R, widx[_R], li, err_vals, nwarn
-        if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640):
+        if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640
+                                            or g_rot68 == 1):
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
         if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead or mm == 50):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
@@ -858,6 +885,19 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             _to_machine(pos, si[SI_WCS], wcs_off, mach)
             _from_machine(mach, g_wcs, wcs_off, pos)
             si[SI_WCS] = g_wcs
+        # 11b. Fanuc G68/G69: the tool stays where it is; later points are turned about the centre
+        if g_rot68 >= 0:
+            _to_machine(pos, si[SI_WCS], wcs_off, mach)
+            if g_rot68 == 1:
+                if si[SI_PLANE] != 0 or not has[_R]:
+                    return n, E_ROT_PLANE, g_rot68_w, li, err_vals, nwarn
+                wcs_off[11, 0] = val[_X] * scale if has[_X] else pos[0]
+                wcs_off[11, 1] = val[_Y] * scale if has[_Y] else pos[1]
+                wcs_off[11, 3] = val[_R]
+            else:
+                for q in range(4):
+                    wcs_off[11, q] = 0.0
+            _from_machine(mach, si[SI_WCS], wcs_off, pos)
         # 12. path mode
         if g_path == 610:
             si[SI_PATH_MODE] = 1
@@ -904,8 +944,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         if polar and (has[_X] or has[_Y] or si[SI_PLANE] != 0 or g_nonmodal >= 0):
             return n, E_POLAR, widx[_AT] if has[_AT] else widx[_CARET], li, err_vals, nwarn
         has_axis = has[_X] or has[_Y] or has[_Z] or polar or rotary
-        if g_tlo == 431:
-            has_axis = False
+        if g_tlo == 431 or g_rot68 == 1:
+            has_axis = False  # G43.1 offsets, G68 centre
         if g_motion >= 382 and g_motion <= 385 and not (has[_X] or has[_Y] or has[_Z]):
             return n, E_PROBE, g_motion_w, li, err_vals, nwarn  # a probe move needs a target
         if g_dwell and dialect == 0:
@@ -1213,7 +1253,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                                                         + (e[2] - s[2]) ** 2) * st[SF_FEED]
                     else:
                         pl = si[SI_PLANE]
-                        if pl != 0 and wcs_off[si[SI_WCS], 3] != 0.0:
+                        if pl != 0 and wcs_off[si[SI_WCS], 3] + wcs_off[11, 3] != 0.0:
                             return n, E_ROT_PLANE, g_motion_w, li, err_vals, nwarn
                         a1 = (0, 2, 1)[pl]
                         a2 = (1, 0, 2)[pl]

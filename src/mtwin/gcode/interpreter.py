@@ -362,7 +362,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
                     "--lenient takes it to its programmed end (plain X/Y/Z words)"),
         K.E_THREAD: (f"{w}: G76 needs G18, a turning spindle, P (pitch), Z, I, J > 0 and K > 0 (no X); "
                      "R >= 1, H >= 0, E >= 0 and L 0-3 when given"),
-        K.E_ROT_PLANE: "arcs in G18/G19 with a rotated coordinate system (G10 R) are not supported",
+        K.E_ROT_PLANE: ("coordinate rotation (G10 R, Fanuc G68 X Y R) is supported in the XY plane only, and "
+                        "G68 needs its R angle"),
         K.E_INVERSE_NO_F: "inverse-time feed (G93) needs an F word on every feed move",
         K.E_BAD_VALUE: f"invalid value in word {w}",
         K.E_G53_MODE: "G53 needs G0 or G1 motion",
