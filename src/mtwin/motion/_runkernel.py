@@ -280,7 +280,17 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             if mi >= cnt:
                 mi = cnt - 1
             m_ = eng_first[i] + mi
-            va = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            # the feed is the actual velocity along the commanded direction: a tool pushed
+            # back by a force beyond the drives' thrust leaves the material instead of
+            # feeding harder into it (which would feed the force back without bound)
+            dcx = xc[0] - xc_prev[0]
+            dcy = xc[1] - xc_prev[1]
+            dcz = xc[2] - xc_prev[2]
+            dn_ = math.sqrt(dcx * dcx + dcy * dcy + dcz * dcz)
+            if dn_ > 0.0:
+                va = max(0.0, (v[0] * dcx + v[1] * dcy + v[2] * dcz) / dn_)
+            else:
+                va = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
             nrps = abs(spin[0]) / 60.0
             fl = tools[seg_tool[i], 2]
             S = eng_sums[m_]
