@@ -393,3 +393,15 @@ def test_fanuc_g68_rotation_about_a_centre():
     np.testing.assert_allclose(machine_xyz(centre)[0, :2], [0, 20], atol=1e-12)
     with pytest.raises(GCodeError, match="G68 needs its R"):
         run("G17 G68 X1 Y1\n", dialect="fanuc")
+
+
+def test_g52_local_offset_shares_the_g92_register():
+    # program coordinates as LinuxCNC's rs274 prints them for this program; machine = program + offset
+    from mtwin.gcode.records import machine_xyz
+
+    r = run("G21 G90\nG0 X10 Y10 Z0\nG52 X5 Y2\nG0 X0 Y0\nG52 Z-1\nG1 Z0 F100\nG52 X0 Y0 Z0\nG0 X0 Y0\n"
+            "G92 X1\nG52 X3\nG0 X0\nM2\n", dialect="linuxcnc")
+    np.testing.assert_allclose(np.stack([r["x"], r["y"], r["z"]], 1),
+                               [[10, 10, 0], [0, 0, 0], [0, 0, 0], [0, 0, -1], [0, 0, -1]], atol=1e-12)
+    np.testing.assert_allclose(machine_xyz(r), [[10, 10, 0], [5, 2, 0], [5, 2, -1], [0, 0, -1], [3, 0, -1]],
+                               atol=1e-12)

@@ -649,7 +649,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 g_retract = code
                 grp = 10
             elif code == 100 or code == 280 or code == 300 or code == 530 or code == 920 or code == 921 \
-                    or code == 922 or code == 923 or code == 281 or code == 301:
+                    or code == 922 or code == 923 or code == 281 or code == 301 or code == 520:
                 if g_nonmodal >= 0:
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_nonmodal_code = code
@@ -685,7 +685,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 grp = 15
             elif code == 680 \
                     or code == 510 or code == 511 or code == 160 \
-                    or code == 520 or code == 120 or code == 130 \
+                    or code == 120 or code == 130 \
                     or code == 70 or code == 681 \
                     or code == 650 or code == 660 or code == 661:
                 return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
@@ -1080,6 +1080,15 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     wcs_off[9, a] = pos[a] + wcs_off[9, a] - v
                     wcs_off[10, a] = wcs_off[9, a]
                     pos[a] = v
+            has_axis = False
+        elif g_nonmodal == 520:
+            # G52 local offset: sets the offset G92 also uses (LinuxCNC; Fanuc's local system)
+            for a, L in ((0, _X), (1, _Y), (2, _Z)):
+                if has[L]:
+                    v = val[L] * scale
+                    pos[a] += wcs_off[9, a] - v
+                    wcs_off[9, a] = v
+                    wcs_off[10, a] = v
             has_axis = False
         elif g_nonmodal == 921 or g_nonmodal == 922 or g_nonmodal == 923:
             # G92.1 / G92.2 cancel the offset (G92.1 also forgets it); G92.3 restores it
