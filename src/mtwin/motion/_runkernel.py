@@ -86,8 +86,8 @@ class State:
         self.sums = np.zeros((2, 3))
         self.sums[0] = x0 * nbuf
         self.sums[1] = x0 * nbuf
-        # yexp, xc_prev, x, v, integ, previous raw command
-        self.axes = np.zeros((6, 3))
+        # yexp, xc_prev, x, v, integ, previous raw command, last feed direction (unit)
+        self.axes = np.zeros((7, 3))
         self.axes[0] = x0
         self.axes[1] = x0
         self.axes[2] = x0
@@ -123,6 +123,24 @@ CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQU
 
 
 @njit
+def _friction(vk, sv, k):
+    """Sliding friction of axis k at velocity vk (Coulomb + Stribeck + viscous), N; 0 while
+    the axis sticks (|vk| below the stick velocity: the plant resolves that case itself)."""
+    if abs(vk) < _V_STICK:
+        return 0.0
+    if vk > 0.0:
+        fc, fs = sv[k, SV_FCP], sv[k, SV_FSP]
+        sgn = 1.0
+    else:
+        fc, fs = sv[k, SV_FCN], sv[k, SV_FSN]
+        sgn = -1.0
+    r = vk / sv[k, SV_VS]
+    # the Stribeck term has vanished (< 1e-16) beyond 6 Stribeck velocities
+    strb = (fs - fc) * math.exp(-r * r) if abs(r) < 6.0 else 0.0
+    return sgn * (fc + strb) + sv[k, SV_B] * vk * 1e-3
+
+
+@njit
 def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur, stop_end,
              dt, k0, k1, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd,
              ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
@@ -146,6 +164,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     x = axes[2]
     v = axes[3]
     integ = axes[4]
+    cdir = axes[6]  # kept between periods: the feed direction while the command stands still
     rawprev = axes[5]
     # samples after which a standing command has passed through the filter completely
     settle = nbuf if filt == 1 else 2 * nbuf
@@ -157,6 +176,15 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     tooth = eprof.shape[0] > 0
     ftool = np.zeros(3)
     tout = np.zeros(5)
+    fa = np.zeros(3)  # process force per mm of feed per tooth, N/mm
+    fb = np.zeros(3)  # its edge (feed-independent) part, N
+    fdrv = np.zeros(3)  # drive forces of this period, N
+    nrps = 0.0
+    fl = 1.0
+    ta = 0.0
+    tb = 0.0
+    ha = 0.0
+    m_ = 0
     t_end = t_start[nseg - 1] + dur[nseg - 1]
     i = segp[0]
     kstep = k0
@@ -274,67 +302,116 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
         hmax = 0.0
         ae = 0.0
         ap = 0.0
+        cutting = False
         if has_cut and eng_count[i] > 0 and kind[i] != 2:
             cnt = eng_count[i]
             mi = int(s / length[i] * cnt) if length[i] > 0.0 else 0
             if mi >= cnt:
                 mi = cnt - 1
             m_ = eng_first[i] + mi
-            # the feed is the actual velocity along the commanded direction: a tool pushed
-            # back by a force beyond the drives' thrust leaves the material instead of
-            # feeding harder into it (which would feed the force back without bound)
+            nrps = abs(spin[0]) / 60.0
+            fl = tools[seg_tool[i], 2]
+            S = eng_sums[m_]
+            if eng_q[m_, 0] > 0.0 or S[17] > 0.0:
+                cutting = True
+                # The forces are linear in the feed per tooth: F = fz*fa + fb (tool frame
+                # turned to the machine axes), torque = fz*ta + tb, h_max = fz*ha.
+                if nrps <= 0.0:
+                    cstats[8] = 1.0  # cutting with the spindle stopped: no chip, no force
+                    for k in range(3):
+                        fa[k] = 0.0
+                        fb[k] = 0.0
+                    ta = 0.0
+                    tb = 0.0
+                    ha = 0.0
+                else:
+                    if tooth:
+                        tt = seg_tool[i]
+                        a0 = sl_starts[tt]
+                        a1 = sl_starts[tt + 1]
+                        tooth_forces(eprof[m_], eng_q[m_], spin[1], 0.0, fl, tools[tt, 0], tan_helix[tt],
+                                     skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
+                                     eprof.shape[2], kc, tout)
+                        bx, by, bz, tb = tout[0], tout[1], tout[2], tout[3] * 1e-3
+                        tooth_forces(eprof[m_], eng_q[m_], spin[1], 1.0, fl, tools[tt, 0], tan_helix[tt],
+                                     skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
+                                     eprof.shape[2], kc, tout)
+                        ax_, ay_, az_, ta = tout[0] - bx, tout[1] - by, tout[2] - bz, tout[3] * 1e-3 - tb
+                        ha = tout[4]
+                    else:
+                        ax_ = kc[0] * S[0] + kc[1] * S[1] + kc[2] * S[2]
+                        bx = kc[3] * S[9] + kc[4] * S[10] + kc[5] * S[11]
+                        ay_ = kc[0] * S[3] + kc[1] * S[4] + kc[2] * S[5]
+                        by = kc[3] * S[12] + kc[4] * S[13] + kc[5] * S[14]
+                        az_ = kc[1] * S[6] + kc[2] * S[7]
+                        bz = kc[4] * S[15] + kc[5] * S[16]
+                        ta = kc[0] * S[8] * 1e-3  # N*m per mm of feed per tooth
+                        tb = kc[3] * S[17] * 1e-3
+                        ha = eng_q[m_, 3]
+                    dxv = eng_q[m_, 4]
+                    dyv = eng_q[m_, 5]
+                    yxv = -dyv * hand[i]
+                    yyv = dxv * hand[i]
+                    fa[0] = ax_ * dxv + ay_ * yxv
+                    fa[1] = ax_ * dyv + ay_ * yyv
+                    fa[2] = az_
+                    fb[0] = bx * dxv + by * yxv
+                    fb[1] = bx * dyv + by * yyv
+                    fb[2] = bz
+                ae = eng_q[m_, 1]
+                ap = eng_q[m_, 2]
+        # ---- drive forces of the servo loop, per axis (they do not depend on the process)
+        for k in range(3):
+            m = sv[k, SV_MASS]
+            e = xc[k] - x[k]
+            vref = sv[k, SV_KPP] * e + sv[k, SV_FF] * (xc[k] - xc_prev[k]) / dt
+            ev = vref - v[k]
+            integ[k] += ev * dt
+            f = m * sv[k, SV_WV] * (ev + sv[k, SV_WI] * integ[k]) * 1e-3  # N (mm/s^2 -> m/s^2)
+            fmax = sv[k, SV_FMAX]
+            if f > fmax or f < -fmax:
+                f = fmax if f > 0.0 else -fmax
+                if ev * f > 0.0:
+                    integ[k] -= ev * dt  # anti-windup: no integration into the torque limit
+            fdrv[k] = f
+        if cutting:
+            # The feed is the axes' velocity along the commanded direction at the end of this
+            # period, solved for implicitly: the process force grows with the feed, and taken
+            # from the velocity at the start of the period it over-corrects (and diverges)
+            # once dt * dF/dv exceeds the axis mass (deep cuts at low spindle speed).  A tool
+            # pushed back leaves the material instead of feeding harder into it.
             dcx = xc[0] - xc_prev[0]
             dcy = xc[1] - xc_prev[1]
             dcz = xc[2] - xc_prev[2]
             dn_ = math.sqrt(dcx * dcx + dcy * dcy + dcz * dcz)
             if dn_ > 0.0:
-                va = max(0.0, (v[0] * dcx + v[1] * dcy + v[2] * dcz) / dn_)
+                cdir[0] = dcx / dn_
+                cdir[1] = dcy / dn_
+                cdir[2] = dcz / dn_
+            # else: the command stands still (end of a move, in-position wait): the engagement
+            # still belongs to the direction the tool was fed in, which cdir keeps; projecting
+            # on the actual velocity instead made the normal force feed itself back
+            fz_ = 0.0
+            if cdir[0] * cdir[0] + cdir[1] * cdir[1] + cdir[2] * cdir[2] > 0.0 and nrps > 0.0:
+                per = 1.0 / (fl * nrps)  # fz per mm/s of feed
+                num = 0.0
+                den = 1.0
+                for k in range(3):
+                    w = dt * 1e3 / sv[k, SV_MASS]
+                    ff = _friction(v[k], sv, k)
+                    pk = v[k] + w * (fdrv[k] - sv[k, SV_FG] + fb[k] - ff - (fd[kstep, k] if kstep < nfd else 0.0))
+                    num += cdir[k] * pk
+                    den -= cdir[k] * w * fa[k] * per
+                va = max(0.0, num / max(den, 1.0))
+                fz_ = va * per
             else:
-                va = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-            nrps = abs(spin[0]) / 60.0
-            fl = tools[seg_tool[i], 2]
-            S = eng_sums[m_]
-            if eng_q[m_, 0] > 0.0 or S[17] > 0.0:
-                if nrps <= 0.0:
-                    cstats[8] = 1.0  # cutting with the spindle stopped
-                    fz_ = 0.0
-                else:
-                    fz_ = va / (fl * nrps)  # feed per tooth from the actual speeds, mm
-                if tooth:
-                    tt = seg_tool[i]
-                    a0 = sl_starts[tt]
-                    a1 = sl_starts[tt + 1]
-                    tooth_forces(eprof[m_], eng_q[m_], spin[1], fz_, fl, tools[tt, 0], tan_helix[tt],
-                                 skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
-                                 eprof.shape[2], kc, tout)
-                    fxl = tout[0]
-                    fyl = tout[1]
-                    fzl = tout[2]
-                    torque_sp = tout[3] * 1e-3
-                else:
-                    fxl = fz_ * (kc[0] * S[0] + kc[1] * S[1] + kc[2] * S[2]) + kc[3] * S[9] + kc[4] * S[10] \
-                        + kc[5] * S[11]
-                    fyl = fz_ * (kc[0] * S[3] + kc[1] * S[4] + kc[2] * S[5]) + kc[3] * S[12] + kc[4] * S[13] \
-                        + kc[5] * S[14]
-                    fzl = fz_ * (kc[1] * S[6] + kc[2] * S[7]) + kc[4] * S[15] + kc[5] * S[16]
-                    torque_sp = (fz_ * kc[0] * S[8] + kc[3] * S[17]) * 1e-3  # N*m
-                if nrps <= 0.0:
-                    fxl = 0.0
-                    fyl = 0.0
-                    fzl = 0.0
-                    torque_sp = 0.0
-                dxv = eng_q[m_, 4]
-                dyv = eng_q[m_, 5]
-                yxv = -dyv * hand[i]
-                yyv = dxv * hand[i]
-                ftool[0] = fxl * dxv + fyl * yxv
-                ftool[1] = fxl * dyv + fyl * yyv
-                ftool[2] = fzl
-                p_cut = torque_sp * 2.0 * math.pi * nrps
-                mrr = va * eng_q[m_, 0]
-                hmax = tout[4] if tooth else fz_ * eng_q[m_, 3]
-                ae = eng_q[m_, 1]
-                ap = eng_q[m_, 2]
+                va = 0.0
+            for k in range(3):
+                ftool[k] = fz_ * fa[k] + fb[k]
+            torque_sp = fz_ * ta + tb
+            p_cut = torque_sp * 2.0 * math.pi * nrps
+            mrr = va * eng_q[m_, 0]
+            hmax = fz_ * ha
         n_abs = abs(spin[0])
         p_sp = p_cut + (loss[0] + loss[1] * n_abs + loss[2] * n_abs * n_abs if n_abs > 0.0 else 0.0)
         load = math.sqrt(ftool[0] * ftool[0] + ftool[1] * ftool[1])
@@ -375,15 +452,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
         for k in range(3):
             m = sv[k, SV_MASS]
             e = xc[k] - x[k]
-            vref = sv[k, SV_KPP] * e + sv[k, SV_FF] * (xc[k] - xc_prev[k]) / dt
-            ev = vref - v[k]
-            integ[k] += ev * dt
-            f = m * sv[k, SV_WV] * (ev + sv[k, SV_WI] * integ[k]) * 1e-3  # N (mm/s^2 -> m/s^2)
-            fmax = sv[k, SV_FMAX]
-            if f > fmax or f < -fmax:
-                f = fmax if f > 0.0 else -fmax
-                if ev * f > 0.0:
-                    integ[k] -= ev * dt  # anti-windup: no integration into the torque limit
+            f = fdrv[k]
             fapp = f - sv[k, SV_FG]
             if kstep < nfd:
                 fapp -= fd[kstep, k]
@@ -404,17 +473,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     sgn = 1.0 if fapp > 0.0 else -1.0
                     vnew = (fapp - sgn * fs) / m * 1e3 * dt
             else:
-                if vk > 0.0:
-                    fc, fs = sv[k, SV_FCP], sv[k, SV_FSP]
-                    sgn = 1.0
-                else:
-                    fc, fs = sv[k, SV_FCN], sv[k, SV_FSN]
-                    sgn = -1.0
-                r = vk / sv[k, SV_VS]
-                # the Stribeck term has vanished (< 1e-16) beyond 6 Stribeck velocities
-                strb = (fs - fc) * math.exp(-r * r) if abs(r) < 6.0 else 0.0
-                ff = sgn * (fc + strb) + sv[k, SV_B] * vk * 1e-3
-                vnew = vk + (fapp - ff) / m * 1e3 * dt
+                vnew = vk + (fapp - _friction(vk, sv, k)) / m * 1e3 * dt
                 if vnew * vk < 0.0:
                     # friction cannot reverse the motion: the axis stops (and sticks unless the
                     # drive force alone breaks it away next period)

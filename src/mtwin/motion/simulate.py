@@ -158,9 +158,18 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             progress(min(k, n_est), n_est)
     if state.seg[5] == 2:
         i = int(state.seg[0])
+        thrust = float(sv[:, RK.SV_FMAX].min())
+        peak = float(cstats[RK.CS_LOAD])
+        if eng is not None and peak > 0.5 * thrust:
+            # the usual cause with a cutting load: the process pushes harder than the drives can
+            why = (f"the cutting load reaches {peak:.0f} N at line {int(cstats[RK.CS_LOAD_LINE])}, "
+                   f"against {thrust:.0f} N of drive thrust: lower the feed or the depth of cut, or raise "
+                   f"the spindle speed")
+        else:
+            why = "servo gains, friction or gravity in the twin file"
         raise MtwinError(f"{program.path}:{int(seg['line'][i])}: the axes do not come within "
                          f"controller.in_position = {c.in_position:g} mm of the command in {_MAX_WAIT:g} s "
-                         f"(servo gains, friction or gravity in the twin file)")
+                         f"({why})")
     n_samples = k
     n_out = (n_samples - 1) // every + 1 + (1 if (n_samples - 1) % every else 0)
     t, line, cmd, act, err, vel, trq, pathv, force, cut = (a[:n_out] for a in outs)
