@@ -72,3 +72,118 @@ def test_linuxcnc_lathe_examples_live(name, tmp_path):
     prog = load_program(ngc, InterpreterSettings(dialect="linuxcnc", tool_lengths={1: 0.0, 4: 0.0, 9: 0.0},
                                                  comp_radii={1: 0.0, 4: 0.0, 9: 0.0}))
     _agree(prog, canon_motion(tmp_path / "out.txt"))
+
+
+# ---------------------------------------------------------------- G70 / G71 / G72
+def test_g7x_profile_cycles_match_linuxcnc():
+    """G71 (with stock allowance D: offset profile, connecting arcs), G71.1, G71.2 and
+    G70 in several passes from D to E, on two profiles with arcs, against rs274."""
+    prog = load_program(DATA / "g7x_cycles.ngc", InterpreterSettings(dialect="linuxcnc"))
+    expected = canon_motion(DATA / "g7x_cycles.expected")
+    assert len(expected) == 325
+    _agree(prog, expected)
+
+
+def _profile_distance(p, segs):
+    """Distance from point p = (x, z) to a profile of lines and arcs (independent of the cycle code)."""
+    best = np.inf
+    for s in segs:
+        if s[0] == "line":
+            a, b = np.array(s[1]), np.array(s[2])
+            t = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0, 1)
+            best = min(best, np.linalg.norm(p - (a + t * (b - a))))
+        else:
+            _, c, r, a0, a1 = s  # centre, radius, angle range (radians, a0 < a1)
+            ang = np.arctan2(p[1] - c[1], p[0] - c[0])
+            if a0 <= ang <= a1:
+                best = min(best, abs(np.linalg.norm(p - np.array(c)) - r))
+            else:
+                for a in (a0, a1):
+                    best = min(best, np.linalg.norm(p - (np.array(c) + r * np.array([np.cos(a), np.sin(a)]))))
+    return best
+
+
+def test_g71_roughing_leaves_the_stock_allowance():
+    # profile of g7x_cycles.ngc's O10 (radius mode), in (x, z); the G2 arc from (8, -12)
+    # to (12, -16) about (12, -12) spans angles pi .. 3pi/2 measured as atan2(z - cz, x - cx)
+    segs = [("line", (5, 1), (5, 0)), ("line", (5, 0), (8, -3)), ("line", (8, -3), (8, -12)),
+            ("arc", (12, -12), 4.0, -np.pi, -np.pi / 2), ("line", (12, -16), (12, -22)),
+            ("line", (12, -22), (16, -26)), ("line", (16, -26), (16, -32)), ("line", (16, -32), (18, -32))]
+    src = (DATA / "g7x_cycles.ngc").read_text().split("G0 X20 Z3\nG70", 1)[0] + "M2\n"
+    prog = load_program(src.encode(), InterpreterSettings(dialect="linuxcnc"), path="g71.ngc")
+    r = prog.records
+    cyc = (r["line"] == 20) & (r["kind"] == 1)
+    assert cyc.sum() > 10
+    d = [_profile_distance(np.array([x, z]), segs) for x, z in zip(r["x"][cyc], r["z"][cyc])]
+    assert min(d) == pytest.approx(0.4, abs=1e-6)  # D0.4: the last pass follows the offset profile
+    # the roughing passes (feeds along Z) lie on levels I = 1.5 apart, down from the start X20
+    along_z = cyc & (np.abs(r["x"] - r["sx"]) < 1e-9) & (np.abs(r["z"] - r["sz"]) > 0.5)
+    levels = np.unique(np.round(r["x"][along_z], 6))
+    contour = np.isin(levels, [5.4, 8.4, 12.4, 16.4])  # the final pass along the offset profile
+    rough = levels[~contour]
+    assert np.allclose((20.0 - rough) / 1.5, np.round((20.0 - rough) / 1.5))
+    assert len(rough) >= 8
+
+
+def test_g7x_fillet_corner_is_tangent():
+    # A on a profile corner: a fillet of that radius, tangent to both sides (LinuxCNC's A word)
+    src = (b"G18 G21 G90 G8 F200\nO1 SUB\nG1 X4 Z0\nG1 Z-10 A2\nG1 X12\nO1 ENDSUB\n"
+           b"G70 Q1 X14 Z2 P1\nM2\n")
+    prog = load_program(src, InterpreterSettings(dialect="linuxcnc"), path="fillet.ngc")
+    arcs = prog.records[(prog.records["kind"] == 2) | (prog.records["kind"] == 3)]
+    assert len(arcs) == 1
+    a = arcs[0]
+    assert (a["sx"], a["sz"]) == pytest.approx((4.0, -8.0))  # leaves Z-10 2 mm early
+    assert (a["x"], a["z"]) == pytest.approx((6.0, -10.0))  # meets the shoulder 2 mm up
+    assert (a["cx"], a["cz"]) == pytest.approx((6.0, -8.0))
+
+
+def test_g7x_current_position_in_the_profile():
+    # #<_x>/#<_z> follow the profile as it is read (LinuxCNC moves the position with it)
+    src = (b"G18 G21 G90 F200\nO1 SUB\nG0 X0 Z-10\nO2 REPEAT [2]\nG1 X[#<_x>+5] Z[#<_z>+3]\nG1 X[#<_x>+5]\n"
+           b"O2 ENDREPEAT\nO1 ENDSUB\nG70 Q1 X25 Z1 P1\nM2\n")
+    prog = load_program(src, InterpreterSettings(dialect="linuxcnc"), path="pos.ngc")
+    pts = {(round(x, 6), round(z, 6)) for x, z in zip(prog.records["x"], prog.records["z"])}
+    assert {(5.0, -7.0), (10.0, -7.0), (15.0, -4.0), (20.0, -4.0)} <= pts
+
+
+def test_g7x_errors():
+    prof = b"O1 SUB\nG1 X4 Z0\nZ-10\nX12\nO1 ENDSUB\n"
+    with pytest.raises(GCodeError, match="XZ plane"):
+        load_program(b"G17 G21 F100\n" + prof + b"G71 Q1 X14 Z2\n", path="t.ngc")
+    with pytest.raises(GCodeError, match="needs X and Z"):
+        load_program(b"G18 G21 F100\n" + prof + b"G71 Q1 X14\n", path="t.ngc")
+    with pytest.raises(GCodeError, match="no o7 sub"):
+        load_program(b"G18 G21 F100\n" + prof + b"G71 Q7 X14 Z2\n", path="t.ngc")
+    with pytest.raises(GCodeError, match="cutter compensation"):
+        load_program(b"G18 G21 F100\n" + prof + b"G42.1 D1\nG71 Q1 X14 Z2\n", path="t.ngc")
+    with pytest.raises(GCodeError, match="I must be greater than zero") as info:
+        load_program(b"G18 G21 F100\n" + prof + b"G71 Q1 X14 Z2 I0\n", path="t.ngc")
+    assert info.value.location.line == 7
+    # a profile that doubles back in Z cannot be roughed (LinuxCNC: "Not monotonic")
+    with pytest.raises(GCodeError, match="Not monotonic"):
+        load_program(b"G18 G21 F100\nO1 SUB\nG1 X4 Z0\nZ-10\nX8\nZ-5\nX12\nO1 ENDSUB\nG71 Q1 X14 Z2\n", path="t.ngc")
+
+
+def test_g7x_program_scales_and_round_trips():
+    data = (DATA / "g7x_cycles.ngc").read_bytes()
+    prog = load_program(data, InterpreterSettings(dialect="linuxcnc"), path="g7x.ngc")
+    assert scale_feeds(prog, 1.0) == data
+    out = scale_feeds(prog, 0.5)
+    new = load_program(out, InterpreterSettings(dialect="linuxcnc"), path="g7x.ngc")
+    from mtwin.gcode.verify import compare
+    assert compare(prog, new) is None
+    feed = prog.records["kind"] != 0
+    assert np.allclose(new.records["feed"][feed], 0.5 * prog.records["feed"][feed])
+
+
+def test_css_spindle_speed_follows_the_diameter():
+    # G96 S<m/min> D<max rpm>: rpm = 1000 S / (2 pi r), at most D
+    prog = load_program(b"G18 G21 G90 F0.1 G95\nG96 S200 D8000 M3\nG0 X40 Z2\nG1 Z-5\nG1 X5\nG1 X0.5\n"
+                        b"G97 S500\nG1 Z-6\n", InterpreterSettings(dialect="linuxcnc"), path="css.ngc")
+    r = prog.records
+    assert r["spindle"][1] == pytest.approx(1000 * 200 / (2 * np.pi * 40))
+    assert r["spindle"][2] == pytest.approx(1000 * 200 / (2 * np.pi * 5))
+    assert r["spindle"][3] == pytest.approx(8000)  # clamped by D
+    assert r["css"][3] == pytest.approx(200) and r["css"][4] == 0.0 and r["spindle"][4] == 500
+    assert r["feed"][1] == pytest.approx(0.1 * 1000 * 200 / (2 * np.pi * 40))  # mm/rev x rpm

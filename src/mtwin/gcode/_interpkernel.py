@@ -102,8 +102,10 @@ _AT, _CARET = 26, 27  # polar words '@' (distance) and '^' (angle, degrees)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
 SF_A, SF_B, SF_C = 8, 9, 10  # rotary axis positions, degrees (not scaled by G20/G21)
 SF_U, SF_V, SF_W = 11, 12, 13  # secondary linear axes, mm
+SF_CSS_ON, SF_CSS_MAX = 14, 15  # G96 active (S is a surface speed), its rpm limit D (0: none)
 # state indices (int)
-SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP = range(9)
+SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP, SI_COMP_ORIENT \
+    = range(10)
 
 
 @njit
@@ -133,19 +135,35 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.cz = c[2]
         fw = st[SF_FEED]
         r.feed_word = fw
+        rpm = st[SF_SPINDLE]
+        r.css = 0.0
+        if st[SF_CSS_ON] > 0.0:
+            # constant surface speed: the spindle turns at S/(2 pi |X|), at most D; the record
+            # holds the speed at its end point (in m/min and rpm)
+            css = rpm * (0.3048 if (si[SI_FLAGS] & FL_INCH) else 1.0)
+            r.css = css
+            rad = abs(e[0])
+            lim = st[SF_CSS_MAX]
+            if rad > 0.0:
+                rpm = 1000.0 * css / (2.0 * math.pi * rad)
+                if lim > 0.0 and rpm > lim:
+                    rpm = lim
+            else:
+                rpm = lim
         if kind == RAPID or kind == DWELL:
             r.feed = 0.0
         elif si[SI_FEED_MODE] == 1:
-            r.feed = fw * st[SF_SPINDLE]
+            r.feed = fw * rpm
         elif si[SI_FEED_MODE] == 2:
             r.feed = 0.0  # filled by the caller, which knows the length
         else:
             r.feed = fw
-        r.spindle = st[SF_SPINDLE]
+        r.spindle = rpm
         r.dwell = dwell
         r.path_tol = st[SF_PATH_TOL]
         r.cam_tol = st[SF_CAM_TOL]
         r.comp = si[SI_COMP]
+        r.comp_orient = si[SI_COMP_ORIENT]
         r.comp_r = st[SF_COMP_R]
         r.tlo = st[SF_TLO]
         w = si[SI_WCS]
@@ -456,8 +474,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     mach = np.zeros(3)
     tmp = np.zeros(3)
 
-    st = np.zeros(14)
-    si = np.zeros(9, np.int64)
+    st = np.zeros(16)
+    si = np.zeros(10, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
     inch = False
@@ -551,6 +569,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_plane = -1
         g_units = -1
         g_diam = -1
+        g_css = -1
         g_rot68 = -1
         g_rot68_w = -1
         g_tlo = -1
@@ -665,11 +684,14 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 g_rot68 = 1 if code == 680 else 0
                 g_rot68_w = kw
                 grp = 16
-            elif code == 970 or code == 960 or code == 150 or code == 500 or code == 690 \
-                    or code == 501 or code == 670:
-                # G97 rpm mode, G15/G50/G69/G50.1/G67 cancel codes: harmless
-                if code == 960:
-                    return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
+            elif code == 960 or code == 970:
+                # G96 constant surface speed (S in m/min or ft/min, D the rpm limit) / G97 rpm
+                if g_css >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_css = 1 if code == 960 else 0
+                grp = 99
+            elif code == 150 or code == 500 or code == 690 or code == 501 or code == 670:
+                # G15/G50/G69/G50.1/G67 cancel codes: harmless
                 grp = 99
             elif (code == 80 or code == 51 or code == 50) and dialect == 0:
                 # Fanuc G08 P1/P0 look-ahead control, G05.1 Q1/Q0 AI contour control and G05 P10000/P0
@@ -755,7 +777,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                                             or g_lookahead
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
-        if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub):
+        if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub or g_comp == 411 or g_comp == 421):
             return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
         is_sync = mm == 330 or mm == 331
         is_spline = mm == 50 or mm == 51
@@ -784,6 +806,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if val[_S] < 0:
                 return n, E_BAD_VALUE, widx[_S], li, err_vals, nwarn
             st[SF_SPINDLE] = val[_S]
+        if g_css == 1:
+            st[SF_CSS_ON] = 1.0
+            st[SF_CSS_MAX] = abs(val[_D]) if has[_D] else 0.0
+        elif g_css == 0:
+            st[SF_CSS_ON] = 0.0
         # 4. T
         if has[_T]:
             if val[_T] < 0 or val[_T] != math.floor(val[_T]):
@@ -855,6 +882,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         # interpretation from the records' side and radius (gcode/cutcomp.py)
         if g_comp == 400:
             si[SI_COMP] = 0
+            si[SI_COMP_ORIENT] = 0
             st[SF_COMP_R] = 0.0
         elif g_comp >= 410:
             if si[SI_PLANE] == 2:
@@ -863,9 +891,15 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 return n, E_COMP_ACTIVE, g_comp_w, li, err_vals, nwarn
             si[SI_COMP] = 1 if (g_comp == 410 or g_comp == 411) else 2
             if g_comp == 411 or g_comp == 421:
-                # G41.1/G42.1 D<diameter>
+                # G41.1/G42.1 D<diameter> [L<lathe tool orientation>]
                 if not has[_D]:
                     return n, E_COMP_PLANE, g_comp_w, li, err_vals, nwarn
+                if has[_L]:
+                    if val[_L] != math.floor(val[_L]) or val[_L] < 0 or val[_L] > 9:
+                        return n, E_BAD_VALUE, widx[_L], li, err_vals, nwarn
+                    si[SI_COMP_ORIENT] = int(val[_L])
+                else:
+                    si[SI_COMP_ORIENT] = 0
                 st[SF_COMP_R] = 0.5 * abs(val[_D]) * scale
                 if val[_D] < 0.0:
                     si[SI_COMP] = 3 - si[SI_COMP]  # a negative diameter swaps the side (as LinuxCNC)

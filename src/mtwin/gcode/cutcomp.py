@@ -184,6 +184,7 @@ def apply(rec: np.ndarray, path: str) -> np.ndarray:
         pl = int(planes[0])
         # G18/G19: compensate in the plane's own axes (first, second, normal), then map back
         block = _unpermute(_run(_permute(rec[i:j + 1], pl), 0, j - i, side, r, path), pl)
+        _lathe_origin(block, pl, int(rec["comp_orient"][i]), r)
         out.append(block)
         if j < n:
             # the exit move (G40, or a change of side/radius) starts where the tool is
@@ -200,6 +201,23 @@ def apply(rec: np.ndarray, path: str) -> np.ndarray:
             i = j
     # inverse-time feeds (G93) keep the feed per minute of the programmed move, as LinuxCNC
     return np.concatenate(out)
+
+
+def _lathe_origin(block: np.ndarray, plane: int, orient: int, r: float):
+    """A lathe tool (orientation 1-8, XZ plane) is programmed at its imaginary tip, not at
+    the centre of its nose radius that compensation steers: shift the compensated path by
+    the radius along X and/or Z (the first start stays where the tool was)."""
+    if plane != 1 or orient in (0, 9) or r <= 0.0:
+        return
+    dx = -r if orient in (1, 2, 6) else (r if orient in (3, 4, 8) else 0.0)
+    dz = -r if orient in (2, 3, 7) else (r if orient in (1, 4, 5) else 0.0)
+    block["x"] += dx
+    block["z"] += dz
+    arc = (block["kind"] == ARC_CW) | (block["kind"] == ARC_CCW)
+    block["cx"][arc] += dx
+    block["cz"][arc] += dz
+    block["sx"][1:] += dx
+    block["sz"][1:] += dz
 
 
 # record columns of each plane's (first, second, normal) axis: G17 XY, G18 ZX, G19 YZ

@@ -30,6 +30,9 @@ MAX_EXECUTED_LINES = 2_000_000
 # G65 argument letters -> local parameter numbers (Fanuc argument specification I)
 _G65_ARGS = {"A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F": 9, "H": 11, "M": 13,
              "Q": 17, "R": 18, "S": 19, "T": 20, "U": 21, "V": 22, "W": 23, "X": 24, "Y": 25, "Z": 26}
+_G7X = {70.0, 71.0, 71.1, 71.2, 72.0, 72.1, 72.2}  # LinuxCNC lathe profile cycles
+_G_WORD = re.compile(r"G([-+]?\d*\.?\d*)")
+_WORD = re.compile(r"([A-Z])([-+]?[\d.]*)")
 _FUNCS = {"ABS", "ACOS", "ASIN", "ATAN", "COS", "EXP", "FIX", "FUP", "LN", "ROUND", "SIN", "SQRT", "TAN", "EXISTS"}
 _BINOPS = [("OR", "XOR", "AND"), ("EQ", "NE", "GT", "GE", "LT", "LE"), ("+", "-"), ("*", "/", "MOD"), ("**",)]
 _MACRO_HINT = re.compile(rb"#|\[|^[ \t]*/?[ \t]*[oO][ \t]*(<[^>\n]*>|\d+)[ \t]*(sub|endsub|call|return|if|elseif|else|"
@@ -261,6 +264,7 @@ class _Executor:
         self.lines = self._split(data)
         self.current: _Line | None = None
         self.out: list[str] = []
+        self.profile_pos: complex | None = None  # Z + iX while a G7x profile is read
         self.out_line: list[int] = []
         self.out_sub: list[bool] = []
         # G54..G59.3 offsets readable as #5221.. (20 apart), as the control keeps them
@@ -363,6 +367,13 @@ class _Executor:
         if name.startswith("_ini[") or name.startswith("_hal["):
             raise _Err(f"#<{name}>: INI-file and HAL parameters are not supported", col)
         if name.startswith("_"):
+            if name in ("_x", "_z") and name not in self.globals_:
+                # the current position: known here while a G7x profile is read (LinuxCNC
+                # moves it along the profile as it reads it)
+                if self.profile_pos is None:
+                    raise _Err(f"#<{name}> (the current position) is known here only inside a G70-G72 "
+                               f"profile", col)
+                return self.profile_pos.imag if name == "_x" else self.profile_pos.real
             if name not in self.globals_:
                 raise _Err(f"named parameter #<{name}> is not defined", col)
             return self.globals_[name]
@@ -402,6 +413,20 @@ class _Executor:
         return v, e.p
 
     def emit(self, words: str, no: int):
+        if self.profile_pos is not None:  # reading a G7x profile: follow its position
+            p = self.profile_pos
+            for c, v in _WORD.findall(words):
+                if v in ("", "+", "-", "."):
+                    continue
+                if c == "X":
+                    p = complex(p.real, float(v))
+                elif c == "Z":
+                    p = complex(float(v), p.imag)
+                elif c == "U":
+                    p += 1j * float(v)
+                elif c == "W":
+                    p += float(v)
+            self.profile_pos = p
         # moves of a subroutine from another file belong to the line that called it
         ln_src = self.current.src if self.current is not None else None
         self.out.append(words)
@@ -474,9 +499,10 @@ class _Executor:
         return "".join(out)
 
     # ---------------------------------------------------------------- run
-    def run(self):
+    def run(self, k: int = 0, depth: int = 0):
+        """Execute from line index k; with ``depth``, return once the subroutine call that
+        made the frame stack that deep has returned (a G7x profile is read this way)."""
         lines = self.lines
-        k = 0
         executed = 0
         loops: list = []  # LinuxCNC loop stack entries: (kind, start index, label, count)
         fanuc_loops: dict[int, int] = {}
@@ -516,6 +542,8 @@ class _Executor:
                              r"REPEAT|ENDREPEAT|BREAK|CONTINUE)(.*)$", t)
                 if m:
                     k = self.oword(m, k, loops)
+                    if len(self.frames) < depth:
+                        return
                     continue
                 # ---- Fanuc Macro B
                 if t.startswith("IF["):
@@ -570,6 +598,11 @@ class _Executor:
                 if 65.0 in gs:
                     k = self.g65(codes, k)
                     continue
+                g7 = [g for g in gs if g in _G7X]
+                if g7 and self.dialect != "fanuc" and any(c == "Q" for c, _ in codes):
+                    self.g7x(g7[0], codes, words, k, ln.no)
+                    k += 1
+                    continue
                 if 98.0 in ms:
                     k = self.m98(codes, words, k, ln.no)
                     continue
@@ -580,6 +613,8 @@ class _Executor:
                     if len(self.frames) > 1:
                         fr = self.frames.pop()
                         k = fr.ret
+                        if len(self.frames) < depth:
+                            return
                         continue
                     break  # M99 in the main program: end (no endless rerun here)
                 if 30.0 in ms or 2.0 in ms:
@@ -591,6 +626,143 @@ class _Executor:
             except _Err as exc:
                 col = exc.col + (len(ln.text) - len(t))  # t may have lost its N word
                 raise GCodeError(str(exc), SourceLocation(ln.src or self.path, ln.no, ln.col(col))) from None
+
+    def _modal(self) -> dict:
+        """The modes a lathe cycle depends on, as the program has set them so far."""
+        groups = {"plane": {17.0, 18.0, 19.0}, "dist": {90.0, 91.0}, "ijk": {90.1, 91.1}, "diam": {7.0, 8.0},
+                  "comp": {40.0, 41.0, 42.0, 41.1, 42.1}}
+        found = {"plane": 17.0, "dist": 90.0, "ijk": 91.1, "diam": 8.0, "comp": 40.0}
+        seen: set = set()
+        for words in reversed(self.out):
+            if "G" not in words:
+                continue
+            for v in reversed(_G_WORD.findall(words)):
+                g = float(v)
+                for key, codes in groups.items():
+                    if key not in seen and g in codes:
+                        found[key] = g
+                        seen.add(key)
+            if len(seen) == len(groups):
+                break
+        return found
+
+    def g7x(self, code: float, codes: list, words: str, k: int, no: int):
+        """LinuxCNC's G70/G71/G72 lathe profile cycles (see lathe_g7x): read the profile
+        subroutine named by Q, emit the cycle's moves."""
+        from .lathe_g7x import Arc, Chamfer, Fillet, G7xError, Line, run_cycle
+
+        name = f"G{code:g}"
+        vals = {c: float(v) for c, v in codes if c not in "GMN" and v not in ("", "+", "-", ".")}
+        modal = self._modal()
+        if modal["plane"] != 18.0:
+            raise _Err(f"{name} can only be used in the XZ plane (G18)")
+        if modal["comp"] != 40.0 and code >= 71.0:
+            raise _Err(f"{name} cannot be used with cutter compensation enabled")
+        if modal["dist"] == 91.0:
+            raise _Err(f"{name} in incremental distance mode (G91) is not supported")
+        if "X" not in vals or "Z" not in vals:
+            raise _Err(f"{name} needs X and Z (where the cycle starts) on its line")
+        rest = _drop(words, {"G": code}, tuple("QXZDEIPRUWKAC"))
+        if rest:
+            self.emit(rest, no)  # feed, spindle and modes of the line act before the cycle
+        x, z = vals["X"], vals["Z"]
+        self.emit(f"G0X{_fmt(x)}Z{_fmt(z)}", no)
+        # in diameter mode (G7) the cycle works on radii, as LinuxCNC reads X words; the
+        # moves go out as diameters again
+        diam = modal["diam"] == 7.0
+        xs = 0.5 if diam else 1.0
+        x *= xs
+        vals["X"] = x
+        label = str(int(round(vals["Q"])))
+        if label not in self.subs and not self.load_external(label):
+            raise _Err(f"{name} Q{label}: no o{label} sub holds the profile")
+        # the profile: the subroutine run as a call (its parameters and control flow act),
+        # its blocks read as geometry, not executed
+        saved = (self.out, self.out_line, self.out_sub)
+        self.out, self.out_line, self.out_sub = [], [], []
+        site = self.frames[-1].site if self.current.src is not None else no
+        self.frames.append(_Frame(k + 1, {}, {}, label, site))
+        here = self.current
+        self.profile_pos = complex(z, x / xs)  # in the units of the words (diameters under G7)
+        try:
+            self.run(self.subs[label] + 1, len(self.frames))
+            blocks = self.out
+        finally:
+            self.out, self.out_line, self.out_sub = saved
+            self.current = here
+            self.profile_pos = None
+        ijk_inc = modal["ijk"] == 91.1
+        segs: list = []
+        start = complex(z, x)
+        mode = None
+        for b in blocks:
+            bc = _WORD.findall(b)
+            bv = {c: float(v) for c, v in bc if c not in "GMN" and v not in ("", "+", "-", ".")}
+            for c, v in bc:
+                if c == "G" and v and float(v) in (0.0, 1.0, 2.0, 3.0):
+                    mode = int(float(v))
+            if mode is None:
+                mode = 1  # a profile line without a motion code is a feed line
+            end = start
+            if "U" in bv:
+                if "X" in bv:
+                    raise _Err(f"{name} profile: U and X in the same block")
+                end += 1j * (bv["U"] / 2 if diam else bv["U"])
+            elif "X" in bv:
+                end = complex(end.real, bv["X"] * xs)
+            if "W" in bv:
+                if "Z" in bv:
+                    raise _Err(f"{name} profile: W and Z in the same block")
+                end += bv["W"]
+            elif "Z" in bv:
+                end = complex(bv["Z"], end.imag)
+            if end == start:
+                continue
+            if mode <= 1:
+                segs.append(Line(start, end))
+            else:
+                centre = complex(bv.get("K", 0.0), bv.get("I", 0.0))
+                if "R" in bv:
+                    if "I" in bv or "K" in bv:
+                        raise _Err(f"{name} profile: an arc with both R and I or K")
+                    rr = bv["R"]
+                    n2 = abs(end - start) ** 2
+                    if rr * rr < n2 / 4 - 1e-9:
+                        raise _Err(f"{name} profile: arc radius R{rr:g} too small to reach its end point")
+                    dd = 1j * math.sqrt(max(rr * rr - n2 / 4, 0.0) / n2) * (end - start)
+                    centre = (start + end) / 2 + (dd if mode == 3 else -dd)
+                else:
+                    if "I" not in bv and "K" not in bv:
+                        raise _Err(f"{name} profile: an arc needs I or K")
+                    if ijk_inc:
+                        centre += start
+                segs.append(Arc(mode == 3, start, centre, end))
+            if "A" in bv and "C" in bv:
+                raise _Err(f"{name} profile: both A (fillet) and C (chamfer) on one corner")
+            if "A" in bv:
+                segs.append(Fillet(bv["A"], end))
+            if "C" in bv:
+                segs.append(Chamfer(bv["C"], end))
+            start = end
+        try:
+            moves = run_cycle(code, segs, start, vals)
+        except (G7xError, ZeroDivisionError, ValueError) as exc:
+            raise _Err(f"{name} error: {exc}") from None
+        arcs = any(m[0] in ("G2", "G3") for m in moves)
+        if arcs and ijk_inc:
+            self.emit("G90.1", no)  # the cycle's arc centres are absolute (as LinuxCNC's)
+        for m in moves:
+            p = m[1]
+            xw = _fmt(p.imag / xs)
+            if len(m) == 2:
+                self.emit(f"{m[0]}X{xw}Z{_fmt(p.real)}", no)
+            else:
+                c = m[2]  # an absolute I stays a radius in diameter mode (LinuxCNC)
+                self.emit(f"{m[0]}X{xw}Z{_fmt(p.real)}I{_fmt(c.imag)}K{_fmt(c.real)}", no)
+        if arcs and ijk_inc:
+            self.emit("G91.1", no)
+        if mode is not None and mode <= 1:
+            self.emit(f"G{mode}", no)  # the motion mode the profile left (LinuxCNC)
 
     def goto(self, target: str, k: int) -> int:
         v, _ = self.eval_at(target, 0)

@@ -59,7 +59,8 @@ MOVE_DTYPE = np.dtype(
         ("cx", np.float64), ("cy", np.float64), ("cz", np.float64),  # arc centre, mm
         ("feed", np.float64),  # effective feed, mm/min (0 for rapids)
         ("feed_word", np.float64),  # F as programmed, converted to mm (per min/rev)
-        ("spindle", np.float64),  # commanded speed, rpm
+        ("spindle", np.float64),  # commanded speed, rpm (under G96: at the end point)
+        ("css", np.float64),  # G96 constant surface speed, m/min (0: G97, rpm mode)
         ("dwell", np.float64),  # s
         ("path_tol", np.float64),  # G64 P tolerance, mm (0 = none)
         ("tlo", np.float64),  # active tool length offset, mm
@@ -67,6 +68,7 @@ MOVE_DTYPE = np.dtype(
         ("cam_tol", np.float64),  # G64 Q (naive-CAM merge) tolerance, mm; P when Q is absent
         ("comp", np.int8),  # cutter compensation: 0 off (G40), 1 left (G41), 2 right (G42)
         ("comp_r", np.float64),  # its radius, mm
+        ("comp_orient", np.int8),  # lathe tool orientation (G41.1/G42.1 L): 1-8 move the controlled point
         ("rot", np.float64),  # XY rotation of the coordinate system (G10 L2 R), degrees CCW
         ("tox", np.float64), ("toy", np.float64),  # active tool X/Y offsets (G10 L1/L10 + G43), mm
         ("a", np.float64), ("b", np.float64), ("c", np.float64),  # rotary axes at the end, degrees
