@@ -405,3 +405,13 @@ def test_g52_local_offset_shares_the_g92_register():
                                [[10, 10, 0], [0, 0, 0], [0, 0, 0], [0, 0, -1], [0, 0, -1]], atol=1e-12)
     np.testing.assert_allclose(machine_xyz(r), [[10, 10, 0], [5, 2, 0], [5, 2, -1], [0, 0, -1], [3, 0, -1]],
                                atol=1e-12)
+
+
+def test_m61_sets_the_tool_number_without_a_change():
+    # LinuxCNC M61 Q<n>: the spindle holds tool n (no tool change); G43 then takes its length
+    prog = load_program(b"G21 G90\nM61 Q2 G43\nG0 Z10\nG49\nM61 Q0 G43\nG0 Z5\n",
+                        InterpreterSettings(dialect="linuxcnc", tool_lengths={2: 25.0}), path="m61.ngc")
+    r = prog.records
+    assert list(r["tool"]) == [2, 0] and list(r["tlo"]) == [25.0, 0.0]  # T0: no tool, no offset
+    with pytest.raises(GCodeError, match="M61"):
+        load_program(b"G21\nM61\n", InterpreterSettings(dialect="linuxcnc"), path="m61.ngc")

@@ -189,3 +189,34 @@ def test_computed_o_word_call():
     assert list(prog.records["x"]) == [2.0, 1.0]
     with pytest.raises(GCodeError, match="computed O-word"):
         run("#<n> = 1.5\no#<n> call\nM2\n")
+
+
+def test_m98_finds_a_resident_program_exported_beside_the_file(tmp_path):
+    # a Fanuc control keeps macros such as O9010 in its memory; exported beside the
+    # program (O9010.nc, 9010.nc, O9010 ...), they are run as if in the file
+    (tmp_path / "O9010.nc").write_bytes(b"%\nO9010(PIERCE)\nG91 G0 Z-1.\nG4 P500\nG0 Z1.\nG90\nM99\n%\n")
+    for text in (b"%\nO1\nG21 G90 G17\nG0 X10 Y5 Z2\nM98 P9010\nG1 X20 F300\nM30\n%\n",  # plain
+                 b"%\nO1\n#1=20\nG21 G90 G17\nG0 X10 Y5 Z2\nM98 P9010\nG1 X#1 F300\nM30\n%\n"):  # macro
+        main = tmp_path / "part.nc"
+        main.write_bytes(text)
+        prog = load_program(main, InterpreterSettings(dialect="fanuc"))
+        r = prog.records
+        assert list(r["kind"]) == [0, 0, 4, 0, 1]  # the routine's plunge, dwell, retract, then the cut
+        assert r["z"][1] == pytest.approx(1.0) and r["dwell"][2] == pytest.approx(0.5)
+        assert r["x"][4] == pytest.approx(20.0) and r["z"][4] == pytest.approx(2.0)
+        call = text.split(b"\n").index(b"M98 P9010") + 1
+        assert (r["line"][1:4] == call).all()  # the routine's moves belong to the calling line
+
+
+def test_m98_of_a_program_not_at_hand(tmp_path):
+    main = tmp_path / "part.nc"
+    main.write_bytes(b"%\nO1\n#1=20\nG21 G90 G17\nG0 X10 Y5 Z2\nM98 P9010\nG1 X#1 F300\nM30\n%\n")
+    with pytest.raises(GCodeError, match="program O9010 not found in this file, nor in a file O9010") as info:
+        load_program(main, InterpreterSettings(dialect="fanuc"))
+    assert info.value.location.line == 6
+    prog = load_program(main, InterpreterSettings(dialect="fanuc", lenient=True))
+    assert prog.unknown_calls == (6,)
+    assert any("passed over" in w.message and w.location.line == 6 for w in prog.warnings)
+    from mtwin.twin import Twin
+    with pytest.raises(GCodeError, match="not at hand"):
+        Twin().simulate(prog)

@@ -81,6 +81,7 @@ E_SYNC = 36
 E_SPLINE = 37
 E_PROBE = 38
 E_THREAD = 39
+E_CORNER = 43
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -97,12 +98,15 @@ W_PROBE = 9
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
 _N, _O, _P, _Q, _R, _S, _T, _U, _V, _W, _X, _Y, _Z = range(13, 26)
 _AT, _CARET = 26, 27  # polar words '@' (distance) and '^' (angle, degrees)
+_CMA, _CMC, _CMR = 28, 29, 30  # Fanuc ',A' (angle), ',C' (corner chamfer), ',R' (corner radius)
+NWORDS = 31
 
 # state indices (float)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
 SF_A, SF_B, SF_C = 8, 9, 10  # rotary axis positions, degrees (not scaled by G20/G21)
 SF_U, SF_V, SF_W = 11, 12, 13  # secondary linear axes, mm
 SF_CSS_ON, SF_CSS_MAX = 14, 15  # G96 active (S is a surface speed), its rpm limit D (0: none)
+SF_CORNER = 16  # this block's Fanuc corner: ,R radius (> 0) or ,C chamfer (< 0), mm
 # state indices (int)
 SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOOL, SI_FLAGS, SI_COMP, SI_COMP_ORIENT \
     = range(10)
@@ -163,6 +167,7 @@ def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
         r.path_tol = st[SF_PATH_TOL]
         r.cam_tol = st[SF_CAM_TOL]
         r.comp = si[SI_COMP]
+        r.corner = st[SF_CORNER] if (kind == LINEAR or kind == ARC_CW or kind == ARC_CCW) else 0.0
         r.comp_orient = si[SI_COMP_ORIENT]
         r.comp_r = st[SF_COMP_R]
         r.tlo = st[SF_TLO]
@@ -474,7 +479,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     mach = np.zeros(3)
     tmp = np.zeros(3)
 
-    st = np.zeros(16)
+    st = np.zeros(17)
     si = np.zeros(10, np.int64)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
@@ -493,9 +498,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     canned_q = math.nan
     canned_p = 0.0
 
-    has = np.zeros(28, np.bool_)
-    val = np.zeros(28)
-    widx = np.zeros(28, np.int64)
+    has = np.zeros(NWORDS, np.bool_)
+    val = np.zeros(NWORDS)
+    widx = np.zeros(NWORDS, np.int64)
     gcodes = np.zeros(16, np.int64)
     gword = np.zeros(16, np.int64)
     mcodes = np.zeros(16, np.int64)
@@ -528,7 +533,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             continue
         w0 = line_w0[li]
         # ---- gather words ----
-        for k in range(28):
+        for k in range(NWORDS):
             has[k] = False
         ng = 0
         nm = 0
@@ -538,6 +543,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 L = _AT
             elif L == 29:
                 L = _CARET
+            elif L == 32:
+                L = _CMA
+            elif L == 34:
+                L = _CMC
+            elif L == 49:
+                L = _CMR
             v = w_value[k]
             if L == _G or L == _M:
                 code = int(round(v * 10.0))
@@ -729,11 +740,14 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         m_end = False
         m_sub = False
         m_ret = False
+        m61 = False
         for q in range(nm):
             code = mcodes[q]
             kw = mword[q]
             if code == 60:
                 m_tc = True
+            elif code == 610 and dialect != 0:
+                m61 = True  # LinuxCNC M61 Q<n>: the tool in the spindle is n (no change made)
             elif code == 30 or code == 40 or code == 50:
                 m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
             elif code == 70 or code == 80 or code == 90:
@@ -770,7 +784,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         if has[_R] and not ignored and not (is_arc or is_canned or g_nonmodal == 100 or m19 or g_path == 640
                                             or g_rot68 == 1):
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
-        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead or mm == 50):
+        if m61 and (not has[_Q] or val[_Q] < 0 or val[_Q] != math.floor(val[_Q])):
+            return n, E_BAD_VALUE, widx[_Q] if has[_Q] else mword[0], li, err_vals, nwarn
+        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead or mm == 50 or m61):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
         if has[_P] and not ignored and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
                                             or mm == 50
@@ -787,6 +803,20 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 return n, E_UNUSED_WORD, widx[L], li, err_vals, nwarn
         if e_word and mm != 760:
             return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
+        if has[_CMA]:
+            return n, E_UNSUPPORTED_WORD, widx[_CMA], li, err_vals, nwarn  # direct drawing dimensions
+        st[SF_CORNER] = 0.0
+        if has[_CMC] or has[_CMR]:
+            kw = widx[_CMC] if has[_CMC] else widx[_CMR]
+            if has[_CMC] and has[_CMR]:
+                return n, E_CORNER, kw, li, err_vals, nwarn
+            if not (mm == 10 or mm == 20 or mm == 30) or is_canned:
+                return n, E_UNUSED_WORD, kw, li, err_vals, nwarn
+            cv = val[_CMC] if has[_CMC] else val[_CMR]
+            if cv <= 0.0:
+                return n, E_BAD_VALUE, kw, li, err_vals, nwarn
+            inch_now = (g_units == 1) if g_units >= 0 else inch
+            st[SF_CORNER] = cv * (MM_PER_INCH if inch_now else 1.0) * (-1.0 if has[_CMC] else 1.0)
 
         if g_diam >= 0:
             diameter = g_diam == 1
@@ -819,6 +849,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         # 5. tool change
         if m_tc:
             si[SI_TOOL] = tool_sel
+        if m61:
+            si[SI_TOOL] = int(val[_Q])
+            tool_sel = si[SI_TOOL]
         # 6. spindle, 7. coolant
         if m_spindle != -2:
             si[SI_SPINDLE_DIR] = m_spindle

@@ -142,12 +142,24 @@ def lex_kernel(buf, pow10):
                 err_code = LEX_MACRO
                 err_pos = p
                 break
-            # '@' and '^' are LinuxCNC's polar distance and angle words
+            # '@' and '^' are LinuxCNC's polar distance and angle words; ',C' ',R' ',A' are
+            # Fanuc's corner chamfer, corner radius and angle: one word each, letter in lower case
+            lp = p
+            if c == 44:
+                lp = p + 1
+                while lp < end and _is_space(buf[lp]):
+                    lp += 1
+                if lp < end and (buf[lp] | 32) in (97, 99, 114):
+                    c = buf[lp] | 32
+                else:
+                    err_code = LEX_BAD_CHAR
+                    err_pos = p
+                    break
             if not (_is_letter(c) or c == 64 or c == 94):
                 err_code = LEX_BAD_CHAR
                 err_pos = p
                 break
-            letter = c - 32 if c >= 97 else c
+            letter = c if lp > p else (c - 32 if c >= 97 else c)
             if letter == 79 and nw == line_w0[li] and p + 1 < end and _is_letter(buf[p + 1]) \
                     or letter == 79 and nw == line_w0[li] and _oname_has_letters(buf, p + 1, end):
                 # Fanuc program name (OCIRCLE, O7997A): not a word, but keep the
@@ -165,7 +177,7 @@ def lex_kernel(buf, pow10):
                 flags |= LF_PROGRAM_NAME
                 p = q
                 continue
-            if _is_letter(c) and p + 1 < end and _is_letter(buf[p + 1]):
+            if _is_letter(c) and lp + 1 < end and _is_letter(buf[lp + 1]):
                 err_code = LEX_KEYWORD
                 err_pos = p
                 break
@@ -173,7 +185,7 @@ def lex_kernel(buf, pow10):
                 err_code = LEX_OWORD
                 err_pos = p
                 break
-            q = p + 1
+            q = lp + 1
             while q < end and _is_space(buf[q]):
                 q += 1
             neg = False

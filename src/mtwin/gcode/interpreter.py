@@ -77,6 +77,7 @@ class Program:
     warnings: list
     source: bytes | None = None  # the file as written, when it was a macro program
     expanded: object = None  # gcode.macro.Expanded: the straight-line program that was run
+    unknown_calls: tuple = ()  # lines calling a program not at hand (--lenient): not simulable
 
     @property
     def path(self) -> str:
@@ -138,7 +139,14 @@ def load_program(source, settings: InterpreterSettings | None = None, *, path: s
     if maybe_macro and looks_like_macro(clean):
         prog = _load_macro(clean, name, settings)
     else:
-        prog = interpret(lexed if lexed is not None else lex(clean, name), settings)
+        try:
+            prog = interpret(lexed if lexed is not None else lex(clean, name), settings)
+        except GCodeError as exc:
+            if "not found in this file" not in exc.message:
+                raise
+            # an M98 of a program kept in a file of its own (or, with --lenient, passed over):
+            # the macro executor knows where to look
+            prog = _load_macro(clean, name, settings)
     if where >= 0:
         # control characters (tape leaders, a stray SOH) read as blanks; the file keeps them
         line = data.count(b"\n", 0, where) + 1
@@ -171,7 +179,8 @@ def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Progra
 
     dialect = _resolve_dialect(settings, name)
     offsets = [tuple(v) for v in _offsets_array(settings)]
-    ex = expand(data, name, dialect, settings.skip_block_delete, offsets, settings.subroutine_path)
+    ex = expand(data, name, dialect, settings.skip_block_delete, offsets, settings.subroutine_path,
+                lenient=settings.lenient)
     lexed = lex(ex.data, name)
     try:
         prog = interpret(lexed, dc_replace(settings, dialect=dialect))
@@ -191,7 +200,8 @@ def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Progra
         if 1 <= loc.line <= len(ex.line_map):
             loc = SourceLocation(loc.path, int(ex.line_map[loc.line - 1]), loc.col)
         warnings.append(GCodeWarning(loc, w.message))
-    return dc_replace(prog, warnings=warnings, source=data, expanded=ex)
+    warnings = [GCodeWarning(SourceLocation(name, no, col), msg) for no, col, msg in ex.notes] + warnings
+    return dc_replace(prog, warnings=warnings, source=data, expanded=ex, unknown_calls=tuple(ex.unknown_calls))
 
 
 def _resolve_dialect(settings: InterpreterSettings, path: str) -> str:
@@ -222,6 +232,7 @@ def _tool_arrays(settings: InterpreterSettings):
     for t, length in table.items():
         lengths[int(t)] = float(length)
         known[int(t)] = True
+    known[0] = True  # T0 / H0: no tool, no offset (LinuxCNC's empty spindle, Fanuc's H00)
     return lengths, known, True
 
 
@@ -270,6 +281,10 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
     if nwarn > 256:
         warnings.append(GCodeWarning(SourceLocation(lexed.path, 0, 0), f"{nwarn - 256} more warnings"))
     records = out[:n]
+    if (records["corner"] != 0).any():
+        from .corners import apply as corners
+
+        records = corners(records, lexed.path)
     if (records["comp"] != 0).any():
         from .cutcomp import apply
 
@@ -325,6 +340,7 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_UNSUPPORTED_G: f"unsupported G-code {w} (use --lenient to ignore codes that do not move the tool)",
         K.E_UNSUPPORTED_M: f"unsupported M-code {w} (use --lenient to pass it through)",
         K.E_UNSUPPORTED_WORD: f"unsupported word {w}",
+        K.E_CORNER: f"{w}: a corner takes either ,C (chamfer) or ,R (radius), not both",
         K.E_DUP_WORD: f"word {w[:1].upper()} appears twice in one block",
         K.E_MODAL_CONFLICT: f"{w}: two codes from the same modal group in one block",
         K.E_ARC_RADIUS_MISMATCH: (f"arc radius to end differs from radius to start: r1={vals[0]:.4f} mm "

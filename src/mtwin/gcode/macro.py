@@ -61,6 +61,8 @@ class Expanded:
     data: bytes  # the straight-line program
     line_map: np.ndarray  # expanded line index -> 1-based source line
     in_sub: np.ndarray  # expanded line index -> executed inside a subroutine call
+    notes: list = field(default_factory=list)  # (source line, column, message): --lenient warnings
+    unknown_calls: list = field(default_factory=list)  # source lines calling a program not at hand
 
 
 class _Err(Exception):
@@ -255,6 +257,9 @@ class _Executor:
                  sub_path: tuple = ()):
         self.path = path
         self.sub_path = sub_path
+        self.lenient = False
+        self.notes: list = []
+        self.unknown_calls: list = []
         self.loaded: set = set()
         self.dialect = dialect
         self.skip_bd = skip_block_delete
@@ -316,15 +321,15 @@ class _Executor:
             self.nlines: dict[int, int] = {}
         for k in range(start, len(self.lines)):
             ln = self.lines[k]
-            if ln.src is not None and not re.match(r"O(<[^>]*>|\d+)SUB", ln.text):
-                continue
+            if ln.src is not None and not re.match(r"O(<[^>]*>|\d+)(SUB|$|\D)", ln.text):
+                continue  # of another file only its subroutine and program headers count
             m = re.match(r"O(<[^>]*>|\d+)SUB", ln.text)
             if m:
                 self.subs[m.group(1).strip("<>").lower()] = k
             m = re.fullmatch(r"O(\d+)", ln.text) or re.match(r"O(\d+)(?![A-Z<])", ln.text)
             if m and not re.match(r"O\d+[A-Z]", ln.text):
                 self.fanuc_progs.setdefault(int(m.group(1)), k)
-            if ln.nnum is not None:
+            if ln.nnum is not None and ln.src is None:
                 self.nlines.setdefault(ln.nnum, k)
 
     # ---------------------------------------------------------------- parameters
@@ -438,9 +443,7 @@ class _Executor:
         subroutine path (as LinuxCNC's SUBROUTINE_PATH), and add its lines."""
         import os
 
-        base = os.path.dirname(os.path.abspath(self.path)) if self.path and not self.path.startswith("<") else None
-        dirs = ([base, os.path.join(base, "subs")] if base else []) + list(self.sub_path)
-        for d in dirs:
+        for d in self._search_dirs():
             for name in (f"{label}.ngc", f"{label.upper()}.ngc", f"{label.lower()}.ngc"):
                 f = os.path.join(d, name)
                 if os.path.isfile(f) and f not in self.loaded:
@@ -452,6 +455,49 @@ class _Executor:
                     if label in self.subs:
                         return True
         return False
+
+    def _search_dirs(self) -> list:
+        import os
+
+        base = os.path.dirname(os.path.abspath(self.path)) if self.path and not self.path.startswith("<") else None
+        return ([base, os.path.join(base, "subs")] if base else []) + list(self.sub_path)
+
+    def load_fanuc_program(self, prog: int) -> bool:
+        """Find a Fanuc program O<prog> kept in a file of its own (``O9010``, ``O9010.nc``,
+        ``9010.nc`` …) beside the program, in its subs/ folder or on the subroutine path: a
+        control's resident macros exported from its memory."""
+        import os
+
+        stems = {f"O{prog}", f"O{prog:04d}", f"{prog}", f"{prog:04d}"}
+        names = [st + ext for st in sorted(stems) for ext in ("", ".nc", ".NC", ".ngc", ".tap", ".TAP", ".txt")]
+        names += [n.lower() for n in names if n.startswith("O")]
+        for d in self._search_dirs():
+            for name in names:
+                f = os.path.join(d, name)
+                if os.path.isfile(f) and f not in self.loaded:
+                    self.loaded.add(f)
+                    with open(f, "rb") as fh:
+                        start = len(self.lines)
+                        self.lines.extend(self._split(fh.read(), f))
+                    self._index(start)
+                    if prog in self.fanuc_progs:
+                        return True
+        return False
+
+    def missing_program(self, word: str, prog, no: int) -> bool:
+        """A call of a program that is neither in the file nor beside it: an error, or with
+        --lenient a warning and the call passed over (True)."""
+        where = f"{word} P{prog}: program O{prog} not found in this file, nor in a file O{prog}(.nc) beside it or " \
+                f"on the subroutine path"
+        if not self.lenient or prog is None:
+            t = _strip_n(self.current.text)
+            col = t.find("P", max(t.find(word), 0)) + 1 or 1
+            raise _Err(where + " (a control-resident program: export it beside the program, or use --lenient)",
+                       col)
+        self.notes.append((no, 1, where + ": the call is passed over (--lenient); what it does is not known, so the "
+                                          "program can be read, scaled and verified but not simulated"))
+        self.unknown_calls.append(no)
+        return True
 
     def expand_words(self, text: str, no: int) -> str:
         """Evaluate every word's value and the line's assignments; return literal words."""
@@ -482,6 +528,12 @@ class _Executor:
                 v = e.binary(0)  # Fanuc allows #1 = #2/2 + 3 without brackets
                 assigns.append((key, v))
                 p = e.p
+                continue
+            if c == "," and p + 1 < n and text[p + 1] in "ACR":
+                # Fanuc corner chamfer/radius (,C ,R) and angle (,A): kept as one word
+                v, q = self.eval_at(text, p + 2)
+                out.append(f",{text[p + 1]}{_fmt(v)}")
+                p = q
                 continue
             if not (c.isalpha() or c in "@^"):  # @ ^: LinuxCNC polar words
                 raise _Err(f"unexpected {c!r}", p + 1)
@@ -592,7 +644,7 @@ class _Executor:
                     k += 1
                     continue
                 words = self.expand_words(t, ln.no)
-                codes = re.findall(r"([A-Z])([-+]?\d*\.?\d*)", words)
+                codes = re.findall(r"(,?[A-Z])([-+]?\d*\.?\d*)", words)
                 gs = [float(v) for c, v in codes if c == "G" and v]
                 ms = [float(v) for c, v in codes if c == "M" and v]
                 if 65.0 in gs:
@@ -792,9 +844,11 @@ class _Executor:
                 prog = int(float(v))
             elif c in _G65_ARGS and c != "G":
                 args[_G65_ARGS[c]] = float(v)
-        if prog is None or prog not in self.fanuc_progs:
-            raise _Err(f"G65 P{prog}: no program O{prog} in this file")
-        self.frames.append(_Frame(k + 1, args, {}, f"O{prog}"))
+        if prog is None or (prog not in self.fanuc_progs and not self.load_fanuc_program(prog)):
+            self.missing_program("G65", prog, self.current.no)
+            return k + 1
+        site = self.frames[-1].site if self.current.src is not None else self.current.no
+        self.frames.append(_Frame(k + 1, args, {}, f"O{prog}", site))
         return self.fanuc_progs[prog] + 1
 
     def m98(self, codes, words, k, no):
@@ -808,14 +862,20 @@ class _Executor:
         if prog is not None and prog not in self.fanuc_progs and prog > 9999:
             # packed form P<repeats><4-digit program>
             reps, prog = prog // 10000, prog % 10000
-        if prog is None or prog not in self.fanuc_progs:
-            raise _Err(f"M98 P{prog}: no program O{prog} in this file")
+        if prog is not None and prog not in self.fanuc_progs:
+            self.load_fanuc_program(prog)
         rest = _drop(words, {"M": 98.0}, ("P", "L"))
+        if prog is None or prog not in self.fanuc_progs:
+            self.missing_program("M98", prog, no)
+            if rest:
+                self.emit(rest, no)
+            return k + 1
         if rest:
             self.emit(rest, no)
         # run the subprogram `reps` times: stack one frame per repetition
+        site = self.frames[-1].site if self.current.src is not None else no
         for _ in range(max(1, reps)):
-            self.frames.append(_Frame(k + 1 if _ == 0 else self.fanuc_progs[prog] + 1, {}, {}, f"O{prog}"))
+            self.frames.append(_Frame(k + 1 if _ == 0 else self.fanuc_progs[prog] + 1, {}, {}, f"O{prog}", site))
         # frames are popped by M99 in order; the last pushed runs first
         return self.fanuc_progs[prog] + 1
 
@@ -958,7 +1018,7 @@ def _fmt(v: float) -> str:
 def _drop(words: str, codes: dict, letters: tuple = ()) -> str:
     """Remove the given code words (e.g. M98) and letters (P, L) from an expanded line."""
     out = []
-    for c, v in re.findall(r"([A-Z])([-+]?[\d.]*)", words):
+    for c, v in re.findall(r"(,?[A-Z])([-+]?[\d.]*)", words):
         if c in codes and v and float(v) == codes[c]:
             continue
         if c in letters:
@@ -968,9 +1028,10 @@ def _drop(words: str, codes: dict, letters: tuple = ()) -> str:
 
 
 def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offsets: list,
-           sub_path: tuple = ()) -> Expanded:
+           sub_path: tuple = (), lenient: bool = False) -> Expanded:
     """Run a macro program into a straight-line one (see the module docstring)."""
     ex = _Executor(data, path, dialect, skip_block_delete, {"list": offsets}, tuple(sub_path))
+    ex.lenient = lenient
     try:
         ex.run()
     except _Err as exc:
@@ -978,7 +1039,8 @@ def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offset
     except RecursionError:
         raise GCodeError("expression nested too deeply", SourceLocation(path, 1, 1)) from None
     text = "\n".join(ex.out) + "\n"
-    return Expanded(text.encode("ascii"), np.array(ex.out_line, np.int64), np.array(ex.out_sub, bool))
+    return Expanded(text.encode("ascii"), np.array(ex.out_line, np.int64), np.array(ex.out_sub, bool),
+                    ex.notes, ex.unknown_calls)
 
 
 _STATEMENT = re.compile(r"^(N\d+)?(O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|REPEAT|"
@@ -1051,6 +1113,8 @@ def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:
                             if not re.match(r"[A-Z_0-9]*>", text[code_idx[e]:].upper()):
                                 break
                         e += 1
+                    if k > 0 and text[code_idx[k - 1]] == ",":
+                        out[pos + code_idx[k - 1]] = 0x20  # the comma of a Fanuc ,C/,R word goes with it
                     for q in range(k, e):
                         out[pos + code_idx[q]] = 0x20
                     locked_words.add((li, ch))

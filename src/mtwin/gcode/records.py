@@ -39,6 +39,7 @@ FL_ROTARY = 2048  # an axis beyond X/Y/Z moves: rotary A, B, C or secondary line
 FL_SPLINE = 8192  # one of the lines that follow a G5/G5.1 spline
 FL_PROBE = 16384  # a G38.x probe move, taken to its programmed end (--lenient)
 FL_DIAMETER = 32768  # lathe diameter mode (G7): the program's X words are diameters
+FL_CORNER = 65536  # ends moved by a Fanuc corner (,R or ,C), or the corner move itself
 FL_SYNC = 4096  # spindle-synchronised (G33 thread, G33.1 rigid tap): feed = pitch x spindle speed
 
 MOVE_DTYPE = np.dtype(
@@ -51,7 +52,7 @@ MOVE_DTYPE = np.dtype(
         ("spindle_dir", np.int8),  # 1 M3, -1 M4, 0 stopped
         ("coolant", np.int8),  # 0 off, 1 mist (M7), 2 flood (M8)
         ("wcs", np.int8),  # 0..8 = G54..G59.3
-        ("flags", np.uint16),
+        ("flags", np.uint32),
         ("turns", np.int16),  # extra full turns of an arc (LinuxCNC P-1)
         ("tool", np.int32),
         ("sx", np.float64), ("sy", np.float64), ("sz", np.float64),  # start, mm
@@ -68,6 +69,7 @@ MOVE_DTYPE = np.dtype(
         ("cam_tol", np.float64),  # G64 Q (naive-CAM merge) tolerance, mm; P when Q is absent
         ("comp", np.int8),  # cutter compensation: 0 off (G40), 1 left (G41), 2 right (G42)
         ("comp_r", np.float64),  # its radius, mm
+        ("corner", np.float64),  # Fanuc ,R corner radius (> 0) / ,C chamfer (< 0) after this move, mm
         ("comp_orient", np.int8),  # lathe tool orientation (G41.1/G42.1 L): 1-8 move the controlled point
         ("rot", np.float64),  # XY rotation of the coordinate system (G10 L2 R), degrees CCW
         ("tox", np.float64), ("toy", np.float64),  # active tool X/Y offsets (G10 L1/L10 + G43), mm

@@ -22,6 +22,7 @@ from .lexer import lex
 from .numfmt import NumberStyle, detect_style
 from .records import (
     FL_COMP,
+    FL_CORNER,
     FL_POLAR,
     FL_DIAMETER,
     FL_PROBE,
@@ -267,6 +268,10 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
         if r["flags"] & FL_DIAMETER:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move in lathe diameter mode (G7)")
+        if r["flags"] & FL_CORNER:
+            # its end point (or start) is where the Fanuc corner (,C ,R) begins, not where it is written
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move shortened by a corner chamfer or radius "
+                             f"(,C ,R)")
         if r["flags"] & FL_ROTARY:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move that drives an axis beyond X/Y/Z (A/B/C, U/V/W)")
         if r["flags"] & FL_POLAR:

@@ -342,6 +342,11 @@ def plan_program(program, machine) -> Plan:
         raise GCodeError("a probe move (G38.x) stops where the probe touches, which is known only on the machine: "
                          "the program can be parsed, scaled and verified but not simulated",
                          SourceLocation(program.path, int(program.records["line"][int(np.argmax(probe))]), 1))
+    if getattr(program, "unknown_calls", ()):
+        from ..errors import GCodeError, SourceLocation
+        raise GCodeError("this line calls a program that is not at hand (passed over with --lenient): what it "
+                         "does is not known, so the program can be parsed, scaled and verified but not simulated",
+                         SourceLocation(program.path, int(program.unknown_calls[0]), 1))
     rot = (program.records["flags"] & R.FL_ROTARY) != 0
     if rot.any():
         from ..errors import GCodeError, SourceLocation
