@@ -220,3 +220,18 @@ def test_m98_of_a_program_not_at_hand(tmp_path):
     from mtwin.twin import Twin
     with pytest.raises(GCodeError, match="not at hand"):
         Twin().simulate(prog)
+
+
+def test_probe_results_under_lenient():
+    # --lenient: a probe move ends at its programmed end; G38.2/G38.4 (must trip) trip there,
+    # G38.3/G38.5 (may not) do not; #5061.. hold the end of the axes the block programs
+    text = (b"G21 G90 F100\nG0 X1 Y2 Z5\n#5070=7\n#1=#5070\nG38.3 Z-3\n#2=#5070\n#3=#5063\nG38.2 Z-4\n"
+            b"#4=#5070\n#5=#5063\nG1 X#1 Y#2 Z#3\nG1 X#4 Y#5\nM2\n")
+    prog = load_program(text, InterpreterSettings(dialect="linuxcnc", lenient=True), path="p.ngc")
+    r = prog.records
+    assert (r["x"][-2], r["y"][-2], r["z"][-2]) == (7.0, 0.0, -3.0)  # the program's own #5070, then no trip
+    assert (r["x"][-1], r["y"][-1]) == (1.0, -4.0)  # G38.2 tripped at Z-4
+    with pytest.raises(GCodeError, match="did not program that axis"):
+        load_program(b"G21 G90 F100\nG38.2 Z-4\n#1=#5061\n", InterpreterSettings(lenient=True), path="p.ngc")
+    with pytest.raises(GCodeError, match="probe result"):
+        load_program(b"G21 G90 F100\nG38.2 Z-4\n#1=#5063\n", InterpreterSettings(), path="p.ngc")

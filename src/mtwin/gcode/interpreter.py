@@ -317,8 +317,9 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
         msg = ("feed move with no F word in effect, kept with feed 0 (--lenient): the program can be read, "
                "scaled and verified, but not simulated")
     elif code == K.W_PROBE:
-        msg = ("probe move taken to its programmed end (--lenient): where the probe touches is known only on "
-               "the machine; the program can be read, scaled and verified, not simulated")
+        msg = ("probe move taken to its programmed end (--lenient; G38.2/G38.4 trip there, G38.3/G38.5 do not, "
+               "and #5061-#5070 say so): where the probe touches is known only on the machine; the program can be "
+               "read, scaled and verified, not simulated")
     elif code == K.W_ARC_SPIRAL:
         msg = ("arc end point is off the circle by more than the control's tolerance: taken as a spiral "
                "from the start radius to the end radius (--lenient)")

@@ -258,6 +258,8 @@ class _Executor:
         self.path = path
         self.sub_path = sub_path
         self.lenient = False
+        self.probe: dict = {}  # #5061.. of the last probe move (--lenient: it ends where programmed)
+        self.absolute = True  # G90/G91 as emitted so far (for probe results)
         self.notes: list = []
         self.unknown_calls: list = []
         self.loaded: set = set()
@@ -363,7 +365,14 @@ class _Executor:
         if 5420 <= n <= 5428 or n in (5400, 5401, 5403):
             raise _Err(f"parameter #{n} (current position / tool state) is not supported", col)
         if 5061 <= n <= 5070:
-            raise _Err(f"parameter #{n} (probe result) is not supported: the twin does not probe", col)
+            if self.lenient and n in self.params:  # set by the last probe move, or by the program
+                return self.params[n]
+            if self.lenient and self.probe:
+                raise _Err(f"parameter #{n} (probe result): the last probe move did not program that axis, so "
+                           f"where it stopped is not known here", col)
+            raise _Err(f"parameter #{n} (probe result) is not supported: where the probe touches is known only on the "
+                       f"machine (with --lenient, probe moves end at their programmed end, G38.2/G38.4 tripping "
+                       f"there and G38.3/G38.5 not)", col)
         if 1 <= n <= 30 and len(self.frames) > 1:
             return self.frames[-1].locals_.get(n, 0.0)
         return self.params.get(n, 0.0)
@@ -418,6 +427,8 @@ class _Executor:
         return v, e.p
 
     def emit(self, words: str, no: int):
+        if "G9" in words or "G38" in words:
+            self._track_probe(words)
         if self.profile_pos is not None:  # reading a G7x profile: follow its position
             p = self.profile_pos
             for c, v in _WORD.findall(words):
@@ -437,6 +448,26 @@ class _Executor:
         self.out.append(words)
         self.out_line.append(self.frames[-1].site if ln_src is not None else no)
         self.out_sub.append(len(self.frames) > 1)
+
+    def _track_probe(self, words: str):
+        """Distance mode, and the result of a G38.x move: with --lenient every probe move ends
+        at its programmed end; G38.2/G38.4 (which must trip) trip there, G38.3/G38.5 do not."""
+        for v in _G_WORD.findall(words):
+            if v in ("90", "91"):
+                self.absolute = v == "90"
+        g = [float(v) for v in _G_WORD.findall(words) if v.startswith("38")]
+        if not g:
+            return
+        vals = {c: float(v) for c, v in _WORD.findall(words) if v not in ("", "+", "-", ".")}
+        self.probe = {5070: 1.0 if g[0] in (38.2, 38.4) else 0.0}
+        for k, ax in enumerate("XYZABCUVW"):
+            if ax in vals and self.absolute:
+                self.probe[5061 + k] = vals[ax]
+        for n in range(5061, 5071):
+            if n in self.probe:
+                self.params[n] = self.probe[n]
+            else:
+                self.params.pop(n, None)
 
     def load_external(self, label: str) -> bool:
         """Find ``<label>.ngc`` beside the program, in its subs/ folder or on the configured
