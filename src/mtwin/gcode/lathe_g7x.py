@@ -424,7 +424,8 @@ class Profile:
         if (f.e - f.s).real > 0:
             f.s = complex(f.e.real, f.s.imag)
         if not all(s.monotonic() for s in self.segs):
-            raise G7xError("Not monotonic")
+            raise G7xError("Not monotonic: the profile must keep running one way along the cycle's cutting "
+                           "axis (Z for G70/G71, X for G72), without turning back")
 
     def do_finish(self):
         segs = self.segs
