@@ -187,3 +187,17 @@ def test_css_spindle_speed_follows_the_diameter():
     assert r["spindle"][3] == pytest.approx(8000)  # clamped by D
     assert r["css"][3] == pytest.approx(200) and r["css"][4] == 0.0 and r["spindle"][4] == 500
     assert r["feed"][1] == pytest.approx(0.1 * 1000 * 200 / (2 * np.pi * 40))  # mm/rev x rpm
+
+
+def test_turning_programs_are_not_given_milling_forces():
+    # the cutting model is for milling tools: a lathe program simulates its motion only
+    from mtwin.errors import MtwinError
+    from mtwin.twin import Twin
+
+    twin = Twin()
+    prog = twin.load((DATA / "g7x_cycles.ngc").read_bytes(), path="g7x.ngc")
+    with pytest.raises(MtwinError, match="turning program") as info:
+        twin.simulate(prog, every=50)
+    assert "g7x.ngc:20" in str(info.value)
+    tr = twin.simulate(prog, cutting=False, every=50)
+    assert tr.summary.cycle_time > 100

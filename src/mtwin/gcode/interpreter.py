@@ -91,6 +91,18 @@ class Program:
     def is_macro(self) -> bool:
         return self.expanded is not None
 
+    def turning_line(self) -> int:
+        """The first line that makes this a turning (lathe) program — a G70-G72 profile cycle,
+        G96 constant surface speed or G7 diameter mode — or 0."""
+        from .records import FL_DIAMETER
+
+        lines = list(getattr(self.expanded, "turning", None) or [])
+        rec = self.records
+        mark = ((rec["flags"] & FL_DIAMETER) != 0) | (rec["css"] > 0)
+        if mark.any():
+            lines.append(int(rec["line"][int(np.argmax(mark))]))
+        return min(lines) if lines else 0
+
 
 def read_source(path: str | os.PathLike) -> bytes:
     """Read a program file, or standard input for ``-``."""

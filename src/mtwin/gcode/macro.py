@@ -63,6 +63,7 @@ class Expanded:
     in_sub: np.ndarray  # expanded line index -> executed inside a subroutine call
     notes: list = field(default_factory=list)  # (source line, column, message): --lenient warnings
     unknown_calls: list = field(default_factory=list)  # source lines calling a program not at hand
+    turning: list = field(default_factory=list)  # source lines of lathe profile cycles (G70-G72)
 
 
 class _Err(Exception):
@@ -262,6 +263,7 @@ class _Executor:
         self.absolute = True  # G90/G91 as emitted so far (for probe results)
         self.notes: list = []
         self.unknown_calls: list = []
+        self.turning: list = []
         self.loaded: set = set()
         self.dialect = dialect
         self.skip_bd = skip_block_delete
@@ -735,6 +737,7 @@ class _Executor:
         from .lathe_g7x import Arc, Chamfer, Fillet, G7xError, Line, run_cycle
 
         name = f"G{code:g}"
+        self.turning.append(no)
         vals = {c: float(v) for c, v in codes if c not in "GMN" and v not in ("", "+", "-", ".")}
         modal = self._modal()
         if modal["plane"] != 18.0:
@@ -1071,7 +1074,7 @@ def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offset
         raise GCodeError("expression nested too deeply", SourceLocation(path, 1, 1)) from None
     text = "\n".join(ex.out) + "\n"
     return Expanded(text.encode("ascii"), np.array(ex.out_line, np.int64), np.array(ex.out_sub, bool),
-                    ex.notes, ex.unknown_calls)
+                    ex.notes, ex.unknown_calls, ex.turning)
 
 
 _STATEMENT = re.compile(r"^(N\d+)?(O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|REPEAT|"

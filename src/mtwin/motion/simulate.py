@@ -76,6 +76,11 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
                       np.zeros(6), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve,
                       np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64), z1, z1, z1, z1,
                       z1, z1)
+    turning = program.turning_line() if hasattr(program, "turning_line") else 0
+    if turning:
+        raise MtwinError(f"{program.path}:{turning}: this is a turning program (lathe cycle G70-G72, G96 constant "
+                         f"surface speed or G7 diameter mode); the cutting model is for milling tools: simulate its "
+                         f"motion alone with --no-cutting")
     from ..cutting.engagement import engagement_for
 
     eng = engagement_for(plan, program, cut, stock, tooth=tooth, cache=twin.engagement_cache)
