@@ -282,16 +282,23 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
             np.asarray(settings.home_g28, float), np.asarray(settings.home_g30, float),
             0 if dialect == "fanuc" else 1, settings.lenient, settings.skip_block_delete, max_steps,
             out, warn_code, warn_word, comp_r, comp_known)
-        if n <= cap or err != K.E_OK:  # an error is reported even if the buffer also overflowed
+        if err != K.E_OK:  # an error is reported even if a buffer also overflowed
+            break
+        more_warnings = warn_code.size < nwarn <= 1_000_000
+        if n <= cap and not more_warnings:
             break
         if n > 50_000_000:
             raise GCodeError("program expands to more than 50 million moves")
-        cap = n + 16
+        cap = max(cap, n + 16)
+        if more_warnings:  # run again with room for all of them, so each is counted where it occurs
+            warn_code = np.zeros(nwarn, np.int64)
+            warn_word = np.zeros(nwarn, np.int64)
     if err != K.E_OK:
         raise _interp_error(lexed, int(err), int(ew), int(eline), evals)
-    warnings = _dedupe([_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(min(nwarn, 256))])
-    if nwarn > 256:
-        warnings.append(GCodeWarning(SourceLocation(lexed.path, 0, 0), f"{nwarn - 256} more warnings"))
+    nw = min(nwarn, warn_code.size)
+    warnings = _dedupe([_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(nw)])
+    if nwarn > nw:
+        warnings.append(GCodeWarning(SourceLocation(lexed.path, 0, 0), f"{nwarn - nw} more warnings"))
     records = out[:n]
     if (records["corner"] != 0).any():
         from .corners import apply as corners
