@@ -64,8 +64,8 @@ def test_corner_errors():
     assert info.value.location.line == 3
     with pytest.raises(GCodeError, match="too large"):
         _load(b"G21 G90\nG0 X0 Y0\nG1 X20 F300 ,R5\nY3\n")
-    with pytest.raises(GCodeError, match="arc is not supported"):
-        _load(b"G21 G90\nG0 X0 Y0\nG1 X20 F300 ,R5\nG2 X30 Y10 R10\n")
+    with pytest.raises(GCodeError, match="too large"):
+        _load(b"G21 G90\nG0 X-20 Y0\nG1 X0 F300 ,R100\nG2 X10 Y10 I10 J0\n")
     with pytest.raises(GCodeError, match="either ,C"):
         _load(b"G21 G90\nG0 X0 Y0\nG1 X20 F300 ,R5 ,C1\nY10\n")
     with pytest.raises(GCodeError, match="unsupported word ,A"):
@@ -82,3 +82,48 @@ def test_a_cornered_program_simulates():
                      path="c.nc")
     tr = twin.simulate(prog, cutting=False)
     assert tr.summary.cycle_time > 0
+
+
+def test_radius_between_a_line_and_an_arc():
+    # a line along +X into (0, 0), then a clockwise arc about (10, 0) heading +Y: a left turn
+    # of 90 degrees.  The fillet's centre is 2 from the line (y = 2) and 10 + 2 from the arc's
+    # centre: x = 10 - sqrt(12^2 - 2^2); it touches the arc on the line from (10, 0) to it.
+    prog = _load(b"G21 G90 G17\nG0 X-20 Y0\nG1 X0 F300 ,R2\nG2 X10 Y10 I10 J0\nM30\n")
+    r = prog.records
+    assert list(r["kind"]) == [0, LINEAR, ARC_CCW, ARC_CW]
+    ox, oy = 10 - math.sqrt(140), 2.0
+    fil = r[2]
+    assert (fil["cx"], fil["cy"]) == pytest.approx((ox, oy))
+    assert (fil["sx"], fil["sy"]) == pytest.approx((ox, 0.0))
+    t2 = np.array([10.0, 0.0]) + 10 * (np.array([ox, oy]) - [10, 0]) / 12
+    assert (fil["x"], fil["y"]) == pytest.approx(tuple(t2))
+    arc = r[3]
+    assert (arc["sx"], arc["sy"]) == pytest.approx(tuple(t2)) and (arc["cx"], arc["cy"]) == (10.0, 0.0)
+    assert (arc["x"], arc["y"]) == (10.0, 10.0)
+    from mtwin.gcode.verify import compare
+    assert compare(prog, _load(scale_feeds(prog, 0.5))) is None
+
+
+def test_radius_between_two_arcs_and_chamfer_after_an_arc():
+    # two clockwise quarter circles of radius 10 meeting at (10, 10): the first (about
+    # (10, 0)) ends heading +X, the second (about (20, 10)) starts heading +Y, a left turn.
+    # The fillet lies outside both circles: its centre is 11 from both centres.
+    prog = _load(b"G21 G90 G17\nG0 X0 Y0\nG2 X10 Y10 I10 J0 F300 ,R1\nG2 X20 Y20 I10 J0\nM30\n")
+    r = prog.records
+    assert list(r["kind"]) == [0, ARC_CW, ARC_CCW, ARC_CW]
+    fil = r[2]
+    c = np.array([fil["cx"], fil["cy"]])
+    h = math.sqrt(121 - 50)
+    assert c == pytest.approx([15 - h / math.sqrt(2), 5 + h / math.sqrt(2)])
+    for (sx, sy), cc in (((fil["sx"], fil["sy"]), [10, 0]), ((fil["x"], fil["y"]), [20, 10])):
+        assert np.hypot(sx - c[0], sy - c[1]) == pytest.approx(1.0)  # on the fillet
+        assert np.hypot(sx - cc[0], sy - cc[1]) == pytest.approx(10.0)  # and on its arc
+    assert (r["x"][1], r["y"][1]) == pytest.approx((fil["sx"], fil["sy"]))
+    assert (r["sx"][3], r["sy"][3]) == pytest.approx((fil["x"], fil["y"]))
+    # a chamfer after an arc ends on the arc at chord distance c from the corner
+    prog = _load(b"G21 G90 G17\nG0 X0 Y0\nG2 X10 Y10 I10 J0 F300 ,C2\nG1 X10 Y20\nM30\n")
+    ch = prog.records[2]
+    assert ch["kind"] == LINEAR
+    assert np.hypot(ch["sx"] - 10, ch["sy"] - 10) == pytest.approx(2.0)
+    assert np.hypot(ch["sx"] - 10, ch["sy"] - 0) == pytest.approx(10.0) and ch["sx"] < 10
+    assert (ch["x"], ch["y"]) == pytest.approx((10.0, 12.0))
