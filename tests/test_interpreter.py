@@ -415,3 +415,12 @@ def test_m61_sets_the_tool_number_without_a_change():
     assert list(r["tool"]) == [2, 0] and list(r["tlo"]) == [25.0, 0.0]  # T0: no tool, no offset
     with pytest.raises(GCodeError, match="M61"):
         load_program(b"G21\nM61\n", InterpreterSettings(dialect="linuxcnc"), path="m61.ngc")
+
+
+def test_linuxcnc_io_m_codes_leave_the_path_alone():
+    # M62-M65 digital outputs, M66 wait on input, M67/M68 analog outputs (LinuxCNC)
+    text = b"G21 F100\nM64 P1\nG1 X10\nM65 P1\nM66 P0 L3 Q5\nM67 E0 Q2.5\nM68 E1 Q3\nM62 P2\nM63 P2\nG1 X20\n"
+    prog = load_program(text, InterpreterSettings(dialect="linuxcnc"), path="io.ngc")
+    assert list(prog.records["x"]) == [10.0, 20.0] and not prog.warnings
+    with pytest.raises(GCodeError, match="unsupported M-code M64"):
+        load_program(b"G21\nM64 P1\n", InterpreterSettings(dialect="fanuc"), path="io.nc")

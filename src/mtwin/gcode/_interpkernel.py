@@ -741,6 +741,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         m_sub = False
         m_ret = False
         m61 = False
+        m_io = False
         for q in range(nm):
             code = mcodes[q]
             kw = mword[q]
@@ -748,6 +749,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 m_tc = True
             elif code == 610 and dialect != 0:
                 m61 = True  # LinuxCNC M61 Q<n>: the tool in the spindle is n (no change made)
+            elif dialect != 0 and (code == 620 or code == 630 or code == 640 or code == 650 or code == 660
+                                   or code == 670 or code == 680):
+                # LinuxCNC M62-M65 digital outputs (P), M66 wait on an input (P/E, L, Q timeout),
+                # M67/M68 analog outputs (E, Q): machine I/O, no effect on the path
+                m_io = True
             elif code == 30 or code == 40 or code == 50:
                 m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
             elif code == 70 or code == 80 or code == 90:
@@ -786,14 +792,17 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             return n, E_UNUSED_WORD, widx[_R], li, err_vals, nwarn
         if m61 and (not has[_Q] or val[_Q] < 0 or val[_Q] != math.floor(val[_Q])):
             return n, E_BAD_VALUE, widx[_Q] if has[_Q] else mword[0], li, err_vals, nwarn
-        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead or mm == 50 or m61):
+        if has[_Q] and not ignored and not (is_canned or g_path == 640 or m19 or g_lookahead or mm == 50 or m61
+                                            or m_io):
             return n, E_UNUSED_WORD, widx[_Q], li, err_vals, nwarn
         if has[_P] and not ignored and not (g_dwell or g_path == 640 or g_nonmodal == 100 or is_canned or m_sub or m19
+                                            or m_io
                                             or mm == 50
                                             or g_lookahead
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
-        if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub or g_comp == 411 or g_comp == 421):
+        if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub or g_comp == 411 or g_comp == 421
+                                            or m_io):
             return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
         is_sync = mm == 330 or mm == 331
         is_spline = mm == 50 or mm == 51
@@ -801,7 +810,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if has[L] and not is_arc and not (is_sync and L == _K) and not (mm == 331 and L == _I) \
                     and not (is_spline and L != _K) and mm != 760:
                 return n, E_UNUSED_WORD, widx[L], li, err_vals, nwarn
-        if e_word and mm != 760:
+        if e_word and mm != 760 and not m_io:
             return n, E_UNSUPPORTED_WORD, widx[_E], li, err_vals, nwarn
         if has[_CMA]:
             return n, E_UNSUPPORTED_WORD, widx[_CMA], li, err_vals, nwarn  # direct drawing dimensions
