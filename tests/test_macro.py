@@ -235,3 +235,24 @@ def test_probe_results_under_lenient():
         load_program(b"G21 G90 F100\nG38.2 Z-4\n#1=#5061\n", InterpreterSettings(lenient=True), path="p.ngc")
     with pytest.raises(GCodeError, match="probe result"):
         load_program(b"G21 G90 F100\nG38.2 Z-4\n#1=#5063\n", InterpreterSettings(), path="p.ngc")
+
+
+def test_modal_state_save_and_restore_matches_linuxcnc():
+    # M70/M72 around a call, M73 autorestoring at a subroutine's return, a work offset
+    # restored (G55 -> G54 -> G55): units, distance mode, feed, spindle, plane, feed mode
+    # come back as LinuxCNC 2.9's rs274 has them (trace stored beside the program)
+    from pathlib import Path
+
+    from test_lathe import _agree
+    from test_linuxcnc_interp import canon_motion
+
+    data = Path(__file__).parent / "data" / "modal"
+    prog = load_program(data / "modal_state.ngc", InterpreterSettings(dialect="linuxcnc"))
+    expected = canon_motion(data / "modal_state.expected")
+    assert len(expected) == 10
+    _agree(prog, expected)
+    assert prog.records["spindle_dir"][-1] == 1 and prog.records["coolant"][-1] == 0
+    with pytest.raises(GCodeError, match="no modal state saved"):
+        load_program(b"G21\nM72\n", InterpreterSettings(dialect="linuxcnc"), path="m72.ngc")
+    with pytest.raises(GCodeError, match="tool length offset or cutter compensation changed"):
+        load_program(b"G21\nM70\nG43.1 Z5\nM72\n", InterpreterSettings(dialect="linuxcnc"), path="m72.ngc")

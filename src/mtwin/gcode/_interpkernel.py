@@ -82,6 +82,9 @@ E_SPLINE = 37
 E_PROBE = 38
 E_THREAD = 39
 E_CORNER = 43
+E_NO_SAVED_STATE = 44
+E_RESTORE_OFFSETS = 45
+MAX_SAVED = 32  # call levels with a saved modal state (M70/M73)
 
 # ---- warning codes ----
 W_IGNORED_G = 1
@@ -481,6 +484,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
 
     st = np.zeros(17)
     si = np.zeros(10, np.int64)
+    # M70/M73 saved modal state per call level: ints (plane, feed mode, spindle dir, coolant,
+    # wcs, path mode, comp, inch, G91, G90.1, G7, G98) and floats (F, S, P, Q, G96, D, TLO, comp R)
+    sv_i = np.zeros((MAX_SAVED, 12), np.int64)
+    sv_f = np.zeros((MAX_SAVED, 8))
+    sv_ok = np.zeros(MAX_SAVED, np.bool_)
     si[SI_PATH_MODE] = 0
     pos = np.zeros(3)
     inch = False
@@ -742,6 +750,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         m_ret = False
         m61 = False
         m_io = False
+        m_save = -1  # M70/M73 save (1), M71 invalidate (2), M72 restore (3)
         for q in range(nm):
             code = mcodes[q]
             kw = mword[q]
@@ -749,6 +758,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 m_tc = True
             elif code == 610 and dialect != 0:
                 m61 = True  # LinuxCNC M61 Q<n>: the tool in the spindle is n (no change made)
+            elif dialect != 0 and (code == 700 or code == 710 or code == 720 or code == 730):
+                # LinuxCNC modal state: M70/M73 save (M73 restored at the subroutine's return),
+                # M71 forget, M72 restore; L is the call level (given by the macro executor)
+                m_save = 1 if (code == 700 or code == 730) else (2 if code == 710 else 3)
             elif dialect != 0 and (code == 620 or code == 630 or code == 640 or code == 650 or code == 660
                                    or code == 670 or code == 680):
                 # LinuxCNC M62-M65 digital outputs (P), M66 wait on an input (P/E, L, Q timeout),
@@ -802,7 +815,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                             or (is_arc and (has[_X] or has[_Y] or has[_Z]))):
             return n, E_UNUSED_WORD, widx[_P], li, err_vals, nwarn
         if has[_L] and not ignored and not (g_nonmodal == 100 or is_canned or m_sub or g_comp == 411 or g_comp == 421
-                                            or m_io):
+                                            or m_io or m_save > 0):
             return n, E_UNUSED_WORD, widx[_L], li, err_vals, nwarn
         is_sync = mm == 330 or mm == 331
         is_spline = mm == 50 or mm == 51
@@ -827,6 +840,67 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             inch_now = (g_units == 1) if g_units >= 0 else inch
             st[SF_CORNER] = cv * (MM_PER_INCH if inch_now else 1.0) * (-1.0 if has[_CMC] else 1.0)
 
+        if m_save > 0:
+            lvl = int(val[_L]) if has[_L] else depth
+            if lvl < 0 or lvl >= MAX_SAVED:
+                return n, E_BAD_VALUE, widx[_L] if has[_L] else mword[0], li, err_vals, nwarn
+            if m_save == 1:  # save what the block starts with
+                sv_i[lvl, 0] = si[SI_PLANE]
+                sv_i[lvl, 1] = si[SI_FEED_MODE]
+                sv_i[lvl, 2] = si[SI_SPINDLE_DIR]
+                sv_i[lvl, 3] = si[SI_COOLANT]
+                sv_i[lvl, 4] = si[SI_WCS]
+                sv_i[lvl, 5] = si[SI_PATH_MODE]
+                sv_i[lvl, 6] = si[SI_COMP]
+                sv_i[lvl, 7] = 1 if inch else 0
+                sv_i[lvl, 8] = 1 if incremental else 0
+                sv_i[lvl, 9] = 1 if ijk_abs else 0
+                sv_i[lvl, 10] = 1 if diameter else 0
+                sv_i[lvl, 11] = 1 if retract_old else 0
+                sv_f[lvl, 0] = st[SF_FEED]
+                sv_f[lvl, 1] = st[SF_SPINDLE]
+                sv_f[lvl, 2] = st[SF_PATH_TOL]
+                sv_f[lvl, 3] = st[SF_CAM_TOL]
+                sv_f[lvl, 4] = st[SF_CSS_ON]
+                sv_f[lvl, 5] = st[SF_CSS_MAX]
+                sv_f[lvl, 6] = st[SF_TLO]
+                sv_f[lvl, 7] = st[SF_COMP_R]
+                sv_ok[lvl] = True
+            elif m_save == 2:
+                sv_ok[lvl] = False
+            else:
+                if not sv_ok[lvl]:
+                    return n, E_NO_SAVED_STATE, mword[0], li, err_vals, nwarn
+                if sv_i[lvl, 6] != si[SI_COMP] or sv_f[lvl, 7] != st[SF_COMP_R] or sv_f[lvl, 6] != st[SF_TLO]:
+                    return n, E_RESTORE_OFFSETS, mword[0], li, err_vals, nwarn
+                # modal codes the block does not set itself come back through their own steps
+                if g_plane < 0:
+                    g_plane = sv_i[lvl, 0]
+                if g_feedmode < 0:
+                    g_feedmode = sv_i[lvl, 1]
+                if g_wcs < 0 and sv_i[lvl, 4] != si[SI_WCS]:
+                    g_wcs = sv_i[lvl, 4]
+                if g_units < 0:
+                    g_units = sv_i[lvl, 7]
+                if g_dist < 0:
+                    g_dist = sv_i[lvl, 8]
+                if g_ijk < 0:
+                    g_ijk = sv_i[lvl, 9]
+                if g_diam < 0:
+                    g_diam = sv_i[lvl, 10]
+                if g_retract < 0:
+                    g_retract = 980 if sv_i[lvl, 11] == 1 else 990
+                if m_spindle == -2:
+                    m_spindle = sv_i[lvl, 2]
+                if m_cool < 0:
+                    m_cool = sv_i[lvl, 3]
+                si[SI_PATH_MODE] = sv_i[lvl, 5]
+                st[SF_FEED] = sv_f[lvl, 0]
+                st[SF_SPINDLE] = sv_f[lvl, 1]
+                st[SF_PATH_TOL] = sv_f[lvl, 2]
+                st[SF_CAM_TOL] = sv_f[lvl, 3]
+                st[SF_CSS_ON] = sv_f[lvl, 4]
+                st[SF_CSS_MAX] = sv_f[lvl, 5]
         if g_diam >= 0:
             diameter = g_diam == 1
         if diameter and has[_X]:

@@ -33,6 +33,8 @@ _G65_ARGS = {"A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F"
 _G7X = {70.0, 71.0, 71.1, 71.2, 72.0, 72.1, 72.2}  # LinuxCNC lathe profile cycles
 _G_WORD = re.compile(r"G([-+]?\d*\.?\d*)")
 _WORD = re.compile(r"([A-Z])([-+]?[\d.]*)")
+_M7X = re.compile(r"M7[0-3](?![\d.])")
+_M73 = re.compile(r"M73(?![\d.])")
 _FUNCS = {"ABS", "ACOS", "ASIN", "ATAN", "COS", "EXP", "FIX", "FUP", "LN", "ROUND", "SIN", "SQRT", "TAN", "EXISTS"}
 _BINOPS = [("OR", "XOR", "AND"), ("EQ", "NE", "GT", "GE", "LT", "LE"), ("+", "-"), ("*", "/", "MOD"), ("**",)]
 _MACRO_HINT = re.compile(rb"#|\[|^[ \t]*/?[ \t]*[oO][ \t]*(<[^>\n]*>|\d+)[ \t]*(sub|endsub|call|return|if|elseif|else|"
@@ -96,6 +98,7 @@ class _Frame:
     named: dict = field(default_factory=dict)
     name: str = ""
     site: int = 0  # line of the program (not of a subroutine file) the call chain started from
+    autorestore: bool = False  # an M73 ran in this call: its modal state comes back at the return
 
 
 class _Expr:
@@ -696,7 +699,7 @@ class _Executor:
                     if rest:
                         self.emit(rest, ln.no)
                     if len(self.frames) > 1:
-                        fr = self.frames.pop()
+                        fr = self._pop_frame(ln.no)
                         k = fr.ret
                         if len(self.frames) < depth:
                             return
@@ -706,6 +709,12 @@ class _Executor:
                     self.emit(words, ln.no)
                     break
                 if words:
+                    if "M7" in words and _M7X.search(words):
+                        # LinuxCNC's modal state save/restore works per call level: tell the
+                        # interpreter which one
+                        words += f"L{len(self.frames) - 1}"
+                        if _M73.search(words):
+                            self.frames[-1].autorestore = True
                     self.emit(words, ln.no)
                 k += 1
             except _Err as exc:
@@ -850,6 +859,12 @@ class _Executor:
         if mode is not None and mode <= 1:
             self.emit(f"G{mode}", no)  # the motion mode the profile left (LinuxCNC)
 
+    def _pop_frame(self, no: int) -> _Frame:
+        fr = self.frames.pop()
+        if fr.autorestore:  # M73: the caller's modal state comes back with the return
+            self.emit(f"M72L{len(self.frames)}", no)
+        return fr
+
     def goto(self, target: str, k: int) -> int:
         v, _ = self.eval_at(target, 0)
         n = int(round(v))
@@ -921,7 +936,7 @@ class _Executor:
         if kw == "ENDSUB" or kw == "RETURN":
             if len(self.frames) <= 1:
                 raise _Err(f"o{label} {kw.lower()} outside a subroutine call")
-            fr = self.frames.pop()
+            fr = self._pop_frame(self.current.no)
             return fr.ret
         if kw == "CALL":
             if label not in self.subs and not self.load_external(label):
