@@ -127,3 +127,51 @@ def test_radius_between_two_arcs_and_chamfer_after_an_arc():
     assert np.hypot(ch["sx"] - 10, ch["sy"] - 10) == pytest.approx(2.0)
     assert np.hypot(ch["sx"] - 10, ch["sy"] - 0) == pytest.approx(10.0) and ch["sx"] < 10
     assert (ch["x"], ch["y"]) == pytest.approx((10.0, 12.0))
+
+
+from hypothesis import HealthCheck, assume, given, settings, strategies as st  # noqa: E402
+
+from mtwin.gcode.records import move_lengths  # noqa: E402
+from mtwin.gcode.verify import compare  # noqa: E402
+
+_coord = st.integers(-3000, 3000).map(lambda v: v / 100.0)
+
+
+@st.composite
+def _cornered(draw):
+    lines = ["G21 G90 G17", "S5000 M3", "G0 X0 Y0 Z1", "G1 Z-1 F300"]
+    for _ in range(draw(st.integers(2, 8))):
+        corner = draw(st.sampled_from(["", "", " ,R1.5", " ,C1.", ",R0.5", " ,C0.3"]))
+        if draw(st.booleans()):
+            lines.append(f"G1 X{draw(_coord):.2f} Y{draw(_coord):.2f}{corner}")
+        else:
+            lines.append(f"G{draw(st.sampled_from([2, 3]))} X{draw(_coord):.2f} Y{draw(_coord):.2f} "
+                         f"R{draw(st.integers(40, 90))}{corner}")
+    lines.append("G1 X40 Y40\nM30")
+    return ("\n".join(lines) + "\n").encode()
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(_cornered(), st.data())
+def test_random_cornered_programs_rewrite_and_verify(src, data):
+    try:
+        prog = load_program(src, FANUC, path="c.nc")
+    except GCodeError:
+        assume(False)  # a corner too large for its moves, or an arc that cannot reach its end
+    rec = prog.records
+    feeds = np.full(rec.size, np.nan)
+    splits = {}
+    lines_done = set()
+    for i in np.flatnonzero(np.isin(rec["kind"], [LINEAR, ARC_CW, ARC_CCW])):
+        li = int(rec["line"][i])
+        if li in lines_done:
+            continue
+        lines_done.add(li)
+        same = np.flatnonzero(rec["line"] == li)
+        if data.draw(st.booleans()):
+            feeds[same] = data.draw(st.integers(20, 5000))  # a line's moves (with its corner) share F
+        if (len(same) == 1 and not rec["flags"][i] & FL_CORNER and i > 1 and move_lengths(rec[i:i + 1])[0] > 0.05
+                and data.draw(st.booleans())):
+            splits[i] = Split([0.5], [300.0, 200.0])
+    out = rewrite(prog, feeds, None, splits)  # raises if its own proof fails
+    assert compare(prog, load_program(out, FANUC, path="c.nc"), tol=1e-3) is None
