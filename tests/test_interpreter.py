@@ -424,3 +424,21 @@ def test_linuxcnc_io_m_codes_leave_the_path_alone():
     assert list(prog.records["x"]) == [10.0, 20.0] and not prog.warnings
     with pytest.raises(GCodeError, match="unsupported M-code M64"):
         load_program(b"G21\nM64 P1\n", InterpreterSettings(dialect="fanuc"), path="io.nc")
+
+
+def test_fanuc_g16_polar_coordinates():
+    # G16 (G17): X is the radius, Y the angle about the work zero; G91 makes the angle
+    # incremental; G15 ends it.  A bolt circle in a drilling cycle, then polar G01 moves.
+    text = (b"G21 G90 G17 G54\nG0 X0 Y0 Z5\nG16\nG81 X50 Y0 Z-5 R2 F100\nY90\nY180\nG80\n"
+            b"G1 X20 Y45\nG91 Y45\nG90 G4 X0.5\nG15\nG0 X10 Y10\nM30\n")
+    prog = load_program(text, InterpreterSettings(dialect="fanuc"), path="polar.nc")
+    r = prog.records
+    holes = r[(r["kind"] == LINEAR) & (r["z"] == -5.0)]
+    np.testing.assert_allclose(np.c_[holes["x"], holes["y"]], [[50, 0], [0, 50], [-50, 0]], atol=1e-9)
+    moves = r[(r["kind"] == LINEAR) & (r["z"] != -5.0)]
+    np.testing.assert_allclose(np.c_[moves["x"], moves["y"]], [[20 / 2 ** 0.5, 20 / 2 ** 0.5], [0, 20]], atol=1e-9)
+    assert r[r["kind"] == DWELL]["dwell"][0] == 0.5  # X on a dwell is its time, not a radius
+    assert (r["x"][-1], r["y"][-1]) == (10.0, 10.0)  # after G15: cartesian again
+    for bad in (b"G21 G90 G17\nG16\nG91 G1 X5 Y10 F100\n", b"G21 G90 G18\nG16\nG1 X5 Y10 F100\n"):
+        with pytest.raises(GCodeError, match="G16 polar"):
+            load_program(bad, InterpreterSettings(dialect="fanuc"), path="polar.nc")

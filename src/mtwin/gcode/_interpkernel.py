@@ -84,6 +84,7 @@ E_THREAD = 39
 E_CORNER = 43
 E_NO_SAVED_STATE = 44
 E_RESTORE_OFFSETS = 45
+E_POLAR16 = 46
 MAX_SAVED = 32  # call levels with a saved modal state (M70/M73)
 
 # ---- warning codes ----
@@ -493,6 +494,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     pos = np.zeros(3)
     inch = False
     diameter = False  # G7: X words are diameters (X/2 is the position)
+    polar16 = False  # Fanuc G16: X/Y words are a radius and an angle about the work zero
     incremental = False
     ijk_abs = False
     motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
@@ -589,6 +591,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_units = -1
         g_diam = -1
         g_css = -1
+        g_polar = -1
         g_rot68 = -1
         g_rot68_w = -1
         g_tlo = -1
@@ -709,6 +712,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_css = 1 if code == 960 else 0
                 grp = 99
+            elif (code == 160 or code == 150) and dialect == 0:
+                # Fanuc G16 polar coordinate command (G17: X the radius, Y the angle) / G15 off
+                if g_polar >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_polar = 1 if code == 160 else 0
+                grp = 99
             elif code == 150 or code == 500 or code == 690 or code == 501 or code == 670:
                 # G15/G50/G69/G50.1/G67 cancel codes: harmless
                 grp = 99
@@ -789,6 +798,26 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     nwarn += 1
                 else:
                     return n, E_UNSUPPORTED_M, kw, li, err_vals, nwarn
+
+        # ---- Fanuc G16: X and Y become the polar words (the LinuxCNC @ ^ path interprets them)
+        if g_polar >= 0:
+            polar16 = g_polar == 1
+        if polar16 and (has[_X] or has[_Y]) and g_nonmodal < 0 and not g_dwell:
+            kw = widx[_X] if has[_X] else widx[_Y]
+            plane_now = g_plane if g_plane >= 0 else si[SI_PLANE]
+            inc_now = (g_dist == 1) if g_dist >= 0 else incremental
+            if plane_now != 0 or has[_AT] or has[_CARET] or (inc_now and has[_X]):
+                # G18/G19 polar planes and an incremental radius (G91 X: the current point as
+                # the pole) are not read here
+                return n, E_POLAR16, kw, li, err_vals, nwarn
+            has[_AT] = has[_X]
+            val[_AT] = val[_X]
+            widx[_AT] = widx[_X]
+            has[_CARET] = has[_Y]
+            val[_CARET] = val[_Y]
+            widx[_CARET] = widx[_Y]
+            has[_X] = False
+            has[_Y] = False
 
         # ---- words that no code on this block (or the active mode) uses ----
         mm = g_motion if g_motion >= 0 else motion

@@ -361,6 +361,9 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_UNSUPPORTED_M: f"unsupported M-code {w} (use --lenient to pass it through)",
         K.E_UNSUPPORTED_WORD: f"unsupported word {w}",
         K.E_CORNER: f"{w}: a corner takes either ,C (chamfer) or ,R (radius), not both",
+        K.E_POLAR16: f"{w}: G16 polar coordinates are read in G17 with an absolute radius (X) and an absolute or "
+                     f"incremental angle (Y); an incremental radius (the current point as the pole) or another "
+                     f"plane is not supported",
         K.E_NO_SAVED_STATE: f"{w}: no modal state saved (M70/M73) at this call level",
         K.E_RESTORE_OFFSETS: f"{w}: the tool length offset or cutter compensation changed since the state was "
                              f"saved; restoring them is not supported",
