@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from mtwin.errors import GCodeError
+from mtwin.errors import GCodeError, WriteError
 from mtwin.gcode.interpreter import InterpreterSettings, load_program
-from mtwin.gcode.records import ARC_CCW, ARC_CW, DWELL, FL_POLAR, LINEAR, RAPID, arc_sweep, move_lengths
+from mtwin.gcode.records import ARC_CCW, ARC_CW, DWELL, FL_MIRROR, FL_POLAR, LINEAR, RAPID, arc_sweep, move_lengths
 
 
 def run(text, **kw):
@@ -442,3 +442,22 @@ def test_fanuc_g16_polar_coordinates():
     for bad in (b"G21 G90 G17\nG16\nG91 G1 X5 Y10 F100\n", b"G21 G90 G18\nG16\nG1 X5 Y10 F100\n"):
         with pytest.raises(GCodeError, match="G16 polar"):
             load_program(bad, InterpreterSettings(dialect="fanuc"), path="polar.nc")
+
+
+def test_fanuc_g51_1_mirror_image():
+    # mirror about X = 0: X words reflect (incremental ones change sign), a G02 becomes a
+    # G03 about the reflected centre, a G41 cuts on the right; G50.1 ends it
+    src = (b"G21 G90 G17 G54\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10 Y5\nG2 X20 Y15 I10 J0\nG51.1 X0\n"
+           b"G1 X10 Y5\nG2 X20 Y15 I10 J0\nG91 G1 X5\nG90 G41 D0 X10 Y0\nG40 X0\nG50.1 X0\nG1 X30 Y0\nM30\n")
+    prog = load_program(src, InterpreterSettings(dialect="fanuc"), path="m.nc")
+    r = prog.records
+    assert (r["x"][3], r["cx"][3], r["kind"][3]) == (20.0, 20.0, ARC_CW)  # before: as written
+    assert (r["x"][4], r["y"][4]) == (-10.0, 5.0)
+    assert (r["x"][5], r["y"][5], r["cx"][5], r["cy"][5], r["kind"][5]) == (-20.0, 15.0, -20.0, 5.0, ARC_CCW)
+    assert r["x"][6] == -25.0  # G91 X5 -> X-5
+    assert r["x"][7] == -10.0 and r["comp"][7] == 2  # G41 under a one-axis mirror: right of the path
+    assert r["x"][-1] == 30.0 and not r["flags"][-1] & FL_MIRROR
+    from mtwin.gcode.writer import Split, rewrite, scale_feeds
+    assert scale_feeds(prog, 1.0) == src
+    with pytest.raises(WriteError, match="mirror"):
+        rewrite(prog, splits={4: Split([0.5], [100.0, 50.0])})

@@ -17,7 +17,7 @@ from .._jit import njit
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
-    FL_DIAMETER, FL_MACHINE, FL_POLAR, FL_PROBE, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
+    FL_DIAMETER, FL_MACHINE, FL_MIRROR, FL_POLAR, FL_PROBE, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
 )
 
 MM_PER_INCH = 25.4
@@ -85,6 +85,7 @@ E_CORNER = 43
 E_NO_SAVED_STATE = 44
 E_RESTORE_OFFSETS = 45
 E_POLAR16 = 46
+E_MIRROR = 47
 MAX_SAVED = 32  # call levels with a saved modal state (M70/M73)
 
 # ---- warning codes ----
@@ -495,6 +496,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     inch = False
     diameter = False  # G7: X words are diameters (X/2 is the position)
     polar16 = False  # Fanuc G16: X/Y words are a radius and an angle about the work zero
+    mir = np.zeros(3, np.bool_)  # Fanuc G51.1: axes mirrored ...
+    mirc = np.zeros(3)  # ... about these program positions, mm
     incremental = False
     ijk_abs = False
     motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
@@ -592,6 +595,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_diam = -1
         g_css = -1
         g_polar = -1
+        g_mirror = -1
+        g_mirror_w = -1
         g_rot68 = -1
         g_rot68_w = -1
         g_tlo = -1
@@ -712,6 +717,13 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
                 g_css = 1 if code == 960 else 0
                 grp = 99
+            elif (code == 511 or code == 501) and dialect == 0:
+                # Fanuc G51.1 programmable mirror image about the given axis positions / G50.1 off
+                if g_mirror >= 0:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_mirror = 1 if code == 511 else 0
+                g_mirror_w = kw
+                grp = 99
             elif (code == 160 or code == 150) and dialect == 0:
                 # Fanuc G16 polar coordinate command (G17: X the radius, Y the angle) / G15 off
                 if g_polar >= 0:
@@ -818,6 +830,41 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             widx[_CARET] = widx[_Y]
             has[_X] = False
             has[_Y] = False
+
+        # ---- Fanuc G51.1/G50.1 mirror image: the block's axis words set or clear the mirror;
+        # on other blocks the mirrored axes' words are reflected (incremental ones negated)
+        mflip = False
+        if g_mirror >= 0:
+            if si[SI_COMP] != 0:
+                return n, E_MIRROR, g_mirror_w, li, err_vals, nwarn
+            u_now = MM_PER_INCH if ((g_units == 1) if g_units >= 0 else inch) else 1.0
+            anyax = has[_X] or has[_Y] or has[_Z]
+            for k in range(3):
+                L = _X + k
+                if g_mirror == 1 and has[L]:
+                    mir[k] = True
+                    mirc[k] = val[L] * u_now
+                elif g_mirror == 0 and (has[L] or not anyax):
+                    mir[k] = False
+                has[L] = False
+        elif (mir[0] or mir[1] or mir[2]) and g_nonmodal < 0:
+            if polar16:
+                return n, E_MIRROR, widx[_X] if has[_X] else w0, li, err_vals, nwarn
+            u_now = MM_PER_INCH if ((g_units == 1) if g_units >= 0 else inch) else 1.0
+            inc_now = (g_dist == 1) if g_dist >= 0 else incremental
+            for k in range(3):
+                if not mir[k]:
+                    continue
+                L = _X + k
+                if has[L] and not (k == 0 and g_dwell and dialect == 0):
+                    val[L] = -val[L] if inc_now else 2.0 * mirc[k] / u_now - val[L]
+                C = _I + k
+                if has[C]:
+                    val[C] = (2.0 * mirc[k] / u_now - val[C]) if ijk_abs else -val[C]
+            pl_now = g_plane if g_plane >= 0 else si[SI_PLANE]
+            b1 = (0, 2, 1)[pl_now]
+            b2 = (1, 0, 2)[pl_now]
+            mflip = mir[b1] != mir[b2]  # one axis of the plane mirrored: arcs and sides reverse
 
         # ---- words that no code on this block (or the active mode) uses ----
         mm = g_motion if g_motion >= 0 else motion
@@ -981,6 +1028,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             base |= FL_DIAMETER
         if f_inch:
             base |= FL_F_INCH
+        if mir[0] or mir[1] or mir[2]:
+            base |= FL_MIRROR
         # 8. dwell
         if g_dwell:
             if has[_P]:
@@ -1035,6 +1084,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if si[SI_COMP] != 0:
                 return n, E_COMP_ACTIVE, g_comp_w, li, err_vals, nwarn
             si[SI_COMP] = 1 if (g_comp == 410 or g_comp == 411) else 2
+            if mflip:
+                si[SI_COMP] = 3 - si[SI_COMP]  # a mirrored path keeps the tool on the mirrored side
             if g_comp == 411 or g_comp == 421:
                 # G41.1/G42.1 D<diameter> [L<lathe tool orientation>]
                 if not has[_D]:
@@ -1446,7 +1497,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         a1 = (0, 2, 1)[pl]
                         a2 = (1, 0, 2)[pl]
                         an = (2, 1, 0)[pl]
-                        ccw = motion == 30
+                        ccw = (motion == 30) != mflip
                         turns = 0
                         if has[_P]:
                             tp = val[_P]

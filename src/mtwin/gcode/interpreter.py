@@ -364,6 +364,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_POLAR16: f"{w}: G16 polar coordinates are read in G17 with an absolute radius (X) and an absolute or "
                      f"incremental angle (Y); an incremental radius (the current point as the pole) or another "
                      f"plane is not supported",
+        K.E_MIRROR: f"{w}: a mirror image (G51.1) cannot change while cutter compensation is on, nor combine "
+                    f"with G16 polar coordinates here",
         K.E_NO_SAVED_STATE: f"{w}: no modal state saved (M70/M73) at this call level",
         K.E_RESTORE_OFFSETS: f"{w}: the tool length offset or cutter compensation changed since the state was "
                              f"saved; restoring them is not supported",

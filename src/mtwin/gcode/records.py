@@ -40,6 +40,7 @@ FL_SPLINE = 8192  # one of the lines that follow a G5/G5.1 spline
 FL_PROBE = 16384  # a G38.x probe move, taken to its programmed end (--lenient)
 FL_DIAMETER = 32768  # lathe diameter mode (G7): the program's X words are diameters
 FL_CORNER = 65536  # ends moved by a Fanuc corner (,R or ,C), or the corner move itself
+FL_MIRROR = 131072  # Fanuc G51.1 mirror image active: the written coordinates are reflected
 FL_SYNC = 4096  # spindle-synchronised (G33 thread, G33.1 rigid tap): feed = pitch x spindle speed
 
 MOVE_DTYPE = np.dtype(

@@ -23,6 +23,7 @@ from .numfmt import NumberStyle, detect_style
 from .records import (
     FL_COMP,
     FL_CORNER,
+    FL_MIRROR,
     FL_POLAR,
     FL_DIAMETER,
     FL_PROBE,
@@ -268,6 +269,8 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under cutter compensation")
         if r["flags"] & FL_DIAMETER:
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move in lathe diameter mode (G7)")
+        if r["flags"] & FL_MIRROR:
+            raise WriteError(f"{prog.path}:{li + 1}: cannot split a move under a mirror image (G51.1)")
         if r["flags"] & FL_CORNER:
             # its end point (or start) is where the Fanuc corner (,C ,R) begins, not where it is written
             raise WriteError(f"{prog.path}:{li + 1}: cannot split a move shortened by a corner chamfer or radius "
