@@ -98,6 +98,11 @@ def main():
         rate = args.pygcode_lines / tp
         print(f"pygcode parse+process ({args.pygcode_lines:,} lines): {tp:.3f} s -> {rate:,.0f} lines/s")
         print(f"ratio mtwin/pygcode: {n / t / rate:.1f}x")
+    # the same program with one '#' parameter: it goes through the macro executor (Python),
+    # which passes literal lines through and evaluates only the words with expressions
+    macro = b"#1=1\n" + data
+    tm = bench_mtwin(macro, repeat=2)
+    print(f"mtwin   macro path (same program + one #1): {tm:.3f} s  -> {n / tm:,.0f} lines/s")
     t = time.perf_counter()
     subprocess.run([sys.executable, "-m", "mtwin", "--help"], capture_output=True, check=True)
     print(f"`mtwin --help`: {time.perf_counter() - t:.3f} s")

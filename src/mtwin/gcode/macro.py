@@ -33,6 +33,9 @@ _G65_ARGS = {"A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F"
 _G7X = {70.0, 71.0, 71.1, 71.2, 72.0, 72.1, 72.2}  # LinuxCNC lathe profile cycles
 _G_WORD = re.compile(r"G([-+]?\d*\.?\d*)")
 _WORD = re.compile(r"([A-Z])([-+]?[\d.]*)")
+_CODE_WORDS = re.compile(r"(,?[A-Z])([-+]?\d*\.?\d*)")
+_BLANKS = re.compile(r"[ \t\r]+")
+_LITERAL_LINE = re.compile(r"(?:[A-Z][-+]?(?:\d+\.?\d*|\.\d+))+")
 _M7X = re.compile(r"M7[0-3](?![\d.])")
 _M73 = re.compile(r"M73(?![\d.])")
 _FUNCS = {"ABS", "ACOS", "ASIN", "ATAN", "COS", "EXP", "FIX", "FUP", "LN", "ROUND", "SIN", "SQRT", "TAN", "EXISTS"}
@@ -81,14 +84,39 @@ class _Line:
     raw: str
     block_delete: bool
     nnum: int | None = None  # N number (Fanuc GOTO target)
-    cols: list = field(default_factory=list)  # 1-based column in ``raw`` of each character of ``text``
+    cols: list | None = None  # 1-based column in ``raw`` of each character of ``text`` (None: not yet)
     src: str | None = None  # another file this line was read from (an external subroutine)
 
     def col(self, i: int) -> int:
         """Source column of position i (1-based) of ``text``."""
+        if self.cols is None:
+            self.cols = _code_and_cols(self.raw)[1][1 if self.block_delete else 0:]
         if not self.cols:
             return 1
         return self.cols[min(max(i, 1), len(self.cols)) - 1]
+
+
+def _code_and_cols(raw: str) -> tuple[str, list]:
+    """A line's code (comments and blanks removed, upper case) and the source column of
+    each of its characters."""
+    chars = []
+    cols = []
+    depth = 0
+    for j, ch in enumerate(raw):
+        if depth:
+            if ch == ")":
+                depth = 0
+            continue
+        if ch == "(":
+            depth = 1
+            continue
+        if ch == ";":
+            break
+        if ch in " \t\r":
+            continue
+        chars.append(ch.upper())
+        cols.append(j + 1)
+    return "".join(chars), cols
 
 
 @dataclass
@@ -290,33 +318,21 @@ class _Executor:
         text = data.decode("latin-1")
         out = []
         for no, raw in enumerate(text.splitlines(), start=1):
-            chars = []
-            cols = []
-            depth = 0
-            for j, ch in enumerate(raw):
-                if depth:
-                    if ch == ")":
-                        depth = 0
-                    continue
-                if ch == "(":
-                    depth = 1
-                    continue
-                if ch == ";":
-                    break
-                if ch in " \t\r":
-                    continue
-                chars.append(ch.upper())
-                cols.append(j + 1)
-            code = "".join(chars)
+            if "(" in raw or ";" in raw:
+                code, cols = _code_and_cols(raw)
+            else:  # the common line: no comment, so only blanks go (columns found when needed)
+                code, cols = _BLANKS.sub("", raw).upper(), None
             bd = False
             if code.startswith("/"):
                 bd = True
                 code = code[1:]
-                cols = cols[1:]
+                if cols is not None:
+                    cols = cols[1:]
             nnum = None
-            m = re.match(r"N(\d+)", code)
-            if m:
-                nnum = int(m.group(1))
+            if code.startswith("N"):
+                m = re.match(r"N(\d+)", code)
+                if m:
+                    nnum = int(m.group(1))
             out.append(_Line(no, code, raw, bd, nnum, cols, src))
         return out
 
@@ -328,6 +344,10 @@ class _Executor:
             self.nlines: dict[int, int] = {}
         for k in range(start, len(self.lines)):
             ln = self.lines[k]
+            if ln.nnum is not None and ln.src is None:
+                self.nlines.setdefault(ln.nnum, k)
+            if not ln.text.startswith("O"):
+                continue
             if ln.src is not None and not re.match(r"O(<[^>]*>|\d+)(SUB|$|\D)", ln.text):
                 continue  # of another file only its subroutine and program headers count
             m = re.match(r"O(<[^>]*>|\d+)SUB", ln.text)
@@ -336,8 +356,6 @@ class _Executor:
             m = re.fullmatch(r"O(\d+)", ln.text) or re.match(r"O(\d+)(?![A-Z<])", ln.text)
             if m and not re.match(r"O\d+[A-Z]", ln.text):
                 self.fanuc_progs.setdefault(int(m.group(1)), k)
-            if ln.nnum is not None and ln.src is None:
-                self.nlines.setdefault(ln.nnum, k)
 
     # ---------------------------------------------------------------- parameters
     def read_param(self, e: _Expr) -> float:
@@ -537,6 +555,8 @@ class _Executor:
 
     def expand_words(self, text: str, no: int) -> str:
         """Evaluate every word's value and the line's assignments; return literal words."""
+        if _LITERAL_LINE.fullmatch(text) and not text.startswith("O"):
+            return text  # plain words with plain numbers: nothing to evaluate (kept as written)
         out = []
         assigns = []
         p = 0
@@ -626,7 +646,7 @@ class _Executor:
                     if not t[e.p:].startswith("CALL") or v != int(v) or v < 0:
                         raise _Err("a computed O-word number is only allowed for a call of a numbered sub", 2)
                     t = f"O{int(v)}{t[e.p:]}"
-                m = re.match(r"O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|"
+                m = t.startswith("O") and re.match(r"O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|"
                              r"REPEAT|ENDREPEAT|BREAK|CONTINUE)(.*)$", t)
                 if m:
                     k = self.oword(m, k, loops)
@@ -653,7 +673,7 @@ class _Executor:
                 if t.startswith("GOTO"):
                     k = self.goto(t[4:], k)
                     continue
-                m = re.match(r"WHILE(\[.*\])DO(\d+)$", t)
+                m = t.startswith("WHILE") and re.match(r"WHILE(\[.*\])DO(\d+)$", t)
                 if m:
                     v, _ = self.cond(t, 5)
                     label = int(m.group(2))
@@ -663,24 +683,24 @@ class _Executor:
                     else:
                         k = self._find_end(k, label) + 1
                     continue
-                m = re.fullmatch(r"END(\d+)", t)
+                m = t.startswith("END") and re.fullmatch(r"END(\d+)", t)
                 if m:
                     label = int(m.group(1))
                     if label not in fanuc_loops:
                         raise _Err(f"END{label} without a running WHILE … DO{label}")
                     k = fanuc_loops.pop(label)
                     continue
-                m = re.fullmatch(r"DO(\d+)", t)
+                m = t.startswith("DO") and re.fullmatch(r"DO(\d+)", t)
                 if m:  # DO without WHILE: an endless loop until GOTO leaves it
                     fanuc_loops[int(m.group(1))] = k
                     k += 1
                     continue
                 # ---- Fanuc subprograms and macro calls (M98 / M99 / G65)
-                if re.fullmatch(r"O\d+", t):
+                if t.startswith("O") and re.fullmatch(r"O\d+", t):
                     k += 1
                     continue
                 words = self.expand_words(t, ln.no)
-                codes = re.findall(r"(,?[A-Z])([-+]?\d*\.?\d*)", words)
+                codes = _CODE_WORDS.findall(words)
                 gs = [float(v) for c, v in codes if c == "G" and v]
                 ms = [float(v) for c, v in codes if c == "M" and v]
                 if 65.0 in gs:
