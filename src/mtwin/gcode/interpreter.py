@@ -213,6 +213,7 @@ def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Progra
             loc = SourceLocation(loc.path, int(ex.line_map[loc.line - 1]), loc.col)
         warnings.append(GCodeWarning(loc, w.message))
     warnings = [GCodeWarning(SourceLocation(name, no, col), msg) for no, col, msg in ex.notes] + warnings
+    warnings.sort(key=lambda w: (w.location.line, w.location.col))  # in the order of the file
     return dc_replace(prog, warnings=warnings, source=data, expanded=ex, unknown_calls=tuple(ex.unknown_calls))
 
 
