@@ -206,7 +206,6 @@ def test_coolant_and_spindle_stop():
     ("G92 A5\n", "work offsets", 1, 5),
     ("G99.5 X1\n", "unsupported G-code", 1, 1),
     ("M123\n", "unsupported M-code", 1, 1),
-    ("X10\n", "without an active motion mode", 1, 1),
     ("G1 X[1+2 F10\n", "expected ']'", 1, 10),
     ("#1=5\nG1 X#<nope> F10\n", "#<nope> is not defined", 2, 11),
     ("G1 X1 (open\n", "not closed", 1, 7),
@@ -461,3 +460,13 @@ def test_fanuc_g51_1_mirror_image():
     assert scale_feeds(prog, 1.0) == src
     with pytest.raises(WriteError, match="mirror"):
         rewrite(prog, splits={4: Split([0.5], [100.0, 50.0])})
+
+
+def test_fanuc_powers_on_in_g00_linuxcnc_in_no_motion_mode():
+    prog = load_program(b"G21 G90\nG43 H1 Z10.\n", InterpreterSettings(dialect="fanuc", tool_lengths={1: 50.0}),
+                        path="on.nc")
+    assert prog.records["kind"][0] == RAPID and prog.records["z"][0] == 10.0
+    with pytest.raises(GCodeError, match="without an active motion mode") as e:
+        load_program(b"G21 G90\nG43 H1 Z10.\n", InterpreterSettings(dialect="linuxcnc", tool_lengths={1: 50.0}),
+                     path="on.ngc")
+    assert (e.value.location.line, e.value.location.col) == (2, 8)

@@ -500,8 +500,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     mirc = np.zeros(3)  # ... about these program positions, mm
     incremental = False
     ijk_abs = False
-    motion = -1  # code*10 of the active group-1 mode; -1 = none (G80)
-    motion_base = -1  # the last G00/G01/G02/G03 mode (Fanuc restores it after G80)
+    # code*10 of the active group-1 mode; -1 = none (G80, LinuxCNC's power-on state); a Fanuc
+    # control powers on in G00 (parameter 3402#0 = 0, the usual setting)
+    motion = 0 if dialect == 0 else -1
+    motion_base = motion  # the last G00/G01/G02/G03 mode (Fanuc restores it after G80)
     spline_c2 = np.zeros(2)  # last control point of the previous G5 (for a G5 without I J)
     spline_prev = False
     retract_old = dialect == 0  # power-on default: Fanuc G98, LinuxCNC G99
