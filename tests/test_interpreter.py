@@ -470,3 +470,16 @@ def test_fanuc_powers_on_in_g00_linuxcnc_in_no_motion_mode():
         load_program(b"G21 G90\nG43 H1 Z10.\n", InterpreterSettings(dialect="linuxcnc", tool_lengths={1: 50.0}),
                      path="on.ngc")
     assert (e.value.location.line, e.value.location.col) == (2, 8)
+
+
+def test_fanuc_g10_offset_memory_c():
+    # G10 L10/L11 set the geometry/wear of length offset H, L12/L13 of radius offset D; G91
+    # adds; the length in force is geometry + wear, taken at the next G43 H
+    src = (b"G21 G90 G17\nG10 L10 P3 R100.\nG10 L11 P3 R-0.2\nG91 G10 L11 P3 R-0.05\nG90\n"
+           b"G10 L12 P7 R3.\nG10 L13 P7 R-0.01\nG0 X0 Y0\nG43 H3 Z50.\nG41 D7 G1 X10 F100\nY10\nG40 X0\n")
+    prog = load_program(src, InterpreterSettings(dialect="fanuc"), path="g10.nc")
+    r = prog.records
+    assert r["tlo"][1] == pytest.approx(99.75)
+    assert r["comp_r"][2] == pytest.approx(2.99)
+    with pytest.raises(GCodeError, match="Fanuc's L10/L11/L12/L13"):
+        load_program(b"G21\nG10 L12 P7\n", InterpreterSettings(dialect="fanuc"), path="g10.nc")

@@ -474,6 +474,12 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     tool_xy = np.zeros((tool_len.size, 2))
     comp_r = comp_r.copy()
     comp_known = comp_known.copy()
+    # Fanuc offset memory C (G10 L10-L13): geometry and wear of the H (length) and D (radius)
+    # offsets; a value from the twin file is a geometry with no wear
+    h_geo = tool_len.copy()
+    h_wear = np.zeros(tool_len.size)
+    d_geo = comp_r.copy()
+    d_wear = np.zeros(comp_r.size)
     # X, Y, Z (mm), A, B, C (degrees) and U, V, W (mm) of the G28 and G30 positions
     h28 = home28
     h30 = home30
@@ -1188,7 +1194,32 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         first_flag = 0 if g_dwell else FL_FIRST_IN_LINE
 
         # 15. G10 / G28 / G30 / G53
-        if g_nonmodal == 100:
+        if g_nonmodal == 100 and dialect == 0 and has[_L] and 10 <= val[_L] <= 13 and val[_L] == int(val[_L]):
+            # Fanuc G10 L10/L11 P<n> R<v>: geometry/wear of length offset Hn; L12/L13: of
+            # radius offset Dn; G91 adds to the value.  Takes effect at the next H or D.
+            lv = int(val[_L])
+            t = int(val[_P]) if has[_P] else -1
+            if not has[_P] or not has[_R] or val[_P] != t:
+                return n, E_BAD_G10, g_nonmodal_w, li, err_vals, nwarn
+            if t < 0 or t >= tool_len.size or t >= comp_r.size:
+                return n, E_BAD_VALUE, widx[_P], li, err_vals, nwarn
+            v = val[_R] * scale
+            inc_now = incremental
+            if lv == 10:
+                h_geo[t] = h_geo[t] + v if inc_now else v
+            elif lv == 11:
+                h_wear[t] = h_wear[t] + v if inc_now else v
+            elif lv == 12:
+                d_geo[t] = d_geo[t] + v if inc_now else v
+            else:
+                d_wear[t] = d_wear[t] + v if inc_now else v
+            if lv <= 11:
+                tool_len[t] = h_geo[t] + h_wear[t]
+                tool_known[t] = True
+            else:
+                comp_r[t] = abs(d_geo[t] + d_wear[t])
+                comp_known[t] = True
+        elif g_nonmodal == 100:
             lv = int(val[_L]) if has[_L] else -1
             if not has[_P] or not (lv == 1 or lv == 2 or lv == 10 or lv == 11 or lv == 20) \
                     or (has[_L] and val[_L] != lv):

@@ -393,8 +393,9 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
         K.E_GEOMETRY_G: (f"{w} is not supported: it changes the toolpath geometry (cutter compensation, "
                          "rotation, scaling, polar or lathe modes), which mtwin does not model yet"),
         K.E_BAD_WCS: f"work offset number {w} out of range",
-        K.E_BAD_G10: (f"{w}: supported G10 forms are L1/L10/L11 P<tool> (tool table) and L2/L20 P<n> "
-                      "(work offsets, R rotation)"),
+        K.E_BAD_G10: (f"{w}: supported G10 forms are L2/L20 P<n> (work offsets, R rotation), LinuxCNC's "
+                      "L1/L10/L11 P<tool> (tool table) and Fanuc's L10/L11/L12/L13 P<n> R<value> (H/D offset "
+                      "geometry/wear)"),
         K.E_POLAR: (f"polar word {w}: polar moves (@ distance, ^ angle) need G17 and no X or Y word on the "
                     "block, and cannot be G10/G28/G30/G53/G92"),
         K.E_ROTARY_USE: (f"axis word {w}: work offsets (G10, G92) and canned cycles for the axes beyond "
