@@ -168,3 +168,16 @@ def test_linuxcnc_comp_example_g17_and_g18_live(tmp_path):
     for (k, ev, _), (_, ov, _) in zip(expected, ours):
         n = 9 if k == "ARC_FEED" else 6
         np.testing.assert_allclose(ov[:n], ev[:n], atol=2e-4)
+
+
+def test_lathe_tool_orientation_moves_the_controlled_point():
+    # G42.1 D0.6 L2 in G18: LinuxCNC 2.9's rs274 (run here) puts the path 0.3 lower in X and Z
+    # than with L0 (the imaginary tool tip of orientation 2 is the controlled point)
+    src = b"G18 G21 G90 F100\nG0 X10 Z5\nG42.1 D0.6 L{}\nG1 X10 Z0\nG1 X12 Z-5\nG1 Z-10\nG40\nG0 X20\nM2\n"
+    rs274 = {0: [(10.3, 0.0578), (12.2785, -4.8886), (12.3, -5.0), (12.3, -10.0)],
+             2: [(10.0, -0.2422), (11.9785, -5.1886), (12.0, -5.3), (12.0, -10.3)]}
+    for orient, ends in rs274.items():
+        prog = load_program(src.replace(b"{}", str(orient).encode()), InterpreterSettings(dialect="linuxcnc"),
+                            path="l.ngc")
+        r = prog.records[(prog.records["kind"] != 0)][:4]
+        np.testing.assert_allclose(np.c_[r["x"], r["z"]], ends, atol=1e-4)
