@@ -77,8 +77,9 @@ class _Curve:
         return d
 
     def offset_side(self, left: bool):
-        """The curve moved by distance 1 to the left (or right) of travel: (kind, data) with
-        a signed unit for the line normal or the radius change per unit distance."""
+        """How the curve moves when offset to the left (or right) of travel: for a line its
+        unit normal toward that side, for an arc the change of radius per unit offset (+1
+        away from the centre, -1 toward it)."""
         if not self.arc:
             t = self.tangent(False)
             n = np.array([-t[1], t[0]]) if left else np.array([t[1], -t[0]])
