@@ -292,3 +292,18 @@ def test_rotated_and_switched_frames_make_one_continuous_path():
     # and the tool goes where the machine would: G55 X0 is 5 mm along X from G54 X0
     assert seg["p1"][-1] == pytest.approx([5.0, 0.0, 0.0])
     assert np.abs(np.diff(tr.cmd, axis=0)).max() < 1.0  # no jump between servo samples
+
+
+def test_a_tool_change_after_the_last_move_is_timed():
+    # a post that puts the tool away before M30: no move follows the M6, its time still counts
+    from mtwin.twin import Twin
+
+    twin = Twin()
+    base = b"G21 G90\nT1 M6\nS5000 M3\nG0 X0 Y0 Z5\nG1 X10 F600\nG0 Z10\n"
+    with_change = twin.load(base + b"T0 M6\nM30\n", path="e.ngc")
+    without = twin.load(base + b"M30\n", path="e.ngc")
+    assert with_change.end_tool_change == 7 and without.end_tool_change == 0
+    a = twin.simulate(with_change, cutting=False).summary
+    b = twin.simulate(without, cutting=False).summary
+    assert a.cycle_time - b.cycle_time == pytest.approx(twin.machine.timing.tool_change, abs=1e-9)
+    assert a.tool_change_time == pytest.approx(2 * twin.machine.timing.tool_change)

@@ -453,8 +453,10 @@ def _arc_len(s, e, c, a1, a2, an, ccw, turns):
 def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                   sub_num, sub_line, wcs_init, tool_len, tool_known, have_tool_table,
                   home28, home30, dialect, lenient, skip_block_delete, max_steps, out,
-                  warn_code, warn_word, comp_r, comp_known):
+                  warn_code, warn_word, comp_r, comp_known, last_change):
     """Interpret a lexed program.  See module docstring.
+    ``last_change`` receives (tool, line index, records emitted before it) of the last tool
+    change (M6), so that one after the last move can still be timed.
 
     Returns (n_records, err_code, err_word, err_line, err_vals, n_warnings).
     ``err_word`` is a global word index (or -1), ``err_line`` a 0-based line.
@@ -1016,6 +1018,9 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         # 5. tool change
         if m_tc:
             si[SI_TOOL] = tool_sel
+            last_change[0] = tool_sel
+            last_change[1] = li
+            last_change[2] = n
         if m61:
             si[SI_TOOL] = int(val[_Q])
             tool_sel = si[SI_TOOL]

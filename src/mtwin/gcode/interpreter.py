@@ -78,6 +78,7 @@ class Program:
     source: bytes | None = None  # the file as written, when it was a macro program
     expanded: object = None  # gcode.macro.Expanded: the straight-line program that was run
     unknown_calls: tuple = ()  # lines calling a program not at hand (--lenient): not simulable
+    end_tool_change: int = 0  # line of a tool change after the last move (0: none)
 
     @property
     def path(self) -> str:
@@ -214,7 +215,11 @@ def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Progra
         warnings.append(GCodeWarning(loc, w.message))
     warnings = [GCodeWarning(SourceLocation(name, no, col), msg) for no, col, msg in ex.notes] + warnings
     warnings.sort(key=lambda w: (w.location.line, w.location.col))  # in the order of the file
-    return dc_replace(prog, warnings=warnings, source=data, expanded=ex, unknown_calls=tuple(ex.unknown_calls))
+    end_change = prog.end_tool_change
+    if 1 <= end_change <= len(ex.line_map):
+        end_change = int(ex.line_map[end_change - 1])
+    return dc_replace(prog, warnings=warnings, source=data, expanded=ex, unknown_calls=tuple(ex.unknown_calls),
+                      end_tool_change=end_change)
 
 
 def _resolve_dialect(settings: InterpreterSettings, path: str) -> str:
@@ -275,6 +280,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
     max_steps = 200 * lexed.n_lines + 1_000_000
     warn_code = np.zeros(256, np.int64)
     warn_word = np.zeros(256, np.int64)
+    last_change = np.full(3, -1, np.int64)
     while True:
         out = np.zeros(cap, MOVE_DTYPE)
         n, err, ew, eline, evals, nwarn = K.interp_kernel(
@@ -282,7 +288,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
             sub_num, sub_line, wcs, tool_len, tool_known, have_table,
             np.asarray(settings.home_g28, float), np.asarray(settings.home_g30, float),
             0 if dialect == "fanuc" else 1, settings.lenient, settings.skip_block_delete, max_steps,
-            out, warn_code, warn_word, comp_r, comp_known)
+            out, warn_code, warn_word, comp_r, comp_known, last_change)
         if err != K.E_OK:  # an error is reported even if a buffer also overflowed
             break
         more_warnings = warn_code.size < nwarn <= 1_000_000
@@ -309,7 +315,12 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
         from .cutcomp import apply
 
         records = apply(records, lexed.path)
-    return Program(lexed, records, settings, dialect, warnings)
+    # a tool change after the last move (a post that puts the tool away before M30): no
+    # record carries it, so the program says where it is for the twin to time it
+    end_change = 0
+    if last_change[1] >= 0 and last_change[2] >= n and (n == 0 or records["tool"][-1] != last_change[0]):
+        end_change = int(last_change[1]) + 1
+    return Program(lexed, records, settings, dialect, warnings, end_tool_change=end_change)
 
 
 def _dedupe(warnings: list) -> list:

@@ -151,11 +151,11 @@ def _assemble(rec: np.ndarray, moves: np.ndarray, pauses) -> np.ndarray:
     """Merge motion segments and pauses in program order."""
     ps = np.zeros(len(pauses), SEG_DTYPE)
     keys_p = np.zeros(len(pauses))
-    for j, (i, sub, cat, d) in enumerate(pauses):
+    for j, (i, sub, cat, d, *at_line) in enumerate(pauses):
         ps[j]["kind"] = PAUSE
         ps[j]["cat"] = cat
         ps[j]["rec"] = i
-        ps[j]["line"] = rec["line"][i]
+        ps[j]["line"] = at_line[0] if at_line else rec["line"][i]
         ps[j]["duration"] = d
         keys_p[j] = 4 * i + sub
     keys_m = 4 * moves["rec"].astype(float) + 3
@@ -364,6 +364,10 @@ def plan_program(program, machine) -> Plan:
     check_travel(rec, moves, machine, program.path)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
     pauses = _pauses(rec, machine, warnings)
+    end_change = getattr(program, "end_tool_change", 0)
+    if end_change and len(rec) and machine.timing.tool_change > 0:
+        # a tool change after the last move (the tool put away before M30)
+        pauses.append((len(rec) - 1, 4, CAT_TOOL, machine.timing.tool_change, end_change))
     seg = _assemble(rec, moves, pauses)
     if len(rec):
         start = np.array([rec["sx"][0], rec["sy"][0], rec["sz"][0]])
