@@ -51,7 +51,9 @@ class _Out:
         self.here = p
 
     def arc(self, ccw: bool, c: complex, p: complex):
-        if p == self.here:
+        # an arc that ends where the tool is goes nowhere (LinuxCNC compares each axis within
+        # its TOLERANCE_EQUAL, 1e-4 in program units)
+        if abs(p.real - self.here.real) < 1e-4 and abs(p.imag - self.here.imag) < 1e-4:
             return
         self.moves.append(("G3" if ccw else "G2", p, c))
         self.here = p

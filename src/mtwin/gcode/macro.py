@@ -777,6 +777,10 @@ class _Executor:
             raise _Err(f"{name} in incremental distance mode (G91) is not supported")
         if "X" not in vals or "Z" not in vals:
             raise _Err(f"{name} needs X and Z (where the cycle starts) on its line")
+        if modal["comp"] != 40.0:
+            self.notes.append((no, 1, f"{name} under cutter compensation: its approach rapids are compensated "
+                                      f"here, LinuxCNC makes them without; the passes after them were not checked "
+                                      f"against LinuxCNC with a nonzero radius"))
         rest = _drop(words, {"G": code}, tuple("QXZDEIPRUWKAC"))
         if rest:
             self.emit(rest, no)  # feed, spindle and modes of the line act before the cycle
