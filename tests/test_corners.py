@@ -175,3 +175,12 @@ def test_random_cornered_programs_rewrite_and_verify(src, data):
             splits[i] = Split([0.5], [300.0, 200.0])
     out = rewrite(prog, feeds, None, splits)  # raises if its own proof fails
     assert compare(prog, load_program(out, FANUC, path="c.nc"), tol=1e-3) is None
+
+
+def test_malformed_comma_words_are_clear_errors():
+    # (found by fuzzing: a comma before two letters made the message itself fail)
+    for text, msg, col in ((b",CD G213.6\n", "unknown word 'CD'", 2), (b"G1 X1 ,R\n", "',R' is not followed", 7),
+                           (b"G1 X1 ,\n", "unexpected character ','", 7)):
+        with pytest.raises(GCodeError, match=msg) as info:
+            _load(text)
+        assert info.value.location.col == col

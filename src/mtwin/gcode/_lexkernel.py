@@ -179,7 +179,7 @@ def lex_kernel(buf, pow10):
                 continue
             if _is_letter(c) and lp + 1 < end and _is_letter(buf[lp + 1]):
                 err_code = LEX_KEYWORD
-                err_pos = p
+                err_pos = lp
                 break
             if letter == 79 and p + 1 < end and buf[p + 1] == 60:  # o<name>
                 err_code = LEX_OWORD

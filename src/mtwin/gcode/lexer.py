@@ -83,6 +83,8 @@ def _lex_message(code: int, data: bytes, pos: int) -> str:
     rest = data[pos:end if end >= 0 else len(data)].decode("latin-1").rstrip("\r")
     ch = rest[:1]
     if code == K.LEX_NO_NUMBER:
+        if ch == ",":  # a Fanuc ,C / ,R / ,A word
+            return f"malformed word: {rest[:2]!r} is not followed by a number"
         return f"malformed word: letter {ch!r} is not followed by a number"
     if code == K.LEX_BAD_CHAR:
         if ch.isprintable() and ch.isascii():
@@ -94,7 +96,8 @@ def _lex_message(code: int, data: bytes, pos: int) -> str:
         return (f"macro parameter or expression {rest[:20]!r} is not supported "
                 "(programs with # variables or [ ] expressions cannot be interpreted yet)")
     if code == K.LEX_KEYWORD:
-        word = re.match(r"[A-Za-z]+", rest).group(0)
+        m = re.match(r"[A-Za-z]+", rest)
+        word = m.group(0) if m else rest[:10]
         if word.upper() in _MACRO_KEYWORDS:
             return f"macro statement {word.upper()!r} is not supported (no macro/control-flow support yet)"
         return f"unknown word {word!r}: a word is one letter followed by a number"
