@@ -256,3 +256,36 @@ def test_modal_state_save_and_restore_matches_linuxcnc():
         load_program(b"G21\nM72\n", InterpreterSettings(dialect="linuxcnc"), path="m72.ngc")
     with pytest.raises(GCodeError, match="tool length offset or cutter compensation changed"):
         load_program(b"G21\nM70\nG43.1 Z5\nM72\n", InterpreterSettings(dialect="linuxcnc"), path="m72.ngc")
+
+
+def test_the_macro_executor_reads_plain_programs_as_the_kernel_does():
+    # every real program without macros, given one parameter assignment so that it goes
+    # through the macro executor, must give the same records (positions, centres, feeds,
+    # speeds, kinds, tools)
+    import numpy as np
+
+    from conftest import SAMPLES, realdata_files
+
+    checked = 0
+    for p in list(SAMPLES.glob("*.nc")) + realdata_files():
+        if "/bad/" in str(p):
+            continue
+        data = p.read_bytes()
+        try:
+            a = load_program(data, InterpreterSettings(lenient=True), path=str(p))
+        except GCodeError:
+            continue
+        if a.is_macro:
+            continue
+        nl = b"\r\n" if b"\r\n" in data else b"\n"
+        lines = data.split(nl)
+        k = 1 if lines and lines[0].strip() == b"%" else 0
+        b = load_program(nl.join(lines[:k] + [b"#999=0"] + lines[k:]), InterpreterSettings(lenient=True),
+                         path=str(p))
+        assert b.is_macro and len(a.records) == len(b.records), p.name
+        for f in ("x", "y", "z", "cx", "cy", "cz", "feed", "spindle", "kind", "tool"):
+            np.testing.assert_allclose(a.records[f], b.records[f], atol=1e-9, err_msg=f"{p.name} {f}")
+        checked += 1
+    if checked == 0:
+        pytest.skip("no programs found")
+    assert checked >= 200
