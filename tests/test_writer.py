@@ -10,7 +10,7 @@ import pytest
 from conftest import SAMPLES, realdata_files
 from mtwin.errors import GCodeError, WriteError
 from mtwin.gcode.interpreter import InterpreterSettings, load_program
-from mtwin.gcode.records import ARC_CCW, ARC_CW, FL_ROTARY, LINEAR
+from mtwin.gcode.records import ARC_CCW, ARC_CW, FL_PROBE, FL_ROTARY, FL_SYNC, LINEAR
 from mtwin.gcode.verify import compare
 from mtwin.gcode.writer import Split, rewrite, scale_feeds
 
@@ -30,7 +30,7 @@ def test_scale_1_is_byte_identical(path):
     assert scale_feeds(prog, 1.0) == path.read_bytes()
 
 
-@pytest.mark.parametrize("path", PROGRAMS[:40], ids=[p.name for p in PROGRAMS[:40]])
+@pytest.mark.parametrize("path", PROGRAMS, ids=[p.name for p in PROGRAMS])
 def test_scale_changes_only_feeds_and_keeps_geometry(path):
     prog = _load(path)
     if prog.is_macro:
@@ -46,9 +46,12 @@ def test_scale_changes_only_feeds_and_keeps_geometry(path):
     assert compare(prog, new) is None
     feed = (prog.records["kind"] == LINEAR) | (prog.records["kind"] >= ARC_CW) & (prog.records["kind"] <= ARC_CCW)
     feed &= prog.records["feed"] > 0  # (--lenient: a feed left to the calling program stays 0)
+    # threads and rigid taps run at pitch x spindle speed, probing feeds are part of the
+    # measurement: the writer leaves both alone
+    feed &= (prog.records["flags"] & (FL_SYNC | FL_PROBE)) == 0
     if feed.any():
         ratio = new.records["feed"][feed] / prog.records["feed"][feed]
-        assert np.all(np.abs(ratio - 0.8) < 0.02)
+        assert np.all(np.abs(ratio - 0.8) < 0.8e-3 * 1.001)  # F written to within 0.1 %
     # lines that differ contain an F word
     for a, b in zip(prog.data.splitlines(), out.splitlines()):
         if a != b:

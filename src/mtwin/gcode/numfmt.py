@@ -34,7 +34,12 @@ class NumberStyle:
         return max(self.feed_decimals, 1) if inch else self.feed_decimals
 
     def feed(self, v: float, inch: bool = False) -> str:
-        return _fmt(v, self.feed_decimals_for(inch), self.fixed, self.leading_zero, True, self.feed_point)
+        # the program's own number of decimals, and more when rounding to it would be more
+        # than 0.1 % off the value asked for (a slow feed written F1 or F0.12 by its post)
+        dec = self.feed_decimals_for(inch)
+        while dec < 6 and abs(round(v, dec) - v) > 1e-3 * abs(v):
+            dec += 1
+        return _fmt(v, dec, self.fixed, self.leading_zero, True, self.feed_point)
 
 
 def _fmt(v: float, dec: int, fixed: bool, leading_zero: bool, trailing_point: bool, point: bool) -> str:

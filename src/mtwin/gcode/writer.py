@@ -447,13 +447,13 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
         raise WriteError(f"internal check failed, nothing written: {nr.size} moves instead of {exp_f.size}")
     # (spindle-synchronised moves follow the spindle speed: their feed is checked through it)
     isf = (nr["kind"] != RAPID) & (nr["kind"] != DWELL) & ((nr["flags"] & FL_SYNC) == 0)
-    # tolerance: half a unit of the last written digit, relative to the feed
+    # tolerance: F is written to within 0.1 % of the feed asked for (NumberStyle.feed adds
+    # decimals for that), or half a unit of its sixth decimal for a vanishing feed
     style = detect_style(prog.lexed)
     inch_f = (nr["flags"] & (FL_F_INCH | FL_INCH)) != 0
-    res = np.where(inch_f, 0.5 * 10.0 ** -style.feed_decimals_for(True) * 25.4,
-                   0.5 * 10.0 ** -style.feed_decimals_for(False))
+    res = np.where(inch_f, 0.5e-6 * 25.4, 0.5e-6)
     res = np.where(nr["feed_mode"] == FEED_PER_REV, res * nr["spindle"], res)
-    tol = res * 1.0001 + 1e-9 * np.abs(exp_f)
+    tol = res * 1.0001 + 1.0001e-3 * np.abs(exp_f)
     tol = np.where(nr["feed_mode"] == FEED_INVERSE_TIME, np.inf, tol)
     bad = np.flatnonzero(isf & (np.abs(nr["feed"] - exp_f) > tol))
     if bad.size:
