@@ -56,9 +56,10 @@ def _fmt(v: float, dec: int, fixed: bool, leading_zero: bool, trailing_point: bo
     elif point and "." not in s:
         s += "." if trailing_point else ".0"
     if not leading_zero:
-        if s.startswith("0."):
+        # .5 for 0.5, but zero stays 0. (a bare '.' is no number)
+        if s.startswith("0.") and len(s) > 2:
             s = s[1:]
-        elif s.startswith("-0."):
+        elif s.startswith("-0.") and len(s) > 3:
             s = "-" + s[2:]
     return s
 

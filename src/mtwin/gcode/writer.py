@@ -150,6 +150,9 @@ def _feed_word(r, feed, spindle, length, own_line=True):
     return feed / scale
 
 
+MIN_PIECE = 0.01  # mm: the shortest piece a split may leave (10 verify tolerances)
+
+
 def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None,
             style: NumberStyle | None = None, check: bool = True) -> bytes:
     """Return the program's bytes with new feeds/speeds and split moves.
@@ -288,6 +291,12 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
         if len(sp.feeds) != len(ts) + 1 or any(not (0 < t < 1) for t in ts) or ts != sorted(set(ts)):
             raise WriteError(f"split of line {li + 1}: fractions must be increasing in (0, 1), one more feed than "
                              "fractions")
+        # a piece shorter than this is no cut of its own, and within a few verify tolerances
+        # of its neighbours' ends it could not be told apart from them
+        shortest = float(lengths[i]) * min(np.diff([0.0] + ts + [1.0]))
+        if shortest < MIN_PIECE:
+            raise WriteError(f"split of line {li + 1}: a piece would be {shortest:.4f} mm long; pieces must be at "
+                             f"least {MIN_PIECE:g} mm")
         split_lines[li] = i
 
     if prog.is_macro:
