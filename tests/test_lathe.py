@@ -222,3 +222,11 @@ def test_linuxcnc_g71_demo_live(tmp_path):
         assert k == k2
         n = 9 if k == "ARC_FEED" else 6
         np.testing.assert_allclose(ov[:n], ev[:n], atol=6e-5, err_msg=k)
+
+
+def test_spindle_scaling_of_a_css_program_is_refused_clearly():
+    prog = load_program(b"G18 G21 G90 F0.1 G95\nG96 S200 D3000 M3\nG0 X40 Z2\nG1 Z-5\nG1 X5\n",
+                        InterpreterSettings(dialect="linuxcnc"), path="css.ngc")
+    with pytest.raises(WriteError, match="constant surface speed"):
+        scale_feeds(prog, spindle=1.2)
+    assert scale_feeds(prog, feed=0.5).count(b"F0.05") == 1  # the feed per revolution still scales

@@ -499,6 +499,12 @@ def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed
             f = np.minimum(f, max_feed)
         feeds = np.where(is_feed & (f != rec["feed"]), f, np.nan)
     if spindle != 1.0:
+        css = np.flatnonzero(rec["css"] > 0)
+        if css.size:
+            # the rpm follows X and stops at the D limit: scaling S (a surface speed) does not
+            # scale it, nor the feed of a G95 move
+            raise WriteError(f"{prog.path}:{int(rec['line'][css[0]])}: --spindle cannot scale a constant surface "
+                             f"speed (G96) program: its spindle speed follows the diameter up to the D limit")
         spindles = rec["spindle"] * spindle
         spindles = np.where(spindles != rec["spindle"], spindles, np.nan)
     return rewrite(prog, feeds, spindles, style=style)
