@@ -298,3 +298,17 @@ def test_a_stiff_cut_at_low_spindle_speed_stays_stable():
     assert -fx.min() <= 1.05 * thrust  # resisting the +X feed; never beyond what X can push
     assert fx.max() <= 0.05 * thrust  # no sign flips from ringing
     assert abs(tr.act[tr.line == 6, 0][-1] - 30.0) < 0.05  # and the cut is completed
+
+
+def test_a_cut_the_drives_cannot_hold_is_reported_not_simulated():
+    # a 6 mm end mill 25 mm deep at S100 and 3 m/min: tens of kN against 11.3 kN of thrust.
+    # The tool is pushed sideways off the commanded path (whose engagement the forces come
+    # from), so the twin stops with the line instead of reporting a runaway (3D_Chips.ngc
+    # at its own F of 2,250 m/min reported an infinite load)
+    from mtwin.errors import MtwinError
+
+    twin = Twin()
+    prog = twin.load(b"G21 G90 G17\nS100 M3\nG0 X-10 Y0 Z5\nG1 Z-25 F3000\nG1 X30\nG2 X50 Y20 R20\nG1 Y60\nG0 Z5\nM30\n",
+                     path="x.nc")
+    with pytest.raises(MtwinError, match=r"x.nc:5: the cutting force .* more than its radius off"):
+        twin.simulate(prog, every=10)

@@ -118,8 +118,12 @@ def allocate_outputs(n_out: int, cutting: bool = True):
 # cut_out columns
 C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
 # cstats entries
+# below 1 rpm the spindle counts as stopped: a chip per tooth of feed / (teeth x speed) would
+# grow without bound as a spindle runs down (3D_Chips.ngc reached an infinite load)
+_N_STOPPED = 1.0 / 60.0  # rev/s
+
 CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
-    CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD, CS_LOAD_TIME = range(13)
+    CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD, CS_LOAD_TIME, CS_PUSHED_LINE = range(14)
 
 
 @njit
@@ -272,7 +276,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     if wait[i] > max_wait:
                         segp[5] = 2  # the axes do not settle: reported by the caller
         finished = last and ti >= end_i and (segp[4] >= i or not stop_end[i])
-        store = kstep % every == 0 or finished or segp[5] == 2
+        store = kstep % every == 0 or finished or segp[5] >= 2
         o = (kstep + every - 1) // every if not kstep % every == 0 else kstep // every
         for k in range(3):
             if xc[k] != xc_prev[k]:
@@ -316,7 +320,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 cutting = True
                 # The forces are linear in the feed per tooth: F = fz*fa + fb (tool frame
                 # turned to the machine axes), torque = fz*ta + tb, h_max = fz*ha.
-                if nrps <= 0.0:
+                if nrps < _N_STOPPED:
                     cstats[8] = 1.0  # cutting with the spindle stopped: no chip, no force
                     for k in range(3):
                         fa[k] = 0.0
@@ -392,7 +396,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             # still belongs to the direction the tool was fed in, which cdir keeps; projecting
             # on the actual velocity instead made the normal force feed itself back
             fz_ = 0.0
-            if cdir[0] * cdir[0] + cdir[1] * cdir[1] + cdir[2] * cdir[2] > 0.0 and nrps > 0.0:
+            if cdir[0] * cdir[0] + cdir[1] * cdir[1] + cdir[2] * cdir[2] > 0.0 and nrps >= _N_STOPPED:
                 per = 1.0 / (fl * nrps)  # fz per mm/s of feed
                 num = 0.0
                 den = 1.0
@@ -408,6 +412,18 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 va = 0.0
             for k in range(3):
                 ftool[k] = fz_ * fa[k] + fb[k]
+            # the engagement belongs to the commanded path: a tool pushed off it by more than
+            # its radius is no longer in that cut, and the twin cannot say what it cuts
+            # (sideways: lagging behind along the path is the drives' ordinary following error)
+            dev2 = 0.0
+            along = 0.0
+            for k in range(3):
+                dev2 += (xc[k] - x[k]) ** 2
+                along += (xc[k] - x[k]) * cdir[k]
+            rt = tools[seg_tool[i], 0]
+            if dev2 - along * along > rt * rt and (fz_ > 0.0 or fb[0] != 0.0 or fb[1] != 0.0):
+                cstats[CS_PUSHED_LINE] = line[i]
+                segp[5] = 3  # reported by the caller
             torque_sp = fz_ * ta + tb
             p_cut = torque_sp * 2.0 * math.pi * nrps
             mrr = va * eng_q[m_, 0]
@@ -493,7 +509,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             pathv[o] = vp
         clock[0] = next_ti
         kstep += 1
-        if finished or segp[5] == 2:
+        if finished or segp[5] >= 2:
             segp[5] = max(segp[5], 1)
             break
     segp[0] = i

@@ -161,6 +161,13 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                         state.max_err, state.max_trq, *outs[:8], *cut_args, spin, cstats, *outs[8:])
         if progress is not None:
             progress(min(k, n_est), n_est)
+    if state.seg[5] == 3:
+        i = int(state.seg[0])
+        thrust = float(sv[:, RK.SV_FMAX].min())
+        raise MtwinError(f"{program.path}:{int(cstats[RK.CS_PUSHED_LINE])}: the cutting force (up to "
+                         f"{float(cstats[RK.CS_LOAD]):.0f} N, the drives push {thrust:.0f} N) drives the tool more "
+                         f"than its radius off the commanded path: the machine cannot hold this cut and the twin "
+                         f"cannot predict it; lower the feed or the depth of cut, or raise the spindle speed")
     if state.seg[5] == 2:
         i = int(state.seg[0])
         thrust = float(sv[:, RK.SV_FMAX].min())
