@@ -634,21 +634,15 @@ def run_cycle(code: float, segs: list, last: complex, params: dict) -> list:
     segs = [s.dup() for s in segs]
     dfront = segs[0].e - segs[0].s
     dback = segs[-1].e - segs[-1].s
-    end = last
     out = _Out(complex(z, x))
-    path = Profile(segs)
     if kind == 70:
-        if p < 1:
-            return []
-        path.g70(out, x, z, d, e, p)
-    elif kind == 71:
-        if abs(dback.real) > 0 and dfront.imag * (x - end.imag) < 0:
-            segs.append(Line(end, complex(end.real, x)))
-        path = Profile(segs)
-        path.g71(out, sub, x, z, u, w, d, i, r)
-    else:
-        if abs(dback.imag) > 0 and dfront.real * (z - end.real) < 0:
-            segs.append(Line(end, complex(z, end.imag)))
-        path = Profile(segs)
-        path.g71(out, sub, x, z, u, w, d, i, r, rotate=True)
+        if p >= 1:
+            Profile(segs).g70(out, x, z, d, e, p)
+        return out.moves
+    # an open profile is closed back to the cycle's X (G71) or Z (G72), as LinuxCNC does
+    if kind == 71 and abs(dback.real) > 0 and dfront.imag * (x - last.imag) < 0:
+        segs.append(Line(last, complex(last.real, x)))
+    elif kind == 72 and abs(dback.imag) > 0 and dfront.real * (z - last.real) < 0:
+        segs.append(Line(last, complex(z, last.imag)))
+    Profile(segs).g71(out, sub, x, z, u, w, d, i, r, rotate=kind == 72)
     return out.moves

@@ -495,37 +495,26 @@ class _Executor:
     def load_external(self, label: str) -> bool:
         """Find ``<label>.ngc`` beside the program, in its subs/ folder or on the configured
         subroutine path (as LinuxCNC's SUBROUTINE_PATH), and add its lines."""
-        import os
-
-        for d in self._search_dirs():
-            for name in (f"{label}.ngc", f"{label.upper()}.ngc", f"{label.lower()}.ngc"):
-                f = os.path.join(d, name)
-                if os.path.isfile(f) and f not in self.loaded:
-                    self.loaded.add(f)
-                    with open(f, "rb") as fh:
-                        start = len(self.lines)
-                        self.lines.extend(self._split(fh.read(), f))
-                    self._index(start)
-                    if label in self.subs:
-                        return True
-        return False
-
-    def _search_dirs(self) -> list:
-        import os
-
-        base = os.path.dirname(os.path.abspath(self.path)) if self.path and not self.path.startswith("<") else None
-        return ([base, os.path.join(base, "subs")] if base else []) + list(self.sub_path)
+        names = (f"{label}.ngc", f"{label.upper()}.ngc", f"{label.lower()}.ngc")
+        return self._load_file(names, lambda: label in self.subs)
 
     def load_fanuc_program(self, prog: int) -> bool:
         """Find a Fanuc program O<prog> kept in a file of its own (``O9010``, ``O9010.nc``,
         ``9010.nc`` …) beside the program, in its subs/ folder or on the subroutine path: a
         control's resident macros exported from its memory."""
-        import os
-
         stems = {f"O{prog}", f"O{prog:04d}", f"{prog}", f"{prog:04d}"}
         names = [st + ext for st in sorted(stems) for ext in ("", ".nc", ".NC", ".ngc", ".tap", ".TAP", ".txt")]
         names += [n.lower() for n in names if n.startswith("O")]
-        for d in self._search_dirs():
+        return self._load_file(names, lambda: prog in self.fanuc_progs)
+
+    def _load_file(self, names, found) -> bool:
+        """Add the lines of the first not yet loaded file of these names in the search
+        directories that makes ``found()`` true."""
+        import os
+
+        base = os.path.dirname(os.path.abspath(self.path)) if self.path and not self.path.startswith("<") else None
+        dirs = ([base, os.path.join(base, "subs")] if base else []) + list(self.sub_path)
+        for d in dirs:
             for name in names:
                 f = os.path.join(d, name)
                 if os.path.isfile(f) and f not in self.loaded:
@@ -534,7 +523,7 @@ class _Executor:
                         start = len(self.lines)
                         self.lines.extend(self._split(fh.read(), f))
                     self._index(start)
-                    if prog in self.fanuc_progs:
+                    if found():
                         return True
         return False
 

@@ -117,11 +117,11 @@ def allocate_outputs(n_out: int, cutting: bool = True):
 
 # cut_out columns
 C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
-# cstats entries
 # below 1 rpm the spindle counts as stopped: a chip per tooth of feed / (teeth x speed) would
-# grow without bound as a spindle runs down (3D_Chips.ngc reached an infinite load)
+# grow without bound as a spindle runs down
 _N_STOPPED = 1.0 / 60.0  # rev/s
 
+# cstats entries
 CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
     CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD, CS_LOAD_TIME, CS_PUSHED_LINE = range(14)
 

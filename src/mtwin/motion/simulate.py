@@ -162,7 +162,6 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         if progress is not None:
             progress(min(k, n_est), n_est)
     if state.seg[5] == 3:
-        i = int(state.seg[0])
         thrust = float(sv[:, RK.SV_FMAX].min())
         raise MtwinError(f"{program.path}:{int(cstats[RK.CS_PUSHED_LINE])}: the cutting force (up to "
                          f"{float(cstats[RK.CS_LOAD]):.0f} N, the drives push {thrust:.0f} N) drives the tool more "
