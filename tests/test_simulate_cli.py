@@ -106,16 +106,31 @@ def test_feed_zero_is_an_error_with_its_line(tmp_path):
 
 
 def test_move_beyond_travel_is_an_error_naming_axis_and_line(tmp_path):
+    # a twin file describes a real machine: its travel limits are hard, as on its control
+    twin = tmp_path / "m.toml"
+    twin.write_text("[machine]\nname = 'shop VMC'\n")
     f = tmp_path / "far.nc"
     f.write_text("G21 G90 G94\nG0 X10\nG1 Y300 F1000\nM30\n")
-    r = mtwin("simulate", str(f))
+    r = mtwin("simulate", str(f), "--twin", str(twin), "--no-cutting")
     assert r.returncode == 2
     msg = r.stderr.decode()
     assert "far.nc:3:" in msg and "axis Y" in msg and "axes.y.max_travel" in msg
     # an arc whose bulge leaves the travel, though its end points do not
     f.write_text("G21 G90 G94\nG0 X390 Y0\nG2 X390 Y0 I6 J0 F1000\nM30\n")
-    r = mtwin("simulate", str(f))
+    r = mtwin("simulate", str(f), "--twin", str(twin), "--no-cutting")
     assert r.returncode == 2 and "far.nc:3:" in r.stderr.decode()
+
+
+def test_the_default_machine_warns_beyond_its_travel_and_simulates(tmp_path):
+    # the embedded default machine is nobody's machine: a NIST plate's G58 park move (Y 508 mm)
+    # must not stop a first simulation
+    f = tmp_path / "far.nc"
+    f.write_text("G21 G90 G94\nG0 X10\nG1 Y300 F1000\nM30\n")
+    r = mtwin("simulate", str(f), "--no-cutting", "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    msg = r.stderr.decode()
+    assert "far.nc:3:1: warning: move reaches Y = 300.000 mm" in msg and "default machine" in msg
+    assert json.loads(r.stdout)["cycle_time"] > 300 / (1000 / 60)
 
 
 def test_planner_override_and_bad_options():

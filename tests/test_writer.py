@@ -330,6 +330,9 @@ def test_random_splits_of_every_real_program_verify():
         out = rewrite(prog, None, None, splits)
         assert compare(prog, load_program(out, InterpreterSettings(lenient=True), path=str(path))) is None, path.name
         done += 1
-    if done == 0:
-        pytest.skip("no programs")
+    from conftest import REALDATA
+
+    if not REALDATA.is_dir():  # a plain clone: the bundled samples were split above
+        assert done >= 3
+        pytest.skip(f"{REALDATA} not present: only {done} bundled samples were split")
     assert done >= 150

@@ -39,14 +39,61 @@ EXIT_INTERNAL = 3
 _state = {"traceback": False}
 
 
+def _version(value: bool):
+    if value:
+        from . import __version__
+
+        sys.stdout.write(f"mtwin {__version__}\n")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _main(traceback: bool = typer.Option(False, "--traceback", help="Show Python tracebacks on errors.")):
-    _state["traceback"] = traceback
+def _main(traceback: bool = typer.Option(False, "--traceback",
+                                         help="Show Python tracebacks on errors (also after the command)."),
+          version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")):
+    _state["traceback"] = _state["traceback"] or traceback
+    _install_compile_notice()
+
+
+def _install_compile_notice() -> None:
+    """Say on stderr, once per process, that kernels are being compiled, with a live line per
+    kernel on a terminal: a first run compiles what it needs (seconds), later runs load it."""
+    import contextlib
+    import time
+
+    from . import _jit
+
+    said = {"n": 0, "t": 0.0}
+
+    @contextlib.contextmanager
+    def notice(name: str):
+        if said["n"] == 0:
+            err.print("compiling the twin's kernels, first run only "
+                      f"(cached in {os.environ.get('NUMBA_CACHE_DIR')}) …", soft_wrap=True)
+        said["n"] += 1
+        t0 = time.perf_counter()
+        if err.is_terminal:
+            with err.status(f"compiling kernel {said['n']}: {name} …"):
+                yield
+        else:
+            yield
+        dt = time.perf_counter() - t0
+        said["t"] += dt
+        if err.is_terminal or dt > 1.0:
+            err.print(f"  compiled {name} in {dt:.1f} s", soft_wrap=True)
+
+    _jit.compile_notice = notice
 
 
 def _fail(exc: BaseException) -> None:
     if _state["traceback"]:
-        raise exc
+        import traceback as tb
+
+        tb.print_exception(exc)
+        if isinstance(exc, MtwinError):
+            raise typer.Exit(exc.exit_code)
+        raise typer.Exit(EXIT_INTERNAL)
     if isinstance(exc, MtwinError):
         from rich.markup import escape
 
@@ -80,14 +127,22 @@ def _settings(twin, dialect, lenient, block_delete):
                                 skip_block_delete=block_delete)
 
 
-def _load(part: str, settings):
+def _load(part: str, settings, need_motion: bool = True):
+    """Load a program and show its warnings.  An empty file is an error; one without a move is
+    an error where the command needs motion (``need_motion``), else a warning."""
+    from .errors import GCodeError, SourceLocation, warning_text
     from .gcode.interpreter import load_program
 
     prog = load_program(part, settings)
     for w in prog.warnings:
-        from rich.markup import escape
-
-        err.print(f"[yellow]{escape(str(w))}[/yellow]", soft_wrap=True)
+        _warn(str(w))
+    if not prog.data.strip():
+        raise GCodeError("the program is empty", SourceLocation(prog.path, 1, 1))
+    if prog.records.size == 0:
+        msg = "the program has no motion (no G0/G1/G2/G3, cycle or dwell is run)"
+        if need_motion:
+            raise GCodeError(msg, SourceLocation(prog.path, 1, 1))
+        _warn(warning_text(prog.path, 0, msg))
     return prog
 
 
@@ -120,7 +175,7 @@ def parse(
     """Summarise a program: moves, tools, feeds, bounding box, lengths and nominal time."""
     from .gcode.summary import moves_csv, summarize
 
-    prog = _load(part, _settings(twin, dialect, lenient, block_delete))
+    prog = _load(part, _settings(twin, dialect, lenient, block_delete), need_motion=False)
     if moves:
         write_output(moves_csv(prog).encode(), output or "-", [part])
         return
@@ -167,13 +222,37 @@ def scale(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Bake a feed/spindle override into the program and clamp feeds; nothing else changes."""
-    from .gcode.writer import scale_feeds
+    from .config import load_machine
+    from .gcode.writer import scale_feeds, scaled_feeds
 
+    limit = load_machine(twin).max_cutting_feed
     prog = _load(part, _settings(twin, dialect, lenient, block_delete))
-    data = scale_feeds(prog, feed, spindle, max_feed)
+    f, is_feed = scaled_feeds(prog, feed, spindle)
+    raised = is_feed & (f > limit * (1 + 1e-9)) & (f > prog.records["feed"])
+    if raised.any() and (max_feed is None or max_feed > limit):
+        _warn_clamped(prog, raised, float(f[raised].max()), limit)
+    data = scale_feeds(prog, feed, spindle, max_feed, machine_max=limit)
     write_output(data, output, [part], in_place)
     changed = sum(1 for a, b in zip(prog.data.splitlines(), data.splitlines()) if a != b)
     err.print(f"wrote {output}: {changed} line(s) changed, geometry verified", soft_wrap=True)
+
+
+def _warn_clamped(prog, over, highest: float, limit: float) -> None:
+    import numpy as np
+
+    from .errors import warning_text
+
+    lines = np.unique(prog.records["line"][over])
+    listed = ", ".join(str(x) for x in lines[:8]) + (" …" if lines.size > 8 else "")
+    _warn(warning_text(prog.path, int(lines[0]),
+                       f"F {highest:,.0f} mm/min would exceed the machine's maximum cutting feed {limit:,.6g} "
+                       f"mm/min: clamped to it on {lines.size} line(s) ({listed})"))
+
+
+def _warn(text: str) -> None:
+    from rich.markup import escape
+
+    err.print(f"[yellow]{escape(text)}[/yellow]", soft_wrap=True)
 
 
 @app.command()
@@ -225,7 +304,7 @@ def simulate(
     stock: Optional[str] = typer.Option(None, "--stock",
                                         help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm (work coordinates)."),
     no_cutting: bool = typer.Option(False, "--no-cutting", help="Motion only: no stock, engagement or cutting forces."),
-    plot: Optional[str] = typer.Option(None, "--plot", help="Write the spindle power against time as SVG."),
+    plot: Optional[str] = typer.Option(None, "--plot", help="Write the spindle power against time: .svg, .png or .pdf ('-': SVG on stdout)."),
     stock_out: Optional[str] = typer.Option(None, "--stock-out",
                                             help="Write the stock after the last cut: .png height map or .stl surface."),
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
@@ -269,6 +348,12 @@ def simulate(
         every = 1
     if every < 1:
         raise MtwinError(f"--every must be at least 1, got {every}")
+    if plot:
+        from .report.plots import plot_format
+
+        plot_format(plot)  # refused before the work, not after
+    if stock_out and not stock_out.endswith((".png", ".stl")):
+        raise MtwinError(f"--stock-out {stock_out}: use a .png (height map) or .stl (surface) file name")
     prog = _load(part, settings)
     plan = tw.plan(prog)
     from .motion.simulate import simulate_plan
@@ -288,7 +373,7 @@ def simulate(
     for w in s.warnings:
         from rich.markup import escape
 
-        err.print(f"[yellow]warning: {escape(w)}[/yellow]", soft_wrap=True)
+        err.print(f"[yellow]{escape(w)}[/yellow]", soft_wrap=True)
     if output:
         from . import __version__
 
@@ -302,9 +387,9 @@ def simulate(
 
         write_output(stock_bytes(trace.engagement.stock, stock_out), stock_out, [part])
     if plot:
-        from .report.plots import power_svg
+        from .report.plots import plot_format, power_svg
 
-        write_output(power_svg(trace, f"{prog.path}: spindle power"), plot, [part])
+        write_output(power_svg(trace, f"{prog.path}: spindle power", plot_format(plot)), plot, [part])
     if json_out:
         d = s.as_dict()
         d["program"] = prog.path
@@ -331,7 +416,11 @@ def _print_simulation(path: str, s, output) -> None:
         t.add_row(f"tool T{tool}", f"cutting {d['cutting_time']:,.2f} s over {d['cutting_length']:,.1f} mm, "
                                    f"rapid {d['rapid_time']:,.2f} s")
     c = s.cutting
-    if c is not None:
+    if c is not None and c.engaged_time <= 0:
+        b = c.stock
+        t.add_row("cutting", f"none: no feed move meets the stock (X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  "
+                             f"Z {b[2]:g}…{b[5]:g} mm, {c.stock_source})")
+    elif c is not None:
         t.add_row("cutting load (XY)", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line}), mean while cutting "
                                        f"{c.mean_load:,.1f} N")
         t.add_row("spindle power", f"peak {c.peak_power:,.0f} W (line {c.peak_power_line}), mean while cutting "
@@ -383,7 +472,60 @@ def config_check(path: str = typer.Argument(..., help="Twin file to validate."))
     err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
 
 
+cache_app = typer.Typer(help="The compiled-kernel cache.", no_args_is_help=True, rich_markup_mode=None)
+app.add_typer(cache_app, name="cache")
+
+
+@cache_app.command("warm")
+@_reports_errors
+def cache_warm(quiet: bool = typer.Option(False, "--quiet", help="No progress lines.")):
+    """Compile every kernel into the cache now (once per install; for container images)."""
+    import time
+
+    from . import _jit
+    from .warmup import warm
+
+    t0 = time.perf_counter()
+    warm(lambda what: None if quiet else err.print(f"warming: {what}"))
+    n = len(_jit.COMPILE_LOG)
+    if not quiet:
+        err.print(f"{n} kernel(s) compiled in {time.perf_counter() - t0:.1f} s; cache: {_cache_dir()}")
+
+
+@cache_app.command("info")
+@_reports_errors
+def cache_info():
+    """Where the cache is and how much it holds."""
+    d = Path(_cache_dir())
+    files = [p for p in d.rglob("*") if p.is_file()] if d.is_dir() else []
+    size = sum(p.stat().st_size for p in files)
+    sys.stdout.write(f"{d}\n{len(files)} files, {size / 1e6:.1f} MB\n")
+
+
+@cache_app.command("clear")
+@_reports_errors
+def cache_clear():
+    """Delete the compiled kernels (the next run compiles what it needs again)."""
+    import shutil
+
+    d = Path(_cache_dir())
+    if d.is_dir():
+        shutil.rmtree(d)
+    err.print(f"removed {d}")
+
+
+def _cache_dir() -> str:
+    from . import _jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
+
+    return os.environ["NUMBA_CACHE_DIR"]
+
+
 def main() -> None:
+    # --traceback is a debugging switch a user adds at the end of a failing command line:
+    # accept it anywhere, not only before the command as click would
+    if "--traceback" in sys.argv[1:]:
+        _state["traceback"] = True
+        sys.argv = [a for a in sys.argv if a != "--traceback"]
     try:
         app()
     except KeyboardInterrupt:  # pragma: no cover

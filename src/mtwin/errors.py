@@ -24,6 +24,14 @@ class SourceLocation:
         return f"{self.path}:{self.line}:{self.col}"
 
 
+def warning_text(path: str, line: int, message: str, col: int = 1) -> str:
+    """A warning in the one form every mtwin warning takes: ``file:line:col: warning: …``, or
+    ``file: warning: …`` when it belongs to no line."""
+    if line > 0:
+        return f"{path}:{line}:{col}: warning: {message}"
+    return f"{path}: warning: {message}"
+
+
 class MtwinError(Exception):
     """Base class of every error mtwin reports to a user (exit code 2)."""
 

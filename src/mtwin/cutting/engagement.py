@@ -255,8 +255,11 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     helix = np.array([math.tan(math.radians(t.helix)) for t in tools])
     warnings = []
     if collide[0] >= 0:
-        warnings.append(f"{program.path}:{int(seg['line'][collide[0]])}: a rapid move goes through the stock "
-                        f"(the tool would crash; rapids remove no material in the twin)")
+        from ..errors import warning_text
+
+        warnings.append(warning_text(program.path, int(seg['line'][collide[0]]),
+                                     "a rapid move goes through the stock (the tool would crash; rapids remove "
+                                     "no material in the twin)"))
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
                      (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings)

@@ -14,7 +14,7 @@
     [materials.my_steel]
     ktc = 2100.0                   # N/mm^2 (cutting coefficients), N/mm (edge coefficients)
 
-Coefficients follow ``PHYSICS.md`` section 1: Ktc, Krc, Kac in N/mm², Kte, Kre, Kae in
+Coefficients follow ``docs/physics.md`` section 1: Ktc, Krc, Kac in N/mm², Kte, Kre, Kae in
 N/mm.  With no tool table every tool is the reference's 6 mm two-flute carbide flat end
 mill, and the material is ``al6061`` with the reference's identified Kt and Ke.
 """

@@ -283,7 +283,8 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
     last_change = np.full(3, -1, np.int64)
     while True:
         out = np.zeros(cap, MOVE_DTYPE)
-        n, err, ew, eline, evals, nwarn = K.interp_kernel(
+        n, err, ew, eline, evals, nwarn = K.interp_kernel.auto(
+            lexed.n_lines,
             lexed.line_w0, lexed.line_nw, lexed.line_flags, lexed.w_letter, lexed.w_value, lexed.w_ndec,
             sub_num, sub_line, wcs, tool_len, tool_known, have_table,
             np.asarray(settings.home_g28, float), np.asarray(settings.home_g30, float),

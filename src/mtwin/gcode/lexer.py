@@ -67,7 +67,7 @@ class Lexed:
 def lex(data: bytes, path: str = "<string>") -> Lexed:
     """Lex a whole program.  Raises :class:`GCodeError` with the first bad spot."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    (ls, le, lw0, lnw, lfl, lins, wl, wv, ws, we, wd, wli, nw, err, epos) = K.lex_kernel(buf, K._POW10)
+    (ls, le, lw0, lnw, lfl, lins, wl, wv, ws, we, wd, wli, nw, err, epos) = K.lex_kernel.auto(buf.size, buf, K._POW10)
     if err != K.LEX_OK:
         # line arrays are only valid up to the failing line; rebuild offsets cheaply
         starts = np.concatenate(([0], np.flatnonzero(buf == 10) + 1)).astype(np.int64)

@@ -42,6 +42,13 @@ class NumberStyle:
         return _fmt(v, dec, self.fixed, self.leading_zero, True, self.feed_point)
 
 
+    @staticmethod
+    def spindle(v: float) -> str:
+        # S is an integer address: a Fanuc control raises an alarm on a decimal point there
+        # (as on T, M, H, D), whatever style the program's F words have
+        return str(int(round(v)))
+
+
 def _fmt(v: float, dec: int, fixed: bool, leading_zero: bool, trailing_point: bool, point: bool) -> str:
     s = f"{v:.{dec}f}"
     if s.lstrip("-").strip("0.") == "":

@@ -254,7 +254,7 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
         f_target[li] = txt
     for i in changed_s:
         li = int(line0[i])
-        txt = st.feed(new_spindle[i])
+        txt = st.spindle(new_spindle[i])
         prev = s_target.get(li)
         if prev is not None and prev != txt:
             raise WriteError(f"{prog.path}:{li + 1}: spindle speed would differ between executions of this line")
@@ -458,7 +458,6 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
     isf = (nr["kind"] != RAPID) & (nr["kind"] != DWELL) & ((nr["flags"] & FL_SYNC) == 0)
     # tolerance: F is written to within 0.1 % of the feed asked for (NumberStyle.feed adds
     # decimals for that), or half a unit of its sixth decimal for a vanishing feed
-    style = detect_style(prog.lexed)
     inch_f = (nr["flags"] & (FL_F_INCH | FL_INCH)) != 0
     res = np.where(inch_f, 0.5e-6 * 25.4, 0.5e-6)
     res = np.where(nr["feed_mode"] == FEED_PER_REV, res * nr["spindle"], res)
@@ -469,16 +468,32 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
         j = bad[0]
         raise WriteError(f"internal check failed, nothing written: line {nr['line'][j]} would run at "
                          f"{nr['feed'][j]:g} mm/min instead of {exp_f[j]:g}")
-    bad = np.flatnonzero(np.abs(nr["spindle"] - exp_s) > 0.5 * 10.0 ** -style.feed_decimals + 1e-9)
+    # S is written as a whole number of rpm (NumberStyle.spindle)
+    bad = np.flatnonzero(np.abs(nr["spindle"] - exp_s) > 0.5 + 1e-9)
     if bad.size:
         j = bad[0]
         raise WriteError(f"internal check failed, nothing written: line {nr['line'][j]} would run the spindle at "
                          f"{nr['spindle'][j]:g} rpm instead of {exp_s[j]:g}")
 
 
+def scaled_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The feeds (mm/min) ``scale_feeds`` asks for before any clamp, and which records it may change."""
+    rec = prog.records
+    is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
+    is_feed &= rec["feed"] > 0  # a feed the program leaves to its caller (--lenient) stays as it is
+    is_feed &= (rec["flags"] & FL_SYNC) == 0  # a thread or rigid tap runs at pitch x spindle speed
+    is_feed &= (rec["flags"] & FL_PROBE) == 0  # a probing feed is part of the measurement
+    # in G95 the feed per revolution is kept, so mm/min follows the spindle
+    f = rec["feed"] * feed * np.where(rec["feed_mode"] == FEED_PER_REV, spindle, 1.0)
+    return f, is_feed
+
+
 def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed: float | None = None,
-                style: NumberStyle | None = None) -> bytes:
-    """Bake a feed (and spindle) override into the program; clamp feeds to ``max_feed`` (mm/min)."""
+                style: NumberStyle | None = None, machine_max: float | None = None) -> bytes:
+    """Bake a feed (and spindle) override into the program; clamp feeds to ``max_feed`` (mm/min).
+
+    ``machine_max``: the machine's maximum cutting feed; a feed the scaling would raise above it
+    is written at it (a feed the program already had above it is the program's, and stays)."""
     if not (feed > 0 and math.isfinite(feed)):
         raise WriteError("--feed must be a positive number")
     if not (spindle > 0 and math.isfinite(spindle)):
@@ -486,17 +501,14 @@ def scale_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0, max_feed
     if max_feed is not None and not (max_feed > 0):
         raise WriteError("--max-feed must be positive")
     rec = prog.records
-    feeds = np.full(rec.size, np.nan)
     spindles = np.full(rec.size, np.nan)
-    is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
-    is_feed &= rec["feed"] > 0  # a feed the program leaves to its caller (--lenient) stays as it is
-    is_feed &= (rec["flags"] & FL_SYNC) == 0  # a thread or rigid tap runs at pitch x spindle speed
-    is_feed &= (rec["flags"] & FL_PROBE) == 0  # a probing feed is part of the measurement
+    f, is_feed = scaled_feeds(prog, feed, spindle)
+    feeds = np.full(rec.size, np.nan)
     if feed != 1.0 or max_feed is not None or spindle != 1.0:
-        # in G95 the feed per revolution is kept, so mm/min follows the spindle
-        f = rec["feed"] * feed * np.where(rec["feed_mode"] == FEED_PER_REV, spindle, 1.0)
         if max_feed is not None:
             f = np.minimum(f, max_feed)
+        if machine_max is not None:
+            f = np.where((f > machine_max) & (f > rec["feed"]), np.maximum(machine_max, rec["feed"]), f)
         feeds = np.where(is_feed & (f != rec["feed"]), f, np.nan)
     if spindle != 1.0:
         css = np.flatnonzero(rec["css"] > 0)

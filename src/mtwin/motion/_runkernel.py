@@ -123,7 +123,7 @@ _N_STOPPED = 1.0 / 60.0  # rev/s
 
 # cstats entries
 CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
-    CS_SPINDLE_STOPPED, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD, CS_LOAD_TIME, CS_PUSHED_LINE = range(14)
+    CS_SPINDLE_STOPPED_LINE, CS_MRR, CS_OVERLOAD_LINE, CS_SPINDLE_LOAD, CS_LOAD_TIME, CS_PUSHED_LINE = range(14)
 
 
 @njit
@@ -321,7 +321,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 # The forces are linear in the feed per tooth: F = fz*fa + fb (tool frame
                 # turned to the machine axes), torque = fz*ta + tb, h_max = fz*ha.
                 if nrps < _N_STOPPED:
-                    cstats[8] = 1.0  # cutting with the spindle stopped: no chip, no force
+                    if cstats[8] == 0.0:  # cutting with the spindle stopped: no chip, no force
+                        cstats[8] = line[i]  # (the first line where it happens)
                     for k in range(3):
                         fa[k] = 0.0
                         fb[k] = 0.0

@@ -139,8 +139,11 @@ def check_feeds(rec: np.ndarray, seg: np.ndarray, path: str) -> None:
                          SourceLocation(path, int(rec["line"][i]), 1))
 
 
-def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str) -> None:
-    """Every point of the path (end points and arc extremes) must lie inside the axis travel."""
+def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str, warnings: list | None = None) -> None:
+    """Every point of the path (end points and arc extremes) must lie inside the axis travel.
+
+    With ``warnings`` (a machine whose limits are not a real machine's: the embedded
+    default), the first move beyond them is a warning appended there instead of an error."""
     lo = np.array([ax.min_travel for ax in machine.axes])
     hi = np.array([ax.max_travel for ax in machine.axes])
     th = np.radians(rec["rot"])
@@ -180,8 +183,14 @@ def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str) -> None:
             ax = int(np.argmax(below[j] | above[j]))
             limit = lo[ax] if below[j, ax] else hi[ax]
             name = "XYZ"[ax]
-            raise GCodeError(
-                f"move reaches {name} = {p[j, ax]:.3f} mm in machine coordinates, beyond the "
-                f"{'lower' if below[j, ax] else 'upper'} travel limit {limit:g} mm of axis {name} "
-                f"(axes.{name.lower()}.{'min' if below[j, ax] else 'max'}_travel)",
-                SourceLocation(path, int(rec["line"][r[j]]), 1))
+            msg = (f"move reaches {name} = {p[j, ax]:.3f} mm in machine coordinates, beyond the "
+                   f"{'lower' if below[j, ax] else 'upper'} travel limit {limit:g} mm of axis {name} "
+                   f"(axes.{name.lower()}.{'min' if below[j, ax] else 'max'}_travel)")
+            line = int(rec["line"][r[j]])
+            if warnings is None:
+                raise GCodeError(msg, SourceLocation(path, line, 1))
+            from ..errors import warning_text
+
+            warnings.append(warning_text(path, line, msg + " of the default machine; simulated anyway (give "
+                                         "--twin with your machine's travel to make it an error)"))
+            return

@@ -119,14 +119,15 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     seg["amax"] = amax
 
 
-def _pauses(rec: np.ndarray, machine, warnings: list[str]):
+def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>"):
     """(record index, category, duration) of the pauses before each record, and dwells."""
     out = []
     sp = machine.spindle
     clamped = False
     tools = rec["tool"]
     target = rec["spindle_dir"].astype(float) * np.minimum(rec["spindle"], sp.max_speed)
-    if (rec["spindle"] > sp.max_speed).any():
+    over = rec["spindle"] > sp.max_speed
+    if over.any():
         clamped = True
     change_tool = np.nonzero(tools != np.concatenate(([0], tools[:-1])))[0]
     change_speed = np.nonzero(target != np.concatenate(([0.0], target[:-1])))[0]
@@ -143,7 +144,13 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str]):
         if rec["dwell"][i] > 0:
             out.append((int(i), 2, CAT_DWELL, float(rec["dwell"][i])))
     if clamped:
-        warnings.append(f"spindle speeds above the machine's {sp.max_speed:g} rpm are clamped to it")
+        from ..errors import warning_text
+
+        first = int(np.argmax(over))
+        warnings.append(warning_text(path, int(rec["line"][first]),
+                                     f"S{rec['spindle'][first]:g} is above the machine's {sp.max_speed:g} rpm: "
+                                     f"spindle speeds are clamped to it ({int(np.unique(rec['line'][over]).size)} "
+                                     f"line(s))"))
     return out
 
 
@@ -361,9 +368,9 @@ def plan_program(program, machine) -> Plan:
     motion = rec["kind"] != R.DWELL
     moves = motion_segments(rec)
     check_feeds(rec, moves, program.path)
-    check_travel(rec, moves, machine, program.path)
+    check_travel(rec, moves, machine, program.path, None if machine.hard_travel_limits else warnings)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
-    pauses = _pauses(rec, machine, warnings)
+    pauses = _pauses(rec, machine, warnings, program.path)
     end_change = getattr(program, "end_tool_change", 0)
     if end_change and len(rec) and machine.timing.tool_change > 0:
         # a tool change after the last move (the tool put away before M30)

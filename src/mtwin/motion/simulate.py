@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from ..errors import MtwinError
+from ..errors import MtwinError, warning_text
 from . import _runkernel as RK
 from .path import CAT_CUT, CAT_RAPID, PAUSE
 from .trace import AXES, CuttingSummary, Summary, Trace
@@ -189,15 +189,20 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
     cats = plan.category_times(state.wait[:len(seg)])
     warnings = list(plan.warnings) + (list(eng.warnings) if eng is not None else [])
-    if cstats[RK.CS_SPINDLE_STOPPED]:
-        warnings.append("feed moves cut the stock with the spindle stopped (no M3/M4 or S0): their forces are not modelled")
+    if cstats[RK.CS_SPINDLE_STOPPED_LINE]:
+        warnings.append(warning_text(program.path, int(cstats[RK.CS_SPINDLE_STOPPED_LINE]),
+                                     "feed moves cut the stock with the spindle stopped (no M3/M4 or S0): their "
+                                     "forces are not modelled"))
     if cstats[RK.CS_OVERLOAD_LINE]:
-        warnings.append(f"the cutting torque exceeds the spindle curve (up to {cstats[RK.CS_SPINDLE_LOAD]:.0%} of "
-                        f"the available torque), first at line {int(cstats[RK.CS_OVERLOAD_LINE])}: the spindle would stall")
+        warnings.append(warning_text(program.path, int(cstats[RK.CS_OVERLOAD_LINE]),
+                                     f"the cutting torque exceeds the spindle curve (up to "
+                                     f"{cstats[RK.CS_SPINDLE_LOAD]:.0%} of the available torque): the spindle "
+                                     f"would stall"))
     rated = machine.spindle.rated_power
     if cstats[RK.CS_POWER] > rated:
-        warnings.append(f"spindle power reaches {cstats[RK.CS_POWER]:,.0f} W at line {int(cstats[RK.CS_POWER_LINE])}, "
-                        f"above the spindle's rated {rated:,.0f} W")
+        warnings.append(warning_text(program.path, int(cstats[RK.CS_POWER_LINE]),
+                                     f"spindle power reaches {cstats[RK.CS_POWER]:,.0f} W, above the spindle's "
+                                     f"rated {rated:,.0f} W"))
     first, last = int(state.seg[2]), int(state.seg[3])
     # first to last sample at which the command moved (LinuxCNC's recorder counts the same way)
     motion_time = float((last - first + 1) * dt) if first >= 0 else 0.0
@@ -221,6 +226,14 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     )
     if eng is not None:
         cut_time = cstats[RK.CS_CUT_TIME]
+        feed_moves = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+        if cut_time <= 0 and feed_moves.any():
+            b = eng.stock.box
+            warnings.append(warning_text(program.path, 0,
+                                         f"no feed move meets the stock (X {b[0]:g}…{b[3]:g} Y {b[1]:g}…{b[4]:g} "
+                                         f"Z {b[2]:g}…{b[5]:g} mm, {eng.stock.source}): nothing is cut, so there "
+                                         f"are no cutting forces; give the stock with --stock or a (MTWIN STOCK "
+                                         f"xmin,ymin,zmin,xmax,ymax,zmax) comment"))
         summary.cutting = CuttingSummary(
             peak_load=float(cstats[RK.CS_LOAD]), peak_load_line=int(cstats[RK.CS_LOAD_LINE]),
             mean_load=float(cstats[RK.CS_LOAD_TIME] / cut_time) if cut_time > 0 else 0.0,

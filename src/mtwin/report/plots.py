@@ -1,4 +1,4 @@
-"""Plots of a simulated trace, as SVG (matplotlib, no display needed)."""
+"""Plots of a simulated trace, as SVG, PNG or PDF (matplotlib, no display needed)."""
 from __future__ import annotations
 
 import io
@@ -6,7 +6,22 @@ import io
 import numpy as np
 
 
-def power_svg(trace, title: str = "") -> bytes:
+FORMATS = ("svg", "png", "pdf")
+
+
+def plot_format(path: str) -> str:
+    """The file format a plot's name asks for (``-``, standard output, is SVG)."""
+    if path == "-":
+        return "svg"
+    ext = path.rsplit(".", 1)[-1].lower() if "." in path.rsplit("/", 1)[-1] else ""
+    if ext not in FORMATS:
+        from ..errors import MtwinError
+
+        raise MtwinError(f"--plot {path}: the file name must end in .svg, .png or .pdf")
+    return ext
+
+
+def power_svg(trace, title: str = "", fmt: str = "svg") -> bytes:
     """Spindle power against time, with the program line being executed on a secondary axis
     at the top (ticks where the peak-power line and other landmarks are)."""
     import matplotlib
@@ -44,6 +59,6 @@ def power_svg(trace, title: str = "") -> bytes:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="svg")
+    fig.savefig(buf, format=fmt, dpi=150 if fmt == "png" else None)
     plt.close(fig)
     return buf.getvalue()

@@ -7,7 +7,7 @@ all come from these declarations, so they cannot disagree.
 
 Default values describe a three-axis vertical machining centre like the one in the
 reference (11 kW, 8,000 rpm spindle, Fanuc-style control).  Tags as in
-``PHYSICS.md``: [S] from a cited source, [E] an estimate inside the sourced range.
+``docs/physics.md``: [S] from a cited source, [E] an estimate inside the sourced range.
 """
 from __future__ import annotations
 
@@ -36,6 +36,8 @@ class Controller:
     lookahead: int = P(40, "int", "look-ahead window in blocks [S: Fanuc AI contour up to 40]")
     min_block_time: float = P(0.001, "s", "shortest time a block may take (block processing rate) [E]", "nonneg")
     max_path_velocity: float = P(0.0, "mm/min", "path (vector) velocity limit for all moves, 0 = axis limits only", "nonneg")
+    max_cutting_feed: float = P(0.0, "mm/min", "highest F the control runs and mtwin writes, 0 = the slowest "
+                                "axis' max_velocity", "nonneg")
     max_path_acceleration: float = P(0.0, "mm/s^2", "path acceleration limit, 0 = axis limits only", "nonneg")
     before_shape: str = P("bell", "str", "acc/dec before interpolation: bell (jerk-limited) | linear", "choice", BEFORE_SHAPES)
     bell_time: float = P(0.032, "s", "bell time constant tb (jerk = a/tb) [S: 16-64 ms]", "nonneg")
@@ -131,6 +133,15 @@ class Machine:
     z: Axis = field(default_factory=lambda: _AXIS_DEFAULTS["z"])
     spindle: Spindle = field(default_factory=Spindle)
     timing: Timing = field(default_factory=Timing)
+    # The embedded default machine is nobody's machine: a move beyond its travel is a warning.
+    # A twin file describes a real machine, whose limits are hard, as on its control.
+    hard_travel_limits: bool = False
+
+    @property
+    def max_cutting_feed(self) -> float:
+        """The highest feed (mm/min) a rewritten program may ask for on this machine."""
+        c = self.controller.max_cutting_feed
+        return c if c > 0 else min(ax.max_velocity for ax in self.axes)
 
     @property
     def axes(self) -> tuple[Axis, Axis, Axis]:
@@ -217,7 +228,7 @@ def machine_from_dict(raw: dict, where: str = "twin file") -> Machine:
         if name not in AXES:
             raise ConfigError(f"{where}: unknown axis axes.{name} (x, y, z)")
         changes[name] = _parse_into(getattr(m, name), body, f"axes.{name}", where)
-    m = replace(m, **changes)
+    m = replace(m, hard_travel_limits=True, **changes)
     validate_machine(m, where)
     return m
 
@@ -280,7 +291,7 @@ def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
     out = [
         "# mtwin twin file: the machine the program runs on.",
         "# Numbers are in the unit in brackets; a string with a unit is converted (\"30 m/min\").",
-        "# Tags: [S] value from a source cited in PHYSICS.md, [E] estimate within the sourced range.",
+        "# Tags: [S] value from a source cited in docs/physics.md, [E] estimate within the sourced range.",
         "",
         "[machine]",
         f'name = "{m.name}"',
