@@ -231,7 +231,7 @@ def test_rapid_through_the_stock_is_reported():
     tw = twin_with()
     _, tr = run(tw, "G21 G90 G94 S8000 M3\nG0 X-10 Y0 Z5\nG0 Z-2\nG0 X30\nG1 X40 F600\nM30\n"
                     "(MTWIN STOCK 0,-10,-10,50,10,0)\n")
-    assert any("cut.nc:4: a rapid move goes through the stock" in w for w in tr.summary.warnings)
+    assert any("cut.nc:4:1: warning: a rapid move goes through the stock" in w for w in tr.summary.warnings)
 
 
 def test_pocket_sample_clears_its_pocket():

@@ -307,3 +307,21 @@ def test_a_tool_change_after_the_last_move_is_timed():
     b = twin.simulate(without, cutting=False).summary
     assert a.cycle_time - b.cycle_time == pytest.approx(twin.machine.timing.tool_change, abs=1e-9)
     assert a.tool_change_time == pytest.approx(2 * twin.machine.timing.tool_change)
+
+
+def test_a_tool_length_offset_moves_the_program_frame_not_the_machine():
+    # contour.nc line 9 `G43 H2 Z5.` with a 25.5 mm tool: the commanded Z used to jump by the
+    # tool length within one servo period (25,472 µm following error, Z at its torque limit,
+    # the axis diving to -18.5 mm); the machine only moves on the motion of that line
+    import mtwin
+    from conftest import SAMPLES
+
+    tw = mtwin.Twin.from_toml(str(SAMPLES / "machines" / "linuxcnc-sim.toml"))
+    prog = tw.load(str(SAMPLES / "contour.nc"))
+    tr = tw.simulate(prog, cutting=False)
+    z_max_velocity = tw.machine.z.max_velocity / 60.0  # mm/s
+    step = np.abs(np.diff(tr.cmd[:, 2]))
+    assert step.max() <= z_max_velocity * tr.summary.servo_period * 1.01
+    # before G43 the 25.5 mm tool's tip hangs at Z-25.5 of its own frame; nothing goes below
+    assert tr.cmd[:, 2].min() >= -25.5 - 1e-6 and tr.act[:, 2].min() > -25.5 - 0.05
+    assert tr.summary.max_torque["z"] < tw.machine.z.max_torque * 0.5

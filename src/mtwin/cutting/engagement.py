@@ -99,7 +99,7 @@ def _tool_rows(plan, program, cutting: Cutting):
 def default_stock(plan, tools) -> tuple[float, ...]:
     """XY: bounding box of the feed moves grown by the largest tool radius; top at Z0 (the usual
     CAM convention); bottom 1 mm below the deepest feed move (or at Z-1)."""
-    seg = plan.seg
+    seg = plan.tip_seg
     feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
     if not feed.any():
         return (-1.0, -1.0, -1.0, 1.0, 1.0, 0.0)
@@ -152,7 +152,7 @@ def new_stock(box, res, source) -> Stock:
 def _check_inside(plan, b, source: str, path: str) -> None:
     """A feed move whose tip goes below the stock bottom inside its footprint means the stock
     does not contain the toolpath (wrong box, units or offsets)."""
-    seg = plan.seg
+    seg = plan.tip_seg
     feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
     for pts in (seg["p0"], seg["p1"]):
         inside = feed & (pts[:, 0] >= b[0]) & (pts[:, 0] <= b[3]) & (pts[:, 1] >= b[1]) & (pts[:, 1] <= b[4])
@@ -165,7 +165,7 @@ def _check_inside(plan, b, source: str, path: str) -> None:
 
 
 def _key(plan, program, tools, tool_index, box, res, step) -> str:
-    seg = plan.seg
+    seg = plan.tip_seg
     h = hashlib.blake2b(digest_size=20)
     for name in ("kind", "rapid", "p0", "p1", "c", "e1", "e2", "h", "r0", "r1", "theta", "length"):
         h.update(np.ascontiguousarray(seg[name]).tobytes())
@@ -214,7 +214,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
         cache.computations += 1
     stock = new_stock(box, res, source)
     t0 = time.perf_counter()
-    seg = plan.seg
+    seg = plan.tip_seg  # the tool tip cuts, wherever the tool offsets put the axes
     cuts = ((seg["kind"] != PAUSE) & (seg["rapid"] == 0)).astype(np.int64)
     n_steps = int(np.sum(np.where(cuts == 1, np.maximum(1, np.ceil(seg["length"] / step)), 0)))
     table = np.array([[t.radius, t.nose_radius, t.flutes] for t in tools], np.float64)

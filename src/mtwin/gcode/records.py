@@ -99,7 +99,8 @@ def machine_xyz(rec: np.ndarray) -> np.ndarray:
                      rec["z"] + rec["oz"] + rec["tlo"]], axis=1)
 
 
-def in_common_frame(rec: np.ndarray, path: str = "<program>", ref: int | None = None) -> np.ndarray:
+def in_common_frame(rec: np.ndarray, path: str = "<program>", ref: int | None = None,
+                    tool_offsets: bool = False) -> np.ndarray:
     """The records with every point expressed in one work frame.
 
     A program may switch work offsets (G54 -> G55), move them (G10 L2/L20, G92) or
@@ -108,10 +109,15 @@ def in_common_frame(rec: np.ndarray, path: str = "<program>", ref: int | None = 
     machine coordinates (tool offsets left out: the path is the tool tip's) and back
     into the frame of record ``ref`` (default: the first feed move).  Returns ``rec``
     itself when all records share one frame.
+
+    ``tool_offsets``: count the tool offsets (G43 length, tool X/Y) as part of the frame, so
+    the result is the path of the axes — continuous where a G43 H or a tool change moves the
+    program position while the machine stands still.  The tool tip of record i is then the
+    result minus ``tip_shift(rec, out)[i]``.
     """
     if len(rec) == 0:
         return rec
-    keys = ("ox", "oy", "oz", "rot")
+    keys = ("ox", "oy", "oz", "rot") + (("tox", "toy", "tlo") if tool_offsets else ())
     same = all(np.all(rec[k] == rec[k][0]) for k in keys)
     if same:
         return rec
@@ -124,11 +130,14 @@ def in_common_frame(rec: np.ndarray, path: str = "<program>", ref: int | None = 
     th0 = np.radians(rec["rot"][ref])
     c0, s0 = np.cos(th0), np.sin(th0)
     # offset difference, seen in the reference frame
-    dx0 = rec["ox"] - rec["ox"][ref]
-    dy0 = rec["oy"] - rec["oy"][ref]
+    ox, oy, oz = rec["ox"], rec["oy"], rec["oz"]
+    if tool_offsets:
+        ox, oy, oz = ox + rec["tox"], oy + rec["toy"], oz + rec["tlo"]
+    dx0 = ox - ox[ref]
+    dy0 = oy - oy[ref]
     dx = c0 * dx0 + s0 * dy0
     dy = -s0 * dx0 + c0 * dy0
-    dz = rec["oz"] - rec["oz"][ref]
+    dz = oz - oz[ref]
     isarc = (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
     tilted = isarc & (rec["plane"] != PLANE_XY) & (np.abs(th) > 1e-12)
     if tilted.any():
@@ -144,6 +153,17 @@ def in_common_frame(rec: np.ndarray, path: str = "<program>", ref: int | None = 
     for k in keys:
         out[k] = rec[k][ref]
     return out
+
+
+def tip_shift(rec: np.ndarray, common: np.ndarray) -> np.ndarray:
+    """(n, 3) mm: how far the axes' path (``in_common_frame(rec, tool_offsets=True)``) lies from
+    each record's tool tip, in the common frame — the change of tool offsets since the
+    reference record, turned into that frame."""
+    th0 = np.radians(common["rot"][0]) if len(common) else 0.0
+    c0, s0 = np.cos(th0), np.sin(th0)
+    dx0 = rec["tox"] - common["tox"]
+    dy0 = rec["toy"] - common["toy"]
+    return np.stack([c0 * dx0 + s0 * dy0, -s0 * dx0 + c0 * dy0, rec["tlo"] - common["tlo"]], axis=1)
 
 
 def arc_sweep(rec: np.ndarray) -> np.ndarray:

@@ -42,6 +42,20 @@ class Plan:
     stop_end: np.ndarray  # (n,) bool: the segment ends in an exact stop (in-position check)
     start_point: np.ndarray  # (3,) mm, where the program starts
     warnings: list[str] = field(default_factory=list)
+    # (records, 3) mm: axes' path minus each record's tool tip (tool offset changes); None: 0
+    tip_shift: np.ndarray | None = None
+
+    @property
+    def tip_seg(self) -> np.ndarray:
+        """The segments as the tool tip runs them (what the cutting model needs): ``seg``
+        with each segment moved back by its record's tool-offset change."""
+        if self.tip_shift is None or not self.tip_shift.any() or not len(self.seg):
+            return self.seg
+        out = self.seg.copy()
+        d = self.tip_shift[np.clip(self.seg["rec"], 0, len(self.tip_shift) - 1)]
+        for name in ("p0", "p1", "c"):
+            out[name] = out[name] - d
+        return out
 
     @property
     def total_time(self) -> float:
@@ -362,7 +376,9 @@ def plan_program(program, machine) -> Plan:
                          "simulated",
                          SourceLocation(program.path, int(program.records["line"][int(np.argmax(rot))]), 1))
     # one continuous frame even when the program switches, moves or rotates work offsets
-    rec = R.in_common_frame(program.records, program.path)
+    # the axes' path: a G43 H or a tool change moves the program position, not the machine
+    rec = R.in_common_frame(program.records, program.path, tool_offsets=True)
+    shift = R.tip_shift(program.records, rec)
     warnings: list[str] = []
     c = machine.controller
     motion = rec["kind"] != R.DWELL
@@ -382,7 +398,7 @@ def plan_program(program, machine) -> Plan:
         start = np.zeros(3)
     if not len(seg):
         return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), start,
-                    warnings)
+                    warnings, shift)
     style = STYLE_CODES[c.style]
     if seg["kind"].size:
         canned = (rec["flags"][seg["rec"]] & R.FL_CANNED) != 0
@@ -413,4 +429,4 @@ def plan_program(program, machine) -> Plan:
     prof, dur = K.segment_timing(length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
-    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings)
+    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift)
