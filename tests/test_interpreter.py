@@ -1,5 +1,8 @@
 """End points and arc centres for every supported code, checked against hand-computed values."""
 import math
+import re
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -144,6 +147,124 @@ def test_g91_canned_with_repeats():
     r = run("G90 G0 X10 Y0 Z2\nG91 G98 G81 X1 Y1 Z-2 R-1 L2 F100\n")
     ends = [xyz(x) for x in r[1:]]
     assert ends == [[11, 1, 2], [11, 1, 1], [11, 1, -1], [11, 1, 2], [12, 2, 2], [12, 2, 1], [12, 2, -1], [12, 2, 2]]
+
+
+# A series of canned cycles with no G80 between: G99 blocks, then a G98 block at another X/Y
+# (issue 9 point 7); a G80 starts a new series; a G91 series.  _CYCLE_SERIES_LINUXCNC is what
+# LinuxCNC 2.9's rs274 printed for it (X, Y, Z of each STRAIGHT_TRAVERSE "R" / STRAIGHT_FEED "F").
+_CYCLE_SERIES = """G21 G90 G17 F100
+G0 X0 Y0 Z20
+G99 G81 X10 Y0 Z-5 R2
+X20
+G98 X30 Y10
+G80
+G0 Z12
+G98 G81 X70 Z-5 R2
+G99 X80
+G98 X90
+G0 X0 Z10
+G91 G99 G81 X1 Z-3 R-5
+X1
+G98 X1
+G90 G80
+M2
+"""
+_CYCLE_SERIES_LINUXCNC = [
+    ("R", 0, 0, 20),
+    ("R", 10, 0, 20), ("R", 10, 0, 2), ("F", 10, 0, -5), ("R", 10, 0, 2),  # G99 G81
+    ("R", 20, 0, 2), ("F", 20, 0, -5), ("R", 20, 0, 2),  # G99
+    # G98: up to the initial level 20 kept from before the first block (a slanting rapid from
+    # R), down to R, drill, back to 20
+    ("R", 30, 10, 20), ("R", 30, 10, 2), ("F", 30, 10, -5), ("R", 30, 10, 20),
+    ("R", 30, 10, 12),  # G80, G0 Z12: a new series, initial level 12
+    ("R", 70, 10, 12), ("R", 70, 10, 2), ("F", 70, 10, -5), ("R", 70, 10, 12),
+    ("R", 80, 10, 12), ("R", 80, 10, 2), ("F", 80, 10, -5), ("R", 80, 10, 2),
+    ("R", 90, 10, 12), ("R", 90, 10, 2), ("F", 90, 10, -5), ("R", 90, 10, 12),
+    ("R", 0, 10, 10),
+    # G91: R counts from the series' initial level 10 in every block (R at 5, bottom at 2)
+    ("R", 1, 10, 10), ("R", 1, 10, 5), ("F", 1, 10, 2), ("R", 1, 10, 5),
+    ("R", 2, 10, 5), ("F", 2, 10, 2), ("R", 2, 10, 5),
+    ("R", 3, 10, 10), ("R", 3, 10, 5), ("F", 3, 10, 2), ("R", 3, 10, 10),
+]
+
+
+def _moves(r):
+    """(kind, x, y, z) of each record: R rapid, F feed, D dwell (with its time, not a point)."""
+    return [("D", float(d)) if int(k) == DWELL else ("R" if int(k) == RAPID else "F", float(x), float(y), float(z))
+            for k, x, y, z, d in zip(r["kind"], r["x"], r["y"], r["z"], r["dwell"])]
+
+
+def test_g98_after_g99_in_one_cycle_series_returns_to_the_initial_level():
+    for dialect in ("linuxcnc", "fanuc"):
+        r = run(_CYCLE_SERIES, dialect=dialect)
+        third = r[r["line"] == 5]  # G98 X30 Y10 after two G99 blocks
+        assert float(third["z"][-1]) == 20.0, dialect  # the level before the first cycle block
+        assert int(third["kind"][-1]) == RAPID
+        assert float(r[r["line"] == 10]["z"][-1]) == 12.0  # the series G80 ended is not used
+        g91 = r[r["line"] == 14]  # G91 G98 X1
+        assert [float(z) for z in g91["z"]][-3:] == [5.0, 2.0, 10.0], dialect
+    assert _moves(run(_CYCLE_SERIES, dialect="linuxcnc")) == _CYCLE_SERIES_LINUXCNC
+    # Fanuc positions at the level it is at (R after G99), then drills and returns to the
+    # initial point level
+    assert _moves(run(_CYCLE_SERIES, dialect="fanuc"))[8:12] == [
+        ("R", 30, 10, 2), ("F", 30, 10, -5), ("R", 30, 10, 20), ("R", 30, 10, 12)]
+
+
+def test_linuxcnc_g89_feeds_out_to_the_clearance_level():
+    # rs274: G89 under G98 feeds from the bottom straight to the initial level (G85 feeds to
+    # R and rapids up); Fanuc's G89 feeds to R like its G85
+    r = run("G21 G0 X0 Y0 Z15\nG98 G89 X1 Z-6 R1 P0.3 F100\n", dialect="linuxcnc")
+    assert _moves(r)[-3:] == [("F", 1, 0, -6), ("D", 0.3), ("F", 1, 0, 15)]
+    r = run("G21 G0 X0 Y0 Z15\nG98 G89 X1 Z-6 R1 P300 F100\n", dialect="fanuc")
+    assert _moves(r)[-4:] == [("F", 1, 0, -6), ("D", 0.3), ("F", 1, 0, 1), ("R", 1, 0, 15)]
+
+
+_CYCLES_VS_RS274 = _CYCLE_SERIES.replace("M2\n", """S1000 M3
+G0 X0 Y0 Z15
+G99 G83 X5 Y5 Z-6 R1 Q2
+G98 G73 X10 Z-6 R1 Q1.5
+G99 G82 X15 Z-6 R1 P0.5
+G98 G85 X20 Y0 Z-6 R1
+G99 G86 X25 Z-6 R1 P0.2
+G98 G89 X30 Z-6 R1 P0.3
+G99 G81 X35 Z-6 R1 L2
+G98 X40 L3
+G0 Z0
+G99 G81 X1 Z-1 R2
+X2
+G98 X3
+G91 G98 G81 X1 Z-1 R1
+G99 X1
+G90 G0 Z20
+G18 G99 G81 X5 Z5 Y-3 R4
+G98 X10
+G80
+G19 G0 X5
+G99 G81 Y1 Z1 X-2 R1
+G98 Y2
+G17 G80
+M2
+""")
+
+
+@pytest.mark.skipif(shutil.which("rs274") is None, reason="LinuxCNC's rs274 is not installed")
+def test_canned_cycle_series_match_rs274(tmp_path):
+    """Every cycle, G98/G99 switched inside series, L repeats, G91, an initial level below R,
+    G18 and G19: the same moves as LinuxCNC's own interpreter."""
+    (tmp_path / "t.ngc").write_text(_CYCLES_VS_RS274)
+    (tmp_path / "tool.tbl").write_text("T1 P1 Z0 D0 ;\n")
+    subprocess.run(["rs274", "-g", "-t", "tool.tbl", "t.ngc", "out.txt"], cwd=tmp_path, capture_output=True,
+                   timeout=60, check=True)
+    want = []
+    for line in (tmp_path / "out.txt").read_text().splitlines():
+        m = re.search(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|DWELL)\(([^)]*)\)", line)
+        if m:
+            v = [float(x) for x in m.group(2).split(",")]
+            want.append(("D", v[0]) if m.group(1) == "DWELL" else ("R" if "TRAV" in m.group(1) else "F", *v[:3]))
+    got = _moves(run(_CYCLES_VS_RS274, dialect="linuxcnc"))
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g[0] == w[0] and g[1:] == pytest.approx(w[1:], abs=1e-4), (g, w)
 
 
 def test_work_offsets_and_tool_length():

@@ -23,6 +23,33 @@ from rich.console import Console
 
 from .errors import EXIT_CHECK_FAILED, MtwinError
 
+def _conventional_help() -> None:
+    """Usage lines as Unix tools write them (``mtwin scale [OPTIONS] PART``, ``--feed FLOAT``)
+    rather than this typer release's ``{part}`` and ``<float>``, which read as literal text."""
+    try:
+        from typer import core
+
+        def usage_name(self) -> str:
+            name = self.display_name_raw.upper()
+            return name if self.required else f"[{name}]"
+
+        plain = core.TyperArgument.display_type
+
+        def display_type(self, ctx) -> str:
+            s = plain(self, ctx)
+            if isinstance(self, core.TyperArgument):
+                return ""
+            return s[1:-1].upper() if s.startswith("<") and s.endswith(">") else s
+
+        core.TyperArgument._usage_display_name = usage_name
+        for cls in (core.TyperArgument, core.TyperOption):
+            cls.display_type = display_type
+    except (ImportError, AttributeError):  # another typer release: its own style stays
+        pass
+
+
+_conventional_help()
+
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
@@ -160,7 +187,7 @@ BlockDeleteOpt = typer.Option(None, "--block-delete/--no-block-delete",
                               help="Block-delete switch: skip lines starting with '/' (default: off, lines run).")
 
 
-@app.command()
+@app.command(short_help="Summarise a program: moves, tools, feeds, lengths.")
 @_reports_errors
 def parse(
     part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
@@ -181,9 +208,14 @@ def parse(
         return
     summary = summarize(prog)
     if json_out:
-        sys.stdout.write(json.dumps(summary.as_dict(), indent=2) + "\n")
+        sys.stdout.write(json.dumps({**summary.as_dict(), "si_units": _SI_UNITS}, indent=2) + "\n")
         return
     _print_summary(summary)
+
+
+# JSON is in these units whatever the program's (an inch program's F10 is 254 mm/min)
+_SI_UNITS = {"length": "mm", "time": "s", "feed": "mm/min", "spindle": "rpm", "force": "N", "power": "W",
+             "torque": "N·m", "energy": "J"}
 
 
 def _print_summary(s) -> None:
@@ -195,19 +227,30 @@ def _print_summary(s) -> None:
     t.add_row("lines", f"{s.lines:,}")
     t.add_row("moves", ", ".join(f"{k} {v:,}" for k, v in s.moves.items() if v))
     t.add_row("tools", ", ".join(f"T{x}" for x in s.tools) or "-")
-    t.add_row("feed range", f"{s.feed_range[0]:g} – {s.feed_range[1]:g} mm/min")
+    inch = s.units == "inch"
+
+    def own(mm: float, fmt: str, unit: str = "in") -> str:
+        # an inch program's own numbers beside the SI ones
+        return f" ({mm / 25.4:{fmt}} {unit})" if inch else ""
+
+    t.add_row("feed range", (f"{s.feed_range[0] / 25.4:g} – {s.feed_range[1] / 25.4:g} in/min "
+                             f"({s.feed_range[0]:g} – {s.feed_range[1]:g} mm/min)") if inch else
+              f"{s.feed_range[0]:g} – {s.feed_range[1]:g} mm/min")
     t.add_row("spindle range", f"{s.spindle_range[0]:g} – {s.spindle_range[1]:g} rpm")
     lo, hi = s.bbox["min"], s.bbox["max"]
     t.add_row("bounding box", f"X {lo[0]:.3f}…{hi[0]:.3f}  Y {lo[1]:.3f}…{hi[1]:.3f}  Z {lo[2]:.3f}…{hi[2]:.3f} mm")
-    t.add_row("cutting length", f"{s.cutting_length:,.1f} mm")
-    t.add_row("rapid length", f"{s.rapid_length:,.1f} mm")
+    if inch:
+        t.add_row("", f"X {lo[0] / 25.4:.4f}…{hi[0] / 25.4:.4f}  Y {lo[1] / 25.4:.4f}…{hi[1] / 25.4:.4f}  "
+                      f"Z {lo[2] / 25.4:.4f}…{hi[2] / 25.4:.4f} in")
+    t.add_row("cutting length", f"{s.cutting_length:,.1f} mm" + own(s.cutting_length, ",.2f"))
+    t.add_row("rapid length", f"{s.rapid_length:,.1f} mm" + own(s.rapid_length, ",.2f"))
     t.add_row("nominal time", f"{s.nominal_time:,.1f} s  (length/feed; rapids at 30 m/min; dwell {s.dwell_time:g} s)")
     t.add_row("program units", s.units)
     t.add_row("dialect", s.dialect)
     err.print(t)
 
 
-@app.command()
+@app.command(short_help="Bake a feed/spindle override into the program.")
 @_reports_errors
 def scale(
     part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
@@ -255,7 +298,7 @@ def _warn(text: str) -> None:
     err.print(f"[yellow]{escape(text)}[/yellow]", soft_wrap=True)
 
 
-@app.command()
+@app.command(short_help="Prove two programs cut the same path.")
 @_reports_errors
 def verify(
     original: str = typer.Argument(..., help="Original program."),
@@ -291,7 +334,7 @@ def verify(
 PlannerOpt = typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | linuxcnc | grbl.")
 
 
-@app.command()
+@app.command(short_help="Run a program through the twin: time, errors, loads.")
 @_reports_errors
 def simulate(
     part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
@@ -392,15 +435,24 @@ def simulate(
         write_output(power_svg(trace, f"{prog.path}: spindle power", plot_format(plot)), plot, [part])
     if json_out:
         d = s.as_dict()
+        d["si_units"] = _SI_UNITS
+        d["program_units"] = "inch" if _is_inch(prog) else "mm"
         d["program"] = prog.path
         d["trace"] = output
         d["plot"] = plot
         sys.stdout.write(json.dumps(d, indent=2) + "\n")
         return
-    _print_simulation(prog.path, s, output)
+    _print_simulation(prog.path, s, output, _is_inch(prog))
 
 
-def _print_simulation(path: str, s, output) -> None:
+def _is_inch(prog) -> bool:
+    from .gcode.records import FL_INCH
+
+    rec = prog.records
+    return bool(len(rec)) and bool(((rec["flags"] & FL_INCH) != 0).mean() > 0.5)
+
+
+def _print_simulation(path: str, s, output, inch: bool = False) -> None:
     from rich.table import Table
 
     t = Table(title=f"{path} on {s.machine} ({s.style} planner)", show_header=False, title_justify="left")
@@ -410,7 +462,15 @@ def _print_simulation(path: str, s, output) -> None:
     parts = [("cutting", s.cutting_time), ("rapid", s.rapid_time), ("dwell", s.dwell_time),
              ("tool change", s.tool_change_time), ("spindle run-up", s.spindle_wait_time)]
     t.add_row("  of which", ", ".join(f"{k} {v:,.3f} s" for k, v in parts if v > 0) or "-")
-    t.add_row("max following error", "  ".join(f"{a.upper()} {v * 1000:,.1f} µm" for a, v in s.max_following_error.items()))
+    t.add_row("max following error", "  ".join(
+        f"{a.upper()} {v * 1000:,.1f} µm (line {s.max_following_error_line.get(a, 0)}, "
+        f"{s.max_following_error_in.get(a, '-')})" for a, v in s.max_following_error.items()))
+    if s.max_following_error_feed:
+        t.add_row("  in feed moves", "  ".join(f"{a.upper()} {v * 1000:,.1f} µm"
+                                               for a, v in s.max_following_error_feed.items()))
+    t.add_row("max contour error", f"{s.max_contour_error * 1000:,.1f} µm (line {s.max_contour_error_line}; error "
+                                   f"normal to the path in feed moves, from the stored samples)"
+              if s.max_contour_error_line else "- (no feed moves)")
     t.add_row("max motor torque", "  ".join(f"{a.upper()} {v:,.2f} N·m" for a, v in s.max_torque.items()))
     for tool, d in sorted(s.per_tool.items()):
         t.add_row(f"tool T{tool}", f"cutting {d['cutting_time']:,.2f} s over {d['cutting_length']:,.1f} mm, "
@@ -434,7 +494,12 @@ def _print_simulation(path: str, s, output) -> None:
         from rich.markup import escape
 
         for d in c.defaults:
-            t.add_row("default used", escape(d))
+            t.add_row("tool" if d.startswith("tool T") else "default used", escape(d))
+    if s.per_line is not None and s.per_line.worst(1):
+        t.add_row("slowest lines", "simulated against nominal time (length/F, rapids at the axes' speed)")
+        for r in s.per_line.worst(5):
+            t.add_row(f"line {r['line']}", f"{r['time']:,.3f} s, nominal {r['nominal']:,.3f} s (+{r['time'] - r['nominal']:,.3f} s)"
+                                           + (f": {r['reason']}" if r["reason"] else ""))
     t.add_row("servo samples", f"{s.samples:,} at {s.servo_period * 1000:g} ms")
     if output:
         t.add_row("trace", str(output))

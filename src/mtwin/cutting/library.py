@@ -93,14 +93,56 @@ class Cutting:
     step: float = 0.0  # 0: automatic (twice the resolution)
     spindle_loss: tuple[float, float, float] = (0.0, 0.0, 0.0)  # W: a + b*n + c*n^2 (n in rpm)
     defaults_used: tuple[str, ...] = ()
+    # with no tool table in the twin file: the tools the program's comments declare (the rest
+    # are the default tool); see for_program
+    program_tools: dict[int, Tool] = field(default_factory=dict)
 
     def tool(self, number: int, where: str = "") -> Tool:
         if not self.tools:
-            return Tool()
+            return self.program_tools.get(number, Tool())
         if number not in self.tools:
             raise ConfigError(f"{where}tool T{number} is not in the tool table [tools.*] of the twin file "
                               f"(has {', '.join(f'T{k}' for k in sorted(self.tools))})")
         return self.tools[number]
+
+
+def for_program(cutting: Cutting, program) -> Cutting:
+    """The cutting part for one program: a twin file's tool table stands; without one, the
+    tools the program's comments declare (CAM post-processors write them: Fusion 360's
+    ``(T1 D=6 CR=0 - flat end mill)``, Mastercam's tool table, …) replace the default tool,
+    and ``defaults_used`` says for each tool the program uses where its description came from."""
+    if cutting.tools:
+        return cutting
+    from .tool_comments import scan_tool_comments, to_library_tool
+
+    used = sorted(set(int(t) for t in program.records["tool"]))
+    found = scan_tool_comments(program.data)
+    tools: dict[int, Tool] = {}
+    notes = []
+    only = None
+    if used == [0] and len(found.tools) == 1:
+        # no M6 at all (a router's single spindle): the one tool the program declares and
+        # selects with a bare T word is the one in the spindle
+        only = next(iter(found.tools.values()))
+    for t in used:
+        d = found.tools.get(t) if only is None else only
+        lib = to_library_tool(d) if d is not None else None
+        if lib is not None:
+            tools[t] = lib
+            shape = {"flat": "flat end mill", "ball": "ball end mill", "bull": f"bull-nose end mill, corner "
+                     f"radius {lib.corner_radius:g} mm"}[lib.type]
+            flutes = f"{lib.flutes} flutes" + ("" if d.flutes else " (not given: default)")
+            held = "" if only is None else f" (no M6: T{only.number}, the program's one tool, is in the spindle)"
+            notes.append(f"tool T{t}: {lib.diameter:g} mm {shape}, {flutes}, from the program's comment "
+                         f"line {d.line} ({d.form}){held}")
+        elif d is not None:
+            notes.append(f"tool T{t}: declared as {d.kind} {d.diameter_mm:g} mm (line {d.line}), which the "
+                         f"cutting model cannot represent: simulated as the default 6 mm flat end mill")
+        elif t > 0 or len(used) == 1:
+            notes.append(f"tool T{t}: no description in the program or the twin file: the default 6 mm "
+                         f"two-flute carbide flat end mill")
+    rest = [d for d in cutting.defaults_used if not d.startswith("tool:")]
+    return replace(cutting, program_tools=tools, defaults_used=tuple(notes + rest))
 
 
 def _parse(cls, table, prefix, where):

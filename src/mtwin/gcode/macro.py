@@ -13,7 +13,10 @@ others local to a subroutine call; reading an unset one is an error), expression
 ``**``, ``* / MOD``, ``+ -``, comparisons ``EQ NE GT GE LT LE``, ``AND OR XOR`` and the
 functions ABS ACOS ASIN ATAN[y]/[x] COS EXP FIX FUP LN ROUND SIN SQRT TAN EXISTS (degrees).
 Parameter assignments on a line take effect after the line's words are read.  Calls pass
-arguments in #1…#30 (O-word ``call [a] [b]``; ``G65 P… A… B…`` with Fanuc's letter map).
+arguments in #1…#30 (O-word ``call [a] [b]``; ``G65 P… A… B…`` with Fanuc's letter map); an
+O-word sub returns a value with ``return [expr]`` or ``endsub [expr]`` in ``#<_value>``
+(``#<_value_returned>`` 1; both 0 after a return without one, or an M99).  A LinuxCNC program
+may open with a bare ``O<name>`` line: a program name, passed over.
 """
 from __future__ import annotations
 
@@ -42,6 +45,7 @@ _FUNCS = {"ABS", "ACOS", "ASIN", "ATAN", "COS", "EXP", "FIX", "FUP", "LN", "ROUN
 _BINOPS = [("OR", "XOR", "AND"), ("EQ", "NE", "GT", "GE", "LT", "LE"), ("+", "-"), ("*", "/", "MOD"), ("**",)]
 _MACRO_HINT = re.compile(rb"#|\[|^[ \t]*/?[ \t]*[oO][ \t]*(<[^>\n]*>|\d+)[ \t]*(sub|endsub|call|return|if|elseif|else|"
                          rb"endif|while|endwhile|do|repeat|endrepeat|break|continue)\b"
+                         rb"|^[ \t]*/?[ \t]*(N\d+[ \t]*)?[oO][ \t]*<[^>\n]*>[ \t\r]*$"  # an O<name> program header
                          rb"|^[ \t]*/?[ \t]*(N\d+[ \t]*)?(IF|WHILE|GOTO|END\d|G65)", re.MULTILINE | re.IGNORECASE)
 
 
@@ -127,6 +131,7 @@ class _Frame:
     name: str = ""
     site: int = 0  # line of the program (not of a subroutine file) the call chain started from
     autorestore: bool = False  # an M73 ran in this call: its modal state comes back at the return
+    loops: int | None = None  # O-word call: the caller's loop-stack depth (a return leaves the sub's loops)
 
 
 class _Expr:
@@ -299,7 +304,9 @@ class _Executor:
         self.dialect = dialect
         self.skip_bd = skip_block_delete
         self.params: dict[int, float] = {}
-        self.globals_: dict[str, float] = {}
+        # #<_value>: what the last O-word sub returned (o<name> return [expr] / endsub [expr]),
+        # #<_value_returned>: 1 if it returned a value; both 0 before any call (LinuxCNC)
+        self.globals_: dict[str, float] = {"_value": 0.0, "_value_returned": 0.0}
         self.frames: list[_Frame] = [_Frame(-1)]
         self.lines = self._split(data)
         self.current: _Line | None = None
@@ -425,6 +432,8 @@ class _Executor:
 
     def set_param(self, key, value):
         if isinstance(key, str):
+            if key in ("_value", "_value_returned"):
+                raise _Err(f"cannot assign to read-only parameter #<{key}>")
             if key.startswith("_"):
                 self.globals_[key] = value
             else:
@@ -685,7 +694,9 @@ class _Executor:
                     k += 1
                     continue
                 # ---- Fanuc subprograms and macro calls (M98 / M99 / G65)
-                if t.startswith("O") and re.fullmatch(r"O\d+", t):
+                if t.startswith("O") and re.fullmatch(r"O(\d+|<[^>]*>)", t):
+                    # a program number, or a LinuxCNC program name O<name> alone on its line:
+                    # the program runs on through it
                     k += 1
                     continue
                 words = self.expand_words(t, ln.no)
@@ -708,6 +719,7 @@ class _Executor:
                     if rest:
                         self.emit(rest, ln.no)
                     if len(self.frames) > 1:
+                        self._returned(None)  # LinuxCNC: an M99 return clears #<_value>
                         fr = self._pop_frame(ln.no)
                         k = fr.ret
                         if len(self.frames) < depth:
@@ -872,6 +884,11 @@ class _Executor:
         if mode is not None and mode <= 1:
             self.emit(f"G{mode}", no)  # the motion mode the profile left (LinuxCNC)
 
+    def _returned(self, value: float | None):
+        """A subroutine returns, with a value (o<name> return [expr]) or without one."""
+        self.globals_["_value"] = 0.0 if value is None else value
+        self.globals_["_value_returned"] = 0.0 if value is None else 1.0
+
     def _pop_frame(self, no: int) -> _Frame:
         fr = self.frames.pop()
         if fr.autorestore:  # M73: the caller's modal state comes back with the return
@@ -926,8 +943,12 @@ class _Executor:
             reps, prog = prog // 10000, prog % 10000
         if prog is not None and prog not in self.fanuc_progs:
             self.load_fanuc_program(prog)
+        if prog is None:
+            t = _strip_n(self.current.text)
+            mm = re.search(r"M0*98(?![\d.])", t)
+            raise _Err("M98 without a P word: P names the program to call (M98 P1000)", mm.start() + 1 if mm else 1)
         rest = _drop(words, {"M": 98.0}, ("P", "L"))
-        if prog is None or prog not in self.fanuc_progs:
+        if prog not in self.fanuc_progs:
             self.missing_program("M98", prog, no)
             if rest:
                 self.emit(rest, no)
@@ -949,7 +970,24 @@ class _Executor:
         if kw == "ENDSUB" or kw == "RETURN":
             if len(self.frames) <= 1:
                 raise _Err(f"o{label} {kw.lower()} outside a subroutine call")
+            value = None
+            if rest.startswith("["):
+                # a return value, evaluated in the sub (its #1..#30 and local names)
+                try:
+                    value, end = self.cond(rest, 0)
+                except _Err as exc:
+                    exc.col += m.start(3)
+                    raise
+                if end < len(rest):
+                    raise _Err(f"unexpected {rest[end:]!r} after the value of o{label} {kw.lower()}",
+                               m.start(3) + end + 1)
+            elif rest:
+                raise _Err(f"o{label} {kw.lower()}: a return value is written in brackets: "
+                           f"o{label} {kw.lower()} [expression]", m.start(3) + 1)
+            self._returned(value)
             fr = self._pop_frame(self.current.no)
+            if fr.loops is not None:
+                del loops[fr.loops:]  # loops of the sub that a return left
             return fr.ret
         if kw == "CALL":
             if label not in self.subs and not self.load_external(label):
@@ -965,7 +1003,7 @@ class _Executor:
                 args[idx] = v
                 idx += 1
             site = self.frames[-1].site if self.current.src is not None else self.current.no
-            self.frames.append(_Frame(k + 1, args, {}, label, site))
+            self.frames.append(_Frame(k + 1, args, {}, label, site, loops=len(loops)))
             return self.subs[label] + 1
         if kw in ("IF", "ELSEIF"):
             if kw == "ELSEIF":
@@ -1106,7 +1144,7 @@ def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offset
 
 
 _STATEMENT = re.compile(r"^(N\d+)?(O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|REPEAT|"
-                        r"ENDREPEAT|BREAK|CONTINUE)|O[#\[].*CALL|IF\[|WHILE\[|GOTO|END\d|DO\d)")
+                        r"ENDREPEAT|BREAK|CONTINUE)|O<[^>]*>\r?$|O[#\[].*CALL|IF\[|WHILE\[|GOTO|END\d|DO\d)")
 
 
 def mask_source(data: bytes, dialect: str) -> tuple[bytes, set, set]:

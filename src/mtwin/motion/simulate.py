@@ -8,6 +8,7 @@ import numpy as np
 from ..errors import MtwinError, warning_text
 from . import _runkernel as RK
 from .path import CAT_CUT, CAT_RAPID, PAUSE
+from .linetime import line_times
 from .trace import AXES, CuttingSummary, Summary, Trace
 
 _G = 9.80665
@@ -55,6 +56,22 @@ def _per_tool(program, plan, wait) -> dict[int, dict[str, float]]:
     return out
 
 
+def _program_cutting(twin, program):
+    """The twin's cutting part with the tools this program declares (cached on the program)."""
+    from ..cutting.library import for_program
+
+    key = id(twin.cutting)
+    hit = getattr(program, "_cutting_for", None)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    cut = for_program(twin.cutting, program)
+    try:
+        object.__setattr__(program, "_cutting_for", (key, cut))
+    except (AttributeError, TypeError):
+        pass
+    return cut
+
+
 def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False):
     """Engagement arrays and coefficients for the kernel (empty arrays: no cutting model)."""
     seg = plan.seg
@@ -67,7 +84,7 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
         r = rec[seg["rec"]]
         spin_cmd[:] = r["spindle_dir"] * np.minimum(r["spindle"], m.spindle.max_speed)
         hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
-    cut = twin.cutting
+    cut = _program_cutting(twin, program) if enabled else twin.cutting
     curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
@@ -132,7 +149,10 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         args = (seg["kind"].astype(np.int64), np.ascontiguousarray(seg["p0"]), np.ascontiguousarray(seg["p1"]),
                 np.ascontiguousarray(seg["u0"]), np.ascontiguousarray(seg["c"]), np.ascontiguousarray(seg["e1"]),
                 np.ascontiguousarray(seg["e2"]), np.ascontiguousarray(seg["h"]), seg["r0"].copy(),
-                seg["r1"].copy(), seg["theta"].copy(), seg["length"].copy(), seg["line"].copy(),
+                seg["r1"].copy(), seg["theta"].copy(), seg["length"].copy(),
+                # the kernel labels samples and statistics with this "line": the segment number
+                # (1-based, 0 = none), mapped to program line and record afterwards
+                np.arange(1, len(seg) + 1, dtype=np.int32),
                 plan.t_start, plan.prof, plan.dur, plan.stop_end)
     else:
         z3 = np.zeros((1, 3))
@@ -163,7 +183,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             progress(min(k, n_est), n_est)
     if state.seg[5] == 3:
         thrust = float(sv[:, RK.SV_FMAX].min())
-        raise MtwinError(f"{program.path}:{int(cstats[RK.CS_PUSHED_LINE])}: the cutting force (up to "
+        pushed = int(seg["line"][int(cstats[RK.CS_PUSHED_LINE]) - 1]) if cstats[RK.CS_PUSHED_LINE] else 0
+        raise MtwinError(f"{program.path}:{pushed}: the cutting force (up to "
                          f"{float(cstats[RK.CS_LOAD]):.0f} N, the drives push {thrust:.0f} N) drives the tool more "
                          f"than its radius off the commanded path: the machine cannot hold this cut and the twin "
                          f"cannot predict it; lower the feed or the depth of cut, or raise the spindle speed")
@@ -173,7 +194,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         peak = float(cstats[RK.CS_LOAD])
         if eng is not None and peak > 0.5 * thrust:
             # the usual cause with a cutting load: the process pushes harder than the drives can
-            why = (f"the cutting load reaches {peak:.0f} N at line {int(cstats[RK.CS_LOAD_LINE])}, "
+            load_line = int(seg["line"][int(cstats[RK.CS_LOAD_LINE]) - 1]) if cstats[RK.CS_LOAD_LINE] else 0
+            why = (f"the cutting load reaches {peak:.0f} N at line {load_line}, "
                    f"against {thrust:.0f} N of drive thrust: lower the feed or the depth of cut, or raise "
                    f"the spindle speed")
         else:
@@ -183,7 +205,13 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                          f"({why})")
     n_samples = k
     n_out = (n_samples - 1) // every + 1 + (1 if (n_samples - 1) % every else 0)
-    t, line, cmd, act, err, vel, trq, pathv, force, cut = (a[:n_out] for a in outs)
+    t, segno, cmd, act, err, vel, trq, pathv, force, cut = (a[:n_out] for a in outs)
+    seg_line = np.concatenate(([0], seg["line"])).astype(np.int32)
+    line = seg_line[segno]
+    record = np.concatenate(([-1], seg["rec"])).astype(np.int32)[segno]
+    for k in (RK.CS_LOAD_LINE, RK.CS_POWER_LINE, RK.CS_TORQUE_LINE, RK.CS_SPINDLE_STOPPED_LINE,
+              RK.CS_OVERLOAD_LINE, RK.CS_PUSHED_LINE):
+        cstats[k] = seg_line[int(cstats[k])]
     max_err, max_trq = state.max_err, state.max_trq
     if not (np.isfinite(max_err).all() and np.isfinite(max_trq).all()):
         raise MtwinError("the servo simulation diverged (NaN or infinity): check the servo gains in the twin file")
@@ -223,8 +251,11 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         style=c.style,
         in_position_wait=float(state.wait[:len(seg)].sum()),
         warnings=warnings,
+        per_line=line_times(plan, state.wait[:len(seg)]),
+        **_error_context(cmd, err, line, segno, seg),
     )
     if eng is not None:
+        cutting_part = _program_cutting(twin, program)
         cut_time = cstats[RK.CS_CUT_TIME]
         feed_moves = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
         if cut_time <= 0 and feed_moves.any():
@@ -242,10 +273,42 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             peak_spindle_torque=float(cstats[RK.CS_TORQUE]), peak_spindle_torque_line=int(cstats[RK.CS_TORQUE_LINE]),
             cutting_energy=float(cstats[RK.CS_ENERGY]), engaged_time=float(cut_time),
             peak_mrr=float(cstats[RK.CS_MRR]), peak_spindle_load=float(cstats[RK.CS_SPINDLE_LOAD]),
-            material=twin.cutting.material_name,
+            material=cutting_part.material_name,
             stock=list(eng.stock.box), stock_source=eng.stock.source, resolution=eng.stock.resolution,
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
-            defaults=list(twin.cutting.defaults_used))
+            defaults=list(cutting_part.defaults_used))
     kt = np.array([ax.torque_constant for ax in machine.axes])
     return Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
-                 force if eng is not None else None, cut if eng is not None else None, eng)
+                 force if eng is not None else None, cut if eng is not None else None, eng, record)
+
+
+def _error_context(cmd, err, line, segno, seg) -> dict:
+    """Where the largest following error of each axis occurs (line; in a rapid or a feed move),
+    the largest in feed moves, and the largest contour error: the part of the error vector
+    normal to the commanded direction of travel (tangent estimate), over feed moves — the
+    deviation from the path a user reads as accuracy.  From the stored trace samples."""
+    out = {"max_following_error_line": {}, "max_following_error_in": {}, "max_following_error_feed": {},
+           "max_contour_error": 0.0, "max_contour_error_line": 0}
+    if len(err) == 0 or len(seg) == 0:
+        return out
+    e = np.abs(err.astype(np.float64))
+    rapid = np.concatenate(([1], seg["rapid"]))[segno] != 0
+    moving_feed = ~rapid & (segno > 0) & (np.concatenate(([PAUSE], seg["kind"]))[segno] != PAUSE)
+    for k, a in enumerate(AXES):
+        i = int(np.argmax(e[:, k]))
+        out["max_following_error_line"][a] = int(line[i])
+        out["max_following_error_in"][a] = "rapid" if rapid[i] else "feed move"
+        out["max_following_error_feed"][a] = float(e[moving_feed, k].max()) if moving_feed.any() else 0.0
+    if len(cmd) > 2 and moving_feed.any():
+        d = np.gradient(cmd, axis=0)
+        n = np.linalg.norm(d, axis=1)
+        ok = moving_feed & (n > 1e-9)
+        if ok.any():
+            u = d[ok] / n[ok, None]
+            ev = err[ok].astype(np.float64)
+            normal = ev - (ev * u).sum(axis=1)[:, None] * u
+            c = np.linalg.norm(normal, axis=1)
+            j = int(np.argmax(c))
+            out["max_contour_error"] = float(c[j])
+            out["max_contour_error_line"] = int(line[ok][j])
+    return out

@@ -60,9 +60,20 @@ class Summary:
     in_position_wait: float = 0.0  # s, waits at exact stops for the axes (part of the categories)
     warnings: list[str] = field(default_factory=list)
     cutting: CuttingSummary | None = None
+    per_line: object = None  # motion.linetime.LineTimes: simulated and nominal time per line
+    # where each axis' largest following error occurs: line, and "rapid" or "feed move"
+    max_following_error_line: dict[str, int] = field(default_factory=dict)
+    max_following_error_in: dict[str, str] = field(default_factory=dict)
+    max_following_error_feed: dict[str, float] = field(default_factory=dict)  # mm, in feed moves only
+    max_contour_error: float = 0.0  # mm, error normal to the direction of travel, feed moves
+    max_contour_error_line: int = 0
 
     def as_dict(self) -> dict:
         d = dict(self.__dict__)
+        pl = d.pop("per_line")
+        if pl is not None:
+            d["slowest_lines"] = pl.worst(10)
+            d["per_line"] = pl.as_dict()
         d["per_tool"] = {str(k): v for k, v in self.per_tool.items()}
         c = d.pop("cutting")
         if c is not None:
@@ -92,6 +103,7 @@ class Trace:
     force: np.ndarray | None = None  # (n, 3) N, cutting force on the tool, machine axes
     cut: np.ndarray | None = None  # (n, 7) spindle speed, torque, power, ae, ap, mrr, h_max
     engagement: object = None  # the cutting.engagement.Engagement used (stock, steps)
+    record: np.ndarray | None = None  # index of the motion record (Program.records) being run, -1 none
 
     def __len__(self) -> int:
         return len(self.t)
@@ -104,6 +116,10 @@ class Trace:
     def columns(self) -> dict[str, np.ndarray]:
         """The trace as measurement-format columns (name -> array)."""
         cols: dict[str, np.ndarray] = {"t": self.t, "line": self.line}
+        if self.record is not None:
+            # not a measurement column (readers keep and ignore it): which record of the
+            # program made the sample, for subprograms, loops and canned cycles
+            cols["record"] = self.record
         for k, a in enumerate(AXES):
             cols[a] = self.act[:, k]
         for k, a in enumerate(AXES):
@@ -151,7 +167,7 @@ class Trace:
             fh.write(",".join(cols) + "\n")
             fmts = []
             for name in cols:
-                if name == "line":
+                if name in ("line", "record"):
                     fmts.append("%d")
                 elif name == "t":
                     fmts.append("%.6f")
