@@ -49,7 +49,7 @@ def test_trace_csv_follows_the_measurement_format(tmp_path):
     meta = [ln for ln in lines if ln.startswith("#")]
     assert meta[0] == "# format: mtwin-measurement 1"
     header = lines[len(meta)].split(",")
-    assert header == MEASUREMENT_COLUMNS
+    assert header == MEASUREMENT_COLUMNS + ["record"]  # the record index: kept, ignored by readers
     data = np.loadtxt(out, delimiter=",", comments="#", skiprows=len(meta) + 1)
     assert np.all(np.diff(data[:-1, 0]) == pytest.approx(0.01))  # the last sample is always kept
     col = {n: data[:, i] for i, n in enumerate(header)}
@@ -176,7 +176,7 @@ def test_simulate_cutting_keys_plot_and_defaults(tmp_path):
     text = svg.read_text()
     assert text.startswith("<?xml") and "spindle power" in text and "program line" in text
     table = mtwin("simulate", str(SAMPLES / "pocket.nc")).stderr.decode()
-    assert "default used" in table and "al6061" in table and "[tools.*]" in table
+    assert "default used" in table and "al6061" in table and "no description in the program" in table
 
 
 def test_simulate_stock_option_and_errors(tmp_path):

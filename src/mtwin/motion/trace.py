@@ -116,10 +116,6 @@ class Trace:
     def columns(self) -> dict[str, np.ndarray]:
         """The trace as measurement-format columns (name -> array)."""
         cols: dict[str, np.ndarray] = {"t": self.t, "line": self.line}
-        if self.record is not None:
-            # not a measurement column (readers keep and ignore it): which record of the
-            # program made the sample, for subprograms, loops and canned cycles
-            cols["record"] = self.record
         for k, a in enumerate(AXES):
             cols[a] = self.act[:, k]
         for k, a in enumerate(AXES):
@@ -140,6 +136,10 @@ class Trace:
                 cols[f"f{a}"] = self.force[:, k]
             for k, name in enumerate(("ae", "ap", "mrr", "h_max"), start=3):
                 cols[name] = self.cut[:, k]
+        if self.record is not None:
+            # not a measurement column (readers keep and ignore it): which record of the
+            # program made the sample, for subprograms, loops and canned cycles
+            cols["record"] = self.record
         return cols
 
     def write(self, path: str | os.PathLike, metadata: dict[str, str] | None = None) -> None:
