@@ -273,3 +273,22 @@ def test_kernels_run_as_plain_python_give_the_compiled_results():
         assert [str(w) for w in a.warnings] == [str(w) for w in b.warnings], p.name
         checked += 1
     assert checked >= len(list(SAMPLES.glob("*.nc")))
+
+
+@pytest.mark.parametrize("style", ["fanuc", "linuxcnc", "grbl"])
+def test_planner_kernels_as_plain_python_give_the_compiled_plan(style, monkeypatch):
+    import mtwin as api
+
+    programs = sorted(SAMPLES.glob("*.nc")) + [SAMPLES.parent / "tests" / "data" / "linuxcnc" / "naive_cam.ngc"]
+    for p in programs:
+        tw = api.Twin().with_controller(style=style)
+        prog = tw.load(str(p))
+        monkeypatch.setenv("MTWIN_KERNELS", "compiled")
+        a = tw.plan(prog)
+        monkeypatch.setenv("MTWIN_KERNELS", "python")
+        b = tw.plan(prog)
+        assert len(a.seg) == len(b.seg), p.name
+        for name in a.seg.dtype.names:
+            np.testing.assert_allclose(a.seg[name], b.seg[name], rtol=1e-9, atol=1e-9, err_msg=f"{p.name} {name}")
+        np.testing.assert_allclose(a.prof, b.prof, rtol=1e-9, atol=1e-9, err_msg=p.name)
+        np.testing.assert_allclose(a.dur, b.dur, rtol=1e-9, atol=1e-12, err_msg=p.name)

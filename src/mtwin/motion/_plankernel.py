@@ -16,6 +16,10 @@ import numpy as np
 
 from .._jit import njit
 
+# segments up to which the planner's kernels run as Python rather than loading (or compiling)
+# their compiled code: ~1,000 segments take ~0.1 s in Python
+PY_FAST, PY_LIMIT = 1_500, 20_000
+
 STYLE_FANUC, STYLE_LINUXCNC, STYLE_GRBL = 0, 1, 2
 _TANGENT_COS = 1.0 - 1e-12  # direction change below ~1.4 µrad counts as tangent
 
@@ -79,7 +83,7 @@ def ramp_eval(v0, sgn, tj, ta, apk, tau):
     return s2 + v2 * w + 0.5 * A * w * w - j * w ** 3 / 6.0, v2 + A * w - 0.5 * j * w * w
 
 
-@njit
+@njit(python_limit=PY_LIMIT, python_fast=PY_FAST)
 def corner_limits(style, u_end, u_start, is_pause, rapid, path_mode, kind, tol, vmax, amax_axis,
                   corner_v, jd, after_time, exact_stop_rapids):
     """Speed limit at the end of each segment (its junction with the next one), mm/s.
@@ -142,7 +146,7 @@ def corner_limits(style, u_end, u_start, is_pause, rapid, path_mode, kind, tol, 
     return vj
 
 
-@njit
+@njit(python_limit=PY_LIMIT, python_fast=PY_FAST)
 def lookahead(vj, length, acc, tb, window):
     """Junction speeds after the look-ahead passes (backward over ``window`` blocks, ending in
     a stop at the window's end, as a control that sees only that many blocks must; forward
@@ -163,7 +167,7 @@ def lookahead(vj, length, acc, tb, window):
     return ve
 
 
-@njit
+@njit(python_limit=PY_LIMIT, python_fast=PY_FAST)
 def segment_timing(length, vmax, acc, tb, ve, hold, duration):
     """Per segment: start speed, peak speed, end speed, ramp shapes and phase times.
 
@@ -219,7 +223,7 @@ def _norm3(v):
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-@njit
+@njit(python_limit=PY_LIMIT, python_fast=PY_FAST)
 def linuxcnc_blends(kind, rapid, path_mode, skip, tol, p0, p1, u, length, vmax, feed, acc_axis, vel_axis):
     """Replace line-line corners by tangent blend arcs, as LinuxCNC 2.9's planner does
     at the corners not marked in ``skip`` (blendmath.c: tolerance from G64 P, or a quarter of
@@ -303,7 +307,7 @@ _SHARP_CORNER_COS = math.cos(math.pi * (1.0 - 2.0 / 180.0))  # reversal within 2
 _KINK_RATIO = 0.1  # [TRAJ] ARC_BLEND_KINK_RATIO default
 
 
-@njit
+@njit(python_limit=PY_LIMIT, python_fast=PY_FAST)
 def linuxcnc_classify(kind, rapid, path_mode, is_pause, u_end, u_start, vmax, feed, acc_axis, dt):
     """Term condition of every junction as LinuxCNC 2.9 sets it (tp.c tpSetupTangent,
     tpHandleBlendArc, tpCheckCanonType), and the acceleration factor of each segment.
@@ -379,7 +383,7 @@ def parabolic_blend_speed(L1, L2, v1, v2, a1, a2, tol, cos_half):
 _NAIVECAM_MAX_POINTS = 100  # emccanon.cc: a chain is flushed after 100 points
 
 
-@njit
+@njit(python_limit=PY_LIMIT, python_fast=PY_FAST)
 def naive_cam_merge(kind, rapid, path_mode, is_pause, feed, cam_tol, p0, p1):
     """LinuxCNC's naive-CAM detector (emccanon.cc): consecutive G1 lines are merged into one
     while every intermediate point stays within the Q tolerance of the straight line from

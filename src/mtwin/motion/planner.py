@@ -201,7 +201,7 @@ def _insert_blends(seg: np.ndarray, jclass: np.ndarray, machine):
     """Blend arcs at the line-line corners classed J_BLEND; corners where no blend fits
     become parabolic.  Returns the new segment table and its junction classes."""
     vel, acc = _axis_limits(machine)
-    trim, radius, vplan, phi, aplane = K.linuxcnc_blends(
+    trim, radius, vplan, phi, aplane = K.linuxcnc_blends.auto(len(seg), 
         seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64), seg["path_mode"].astype(np.int64),
         jclass != K.J_BLEND, seg["tol"], seg["p0"], seg["p1"], np.ascontiguousarray(seg["u0"]), seg["length"],
         seg["vmax"], np.where(seg["rapid"] == 1, 0.0, seg["feed"]), acc, vel)
@@ -287,7 +287,7 @@ def _linuxcnc_corners(seg: np.ndarray, machine):
     vel, acc = _axis_limits(machine)
     is_pause = seg["kind"] == PAUSE
     feed = np.where(seg["rapid"] == 1, 0.0, seg["feed"])
-    jc, fa_end, fa_next = K.linuxcnc_classify(
+    jc, fa_end, fa_next = K.linuxcnc_classify.auto(len(seg), 
         seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64), seg["path_mode"].astype(np.int64),
         is_pause, np.ascontiguousarray(seg["u1"]), np.ascontiguousarray(seg["u0"]), seg["vmax"], feed, acc,
         c.servo_period)
@@ -322,7 +322,7 @@ def _linuxcnc_corners(seg: np.ndarray, machine):
 
 def _naive_cam(seg: np.ndarray, rec: np.ndarray) -> np.ndarray:
     """LinuxCNC merges nearly collinear G1 moves (G64 P… Q…) before planning."""
-    keep, start = K.naive_cam_merge(seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64),
+    keep, start = K.naive_cam_merge.auto(len(seg), seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64),
                                     seg["path_mode"].astype(np.int64), seg["kind"] == PAUSE, seg["feed"],
                                     rec["cam_tol"][seg["rec"]], np.ascontiguousarray(seg["p0"]),
                                     np.ascontiguousarray(seg["p1"]))
@@ -415,7 +415,7 @@ def plan_program(program, machine) -> Plan:
         seg, vj = _linuxcnc_corners(seg, machine)
         is_pause = seg["kind"] == PAUSE
     else:
-        vj = K.corner_limits(style, np.ascontiguousarray(seg["u1"]), np.ascontiguousarray(seg["u0"]), is_pause,
+        vj = K.corner_limits.auto(len(seg), style, np.ascontiguousarray(seg["u1"]), np.ascontiguousarray(seg["u0"]), is_pause,
                              seg["rapid"].astype(np.int64), seg["path_mode"].astype(np.int64),
                              seg["kind"].astype(np.int64), seg["tol"], seg["vmax"], acc,
                              c.corner_velocity / 60.0, c.junction_deviation, drain if filt else 0.0,
@@ -423,10 +423,10 @@ def plan_program(program, machine) -> Plan:
     tb = c.bell_time if c.before_shape == "bell" else 0.0
     acc_seg = np.where(is_pause, 1.0, seg["amax"])
     length = np.where(is_pause, 0.0, seg["length"])
-    ve = K.lookahead(vj, length, acc_seg, tb, c.lookahead)
+    ve = K.lookahead.auto(len(seg), vj, length, acc_seg, tb, c.lookahead)
     stop = (vj <= 0.0) & ~is_pause
     hold = np.where(stop, drain, 0.0)
-    prof, dur = K.segment_timing(length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
+    prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
     return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift)
