@@ -481,8 +481,11 @@ def _print_simulation(path: str, s, output, inch: bool = False) -> None:
         t.add_row("cutting", f"none: no feed move meets the stock (X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  "
                              f"Z {b[2]:g}…{b[5]:g} mm, {c.stock_source})")
     elif c is not None:
-        t.add_row("cutting load (XY)", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line}), mean while cutting "
-                                       f"{c.mean_load:,.1f} N")
+        if c.peak_load_line:
+            t.add_row("cutting load (XY)", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line}), mean while "
+                                           f"cutting {c.mean_load:,.1f} N")
+        else:  # plunges only: the load is along the tool axis
+            t.add_row("cutting load (XY)", "none: the tool only plunges (its load is axial)")
         t.add_row("spindle power", f"peak {c.peak_power:,.0f} W (line {c.peak_power_line}), mean while cutting "
                                    f"{c.mean_cutting_power:,.0f} W, energy {c.cutting_energy / 1000:,.1f} kJ")
         t.add_row("spindle torque", f"peak {c.peak_spindle_torque:,.2f} N·m (line {c.peak_spindle_torque_line}); "

@@ -81,6 +81,11 @@ class Summary:
                 "peak_load", "peak_load_line", "mean_load", "peak_power", "peak_power_line", "mean_cutting_power",
                 "peak_spindle_torque")})
             d["cutting"] = dict(c.__dict__)
+        # a line 0 does not exist: "no such place" (nothing cut, no feed move) is null
+        for sub in (d, d.get("cutting") or {}):
+            for k, v in sub.items():
+                if k.endswith("_line") and v == 0:
+                    sub[k] = None
         return d
 
 
