@@ -50,6 +50,10 @@ def test_per_line_times_add_up_to_the_cycle_time_and_the_trace_keeps_records():
     # a canned cycle line makes several records; the trace says which one made each sample
     assert tr.record is not None and len(tr.record) == len(tr.t)
     moving = tr.record >= 0
+    # a tool change's time is on its M6 line, while its record is the move it precedes
+    m6 = [i + 1 for i, x in enumerate(prog.data.splitlines()) if re.search(rb"M0?6\b", x)]
+    assert m6 and set(tr.line[moving & (prog.records["line"][np.maximum(tr.record, 0)] != tr.line)]) <= set(m6)
+    moving &= ~np.isin(tr.line, m6)
     np.testing.assert_array_equal(prog.records["line"][tr.record[moving]], tr.line[moving])
     per_line_records = {}
     for li, ri in zip(tr.line[moving], tr.record[moving]):

@@ -18,7 +18,7 @@ from .path import ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, PAUSE
 # reasons, by code (0: none — the line runs at its nominal time)
 REASONS = (
     "",
-    "tool change (before this line's move)",
+    "tool change",
     "spindle run-up / speed change",
     "exact stop: in-position wait",
     "F above the machine's speed along this move",

@@ -133,7 +133,18 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     seg["amax"] = amax
 
 
-def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>"):
+def _m6_lines(program) -> np.ndarray:
+    """Sorted 1-based lines holding an M6 word, for a plain program (a macro program's lexed
+    text is the expanded one, whose lines are not the file's): empty when not known."""
+    if getattr(program, "expanded", None) is not None or getattr(program, "lexed", None) is None:
+        return np.zeros(0, np.int64)
+    lx = program.lexed
+    m6 = (lx.w_letter == ord("M")) & (lx.w_value == 6.0)
+    return np.unique(lx.w_line[m6].astype(np.int64) + 1)
+
+
+def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
+            m6: np.ndarray | None = None):
     """(record index, category, duration) of the pauses before each record, and dwells."""
     out = []
     sp = machine.spindle
@@ -147,7 +158,14 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
     change_speed = np.nonzero(target != np.concatenate(([0.0], target[:-1])))[0]
     for i in change_tool:
         if machine.timing.tool_change > 0:
-            out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change))
+            # the time belongs to the M6 line between the previous move and this one, where known
+            line = int(rec["line"][i])
+            prev = int(rec["line"][i - 1]) if i > 0 else 0
+            if m6 is not None and m6.size:
+                k = int(np.searchsorted(m6, line, "right")) - 1
+                if k >= 0 and m6[k] >= prev:
+                    line = int(m6[k])
+            out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change, line))
     if sp.wait_for_speed:
         prev = np.concatenate(([0.0], target[:-1]))
         for i in change_speed:
@@ -386,7 +404,7 @@ def plan_program(program, machine) -> Plan:
     check_feeds(rec, moves, program.path)
     check_travel(rec, moves, machine, program.path, None if machine.hard_travel_limits else warnings)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
-    pauses = _pauses(rec, machine, warnings, program.path)
+    pauses = _pauses(rec, machine, warnings, program.path, _m6_lines(program))
     end_change = getattr(program, "end_tool_change", 0)
     if end_change and len(rec) and machine.timing.tool_change > 0:
         # a tool change after the last move (the tool put away before M30)
