@@ -310,5 +310,5 @@ def test_a_cut_the_drives_cannot_hold_is_reported_not_simulated():
     twin = Twin()
     prog = twin.load(b"G21 G90 G17\nS100 M3\nG0 X-10 Y0 Z5\nG1 Z-25 F3000\nG1 X30\nG2 X50 Y20 R20\nG1 Y60\nG0 Z5\nM30\n",
                      path="x.nc")
-    with pytest.raises(MtwinError, match=r"x.nc:5: the cutting force .* more than its radius off"):
+    with pytest.raises(MtwinError, match=r"x.nc:5:1: the cutting force .* more than its radius off"):
         twin.simulate(prog, every=10)

@@ -296,3 +296,19 @@ def test_planner_kernels_as_plain_python_give_the_compiled_plan(style, monkeypat
             np.testing.assert_allclose(a.seg[name], b.seg[name], rtol=1e-9, atol=1e-9, err_msg=f"{p.name} {name}")
         np.testing.assert_allclose(a.prof, b.prof, rtol=1e-9, atol=1e-9, err_msg=p.name)
         np.testing.assert_allclose(a.dur, b.dur, rtol=1e-9, atol=1e-12, err_msg=p.name)
+
+
+# ------------------------------------------------------------ real programs, default machine (point 3)
+
+@pytest.mark.parametrize("rel", ["nist_smstestbed_mtc_hurco/NC-Code/NIST_MTC_CRADA_PLATE-4.NC",
+                                 "gcode_corpus/fanuc_macroB_and_fusion_cnc_sprayer/fusion-inch.nc",
+                                 "nist_smstestbed_d2mi_gcode/827-9999-904, FIXT.NC"])
+def test_real_programs_beyond_the_default_travel_are_simulated_with_a_warning(rel):
+    path = REALDATA / rel
+    if not path.is_file():
+        pytest.skip(f"{path} not present")
+    r = mtwin("simulate", str(path), "--lenient", "--no-cutting", "--json")
+    assert r.returncode == 0, r.stderr.decode()[-800:]
+    assert json.loads(r.stdout)["cycle_time"] > 60
+    msg = r.stderr.decode()
+    assert re.search(r":\d+:1: warning: move reaches [XYZ] = .* travel limit .* of the default machine", msg)

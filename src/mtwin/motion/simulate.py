@@ -184,7 +184,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     if state.seg[5] == 3:
         thrust = float(sv[:, RK.SV_FMAX].min())
         pushed = int(seg["line"][int(cstats[RK.CS_PUSHED_LINE]) - 1]) if cstats[RK.CS_PUSHED_LINE] else 0
-        raise MtwinError(f"{program.path}:{pushed}: the cutting force (up to "
+        raise MtwinError(f"{program.path}:{pushed}:1: the cutting force (up to "
                          f"{float(cstats[RK.CS_LOAD]):.0f} N, the drives push {thrust:.0f} N) drives the tool more "
                          f"than its radius off the commanded path: the machine cannot hold this cut and the twin "
                          f"cannot predict it; lower the feed or the depth of cut, or raise the spindle speed")
@@ -200,7 +200,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                    f"the spindle speed")
         else:
             why = "servo gains, friction or gravity in the twin file"
-        raise MtwinError(f"{program.path}:{int(seg['line'][i])}: the axes do not come within "
+        raise MtwinError(f"{program.path}:{int(seg['line'][i])}:1: the axes do not come within "
                          f"controller.in_position = {c.in_position:g} mm of the command in {_MAX_WAIT:g} s "
                          f"({why})")
     n_samples = k
