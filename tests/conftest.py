@@ -4,6 +4,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# the CLI runs the tests start must not leave compiles running in the background
+os.environ.setdefault("MTWIN_BACKGROUND_COMPILE", "0")
 SHARED = Path(os.environ.get("MTWIN_SHARED", ROOT.parent / "shared"))
 REALDATA = SHARED / "realdata"
 SAMPLES = ROOT / "samples"

@@ -312,3 +312,51 @@ def test_real_programs_beyond_the_default_travel_are_simulated_with_a_warning(re
     assert json.loads(r.stdout)["cycle_time"] > 60
     msg = r.stderr.decode()
     assert re.search(r":\d+:1: warning: move reaches [XYZ] = .* travel limit .* of the default machine", msg)
+
+
+# ------------------------------------------------------------ background warm-up (point 1)
+
+def test_the_warm_up_lock_admits_one_process_and_replaces_a_dead_ones(tmp_path, monkeypatch):
+    from mtwin import warmup
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    with warmup.background_lock():
+        assert warmup.warming()
+        with pytest.raises(warmup.AlreadyWarming):
+            with warmup.background_lock():
+                pass
+    assert not warmup.warming()
+    (tmp_path / "warming.lock").write_text("999999999")  # a process that is gone
+    assert not warmup.warming()
+    with warmup.background_lock():
+        assert warmup.warming()
+    monkeypatch.setenv("MTWIN_BACKGROUND_COMPILE", "0")
+    assert warmup.start_background() is False
+
+
+def test_a_first_run_on_an_empty_cache_compiles_in_the_background(tmp_path):
+    # a 5,000-line program: above the interpreter's Python-is-cheaper size, below its
+    # compile-is-dearer size: run as Python now, compiled in the background for next time
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    sys.path.insert(0, str(SAMPLES.parent / "benchmarks"))
+    from bench_parse import generate
+
+    prog = tmp_path / "mid.nc"
+    prog.write_bytes(generate(5000))
+    cache = tmp_path / "cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), MTWIN_BACKGROUND_COMPILE="1")
+    r = subprocess.run([sys.executable, "-m", "mtwin", "parse", str(prog), "--json"], env=env, capture_output=True)
+    assert r.returncode == 0, r.stderr.decode()
+    assert "in the background for the next runs" in r.stderr.decode()
+    assert json.loads(r.stdout)["lines"] >= 4990
+    lock = cache / "warming.lock"
+    for _ in range(100):
+        if lock.exists() and lock.read_text().strip():
+            break
+        time.sleep(0.1)
+    pid = int(lock.read_text())
+    os.killpg(os.getpgid(pid), signal.SIGTERM)  # a test does not wait a minute for it

@@ -17,7 +17,8 @@ hand:
 3. the compiled code from the on-disk cache when it is there;
 4. the Python original when compiling would cost more than running in Python
    (the kernel's ``python_limit``), so a first run of a small program does not wait for
-   a minute of LLVM;
+   a minute of LLVM (``uncached_notice`` is told, and the CLI compiles the kernels in a
+   background process for the next run);
 5. otherwise a compile, announced through :data:`compile_notice` (the CLI shows a
    status line on stderr; library code never prints).
 
@@ -52,6 +53,15 @@ MODE_ENV = "MTWIN_KERNELS"
 def _no_notice(name: str):
     yield
 
+
+def _no_uncached(kernel: "Kernel") -> None:
+    return None
+
+
+#: ``uncached_notice(kernel)`` is called when a kernel runs as Python because its compiled
+#: code is not in the cache (route 4 above).  The CLI starts a background compile there, so
+#: that the next run finds the cache warm.
+uncached_notice = _no_uncached
 
 #: ``compile_notice(kernel_name)`` is entered around every compile that :meth:`Kernel.auto`
 #: or a direct call starts.  The CLI replaces it with a status line on stderr.
@@ -150,6 +160,7 @@ class Kernel:
                 return self._timed_python(args)
             if (not self.load_cached(args) and work <= self.python_limit
                     and self._python_seconds < PYTHON_BUDGET_COMPILE):
+                uncached_notice(self)
                 return self._timed_python(args)
         return self._compiled(args)
 

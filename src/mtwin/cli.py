@@ -10,6 +10,7 @@ Heavy modules (numpy, numba kernels) are imported inside the commands so that
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
@@ -86,7 +87,6 @@ def _main(traceback: bool = typer.Option(False, "--traceback",
 def _install_compile_notice() -> None:
     """Say on stderr, once per process, that kernels are being compiled, with a live line per
     kernel on a terminal: a first run compiles what it needs (seconds), later runs load it."""
-    import contextlib
     import time
 
     from . import _jit
@@ -111,6 +111,18 @@ def _install_compile_notice() -> None:
             err.print(f"  compiled {name} in {dt:.1f} s", soft_wrap=True)
 
     _jit.compile_notice = notice
+
+    def uncached(kernel) -> None:
+        # once per process: a kernel ran as Python because the cache lacks it
+        if said.get("bg") is None:
+            from .warmup import start_background
+
+            said["bg"] = start_background()
+            if said["bg"]:
+                err.print("compiling the twin's kernels in the background for the next runs "
+                          f"(first run only; cached in {os.environ.get('NUMBA_CACHE_DIR')})", soft_wrap=True)
+
+    _jit.uncached_notice = uncached
 
 
 def _fail(exc: BaseException) -> None:
@@ -546,12 +558,29 @@ app.add_typer(cache_app, name="cache")
 
 @cache_app.command("warm")
 @_reports_errors
-def cache_warm(quiet: bool = typer.Option(False, "--quiet", help="No progress lines.")):
+def cache_warm(quiet: bool = typer.Option(False, "--quiet", help="No progress lines."),
+               background: bool = typer.Option(False, "--background", hidden=True,
+                                               help="Run as the background warm-up a first run starts.")):
     """Compile every kernel into the cache now (once per install; for container images)."""
     import time
 
     from . import _jit
-    from .warmup import warm
+    from .warmup import AlreadyWarming, background_lock, warm
+
+    if background:
+        # the detached warm-up a first run started: low priority, one at a time, silent
+        from . import _jit as J
+
+        J.compile_notice = J._no_notice
+        J.uncached_notice = J._no_uncached
+        with contextlib.suppress(OSError, AttributeError):
+            os.nice(10)
+        try:
+            with background_lock():
+                warm()
+        except AlreadyWarming:
+            pass
+        return
 
     t0 = time.perf_counter()
     warm(lambda what: None if quiet else err.print(f"warming: {what}"))

@@ -10,7 +10,84 @@ from __future__ import annotations
 
 import contextlib
 import os
+import subprocess
+import sys
+import time
 from typing import Callable
+
+#: set to "0" to keep a first run from compiling the kernels in a background process
+BACKGROUND_ENV = "MTWIN_BACKGROUND_COMPILE"
+_LOCK = "warming.lock"
+_STALE_S = 900.0  # a warm-up takes ~70 s; a lock this old belongs to a process that died
+
+
+def _lock_path() -> str:
+    from . import _jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
+
+    return os.path.join(os.environ["NUMBA_CACHE_DIR"], _LOCK)
+
+
+def _alive(path: str) -> bool:
+    """A warm-up holds the lock at ``path`` now."""
+    try:
+        st = os.stat(path)
+        with open(path) as fh:
+            pid = int(fh.read().strip() or 0)
+    except (OSError, ValueError):
+        return False
+    if time.time() - st.st_mtime > _STALE_S:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def warming() -> bool:
+    """A background warm-up is running on this cache."""
+    return _alive(_lock_path())
+
+
+def start_background() -> bool:
+    """Start ``mtwin cache warm --background`` as a detached process, unless it is switched
+    off (``MTWIN_BACKGROUND_COMPILE=0``) or one is already running.  Returns whether it did."""
+    if os.environ.get(BACKGROUND_ENV, "1") == "0" or warming():
+        return False
+    try:
+        subprocess.Popen([sys.executable, "-m", "mtwin", "cache", "warm", "--background"],
+                         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True, env=dict(os.environ))
+    except OSError:
+        return False
+    return True
+
+
+class AlreadyWarming(Exception):
+    pass
+
+
+@contextlib.contextmanager
+def background_lock():
+    """Hold the warm-up lock of this cache (one background warm-up at a time)."""
+    path = _lock_path()
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    if os.path.exists(path) and not _alive(path):
+        with contextlib.suppress(OSError):
+            os.remove(path)
+    try:
+        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    except FileExistsError:
+        raise AlreadyWarming(path) from None
+    with os.fdopen(fd, "w") as fh:
+        fh.write(str(os.getpid()))
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.remove(path)
 
 # lines, arcs, a helix, a canned cycle, a tool change, two feeds: every record kind the
 # planner and the cutting model meet in a milling program
