@@ -343,6 +343,21 @@ def verify(
     raise typer.Exit(EXIT_CHECK_FAILED)
 
 
+EffectOpt = typer.Option(None, "--effect", metavar="NAME[:P=V,…]",
+                         help="Add a physical effect to the twin (repeatable), e.g. spindle-no-load:p0=150,b=0.01; "
+                              "see mtwin effects.")
+EffectFileOpt = typer.Option(None, "--effect-file", metavar="FILE",
+                             help="A Python file defining user effects (subclasses of mtwin.effects.Effect).")
+
+
+def _load_effect_files(files) -> None:
+    if files:
+        from .effects import load_file
+
+        for f in files:
+            load_file(f)
+
+
 PlannerOpt = typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | linuxcnc | grbl.")
 
 
@@ -365,6 +380,8 @@ def simulate(
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
                                           help="Instantaneous tooth-passing forces instead of revolution averages."),
     planner: Optional[str] = PlannerOpt,
+    effect: Optional[list[str]] = EffectOpt,
+    effect_file: Optional[list[str]] = EffectFileOpt,
     twin: Optional[str] = TwinOpt,
     dialect: Optional[str] = DialectOpt,
     lenient: bool = LenientOpt,
@@ -386,7 +403,12 @@ def simulate(
     settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
     from .config import load_cutting
 
-    tw = Twin(machine, settings, twin, load_cutting(twin))
+    _load_effect_files(effect_file)
+    from .config import load_effects
+
+    tw = Twin(machine, settings, twin, load_cutting(twin), load_effects(twin))
+    if effect:
+        tw = tw.with_effects(*effect)
     box = None
     if stock is not None:
         from .cutting.library import parse_box
@@ -550,6 +572,59 @@ def config_check(path: str = typer.Argument(..., help="Twin file to validate."))
     load_twin_file(path)
     m = load_machine(path)
     err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
+
+
+effects_app = typer.Typer(help="The physical effects a twin can be given.",
+                          invoke_without_command=True, rich_markup_mode=None)
+app.add_typer(effects_app, name="effects")
+
+
+@effects_app.callback()
+@_reports_errors
+def effects_list(ctx: typer.Context, effect_file: Optional[list[str]] = EffectFileOpt,
+                 json_out: bool = typer.Option(False, "--json", help="The list as JSON on stdout.")):
+    """List the effects: name, where it acts, what it changes."""
+    _load_effect_files(effect_file)
+    if ctx.invoked_subcommand is not None:
+        return
+    from .effects import BUILTIN, available
+
+    builtin = {c.name for c in BUILTIN}
+    rows = [{"name": n, "stage": c.stage, "origin": "built-in" if n in builtin else "user",
+             "description": c.description, "signals": list(c.signals),
+             "params": [p.name for p in c.params]} for n, c in available().items()]
+    if json_out:
+        sys.stdout.write(json.dumps(rows, indent=2) + "\n")
+        return
+    from rich.table import Table
+
+    t = Table(title="effects (mtwin effects show NAME for one)", title_justify="left")
+    for col in ("name", "acts", "what it is"):
+        t.add_column(col, no_wrap=col != "what it is")
+    for r in rows:
+        t.add_row(r["name"] + ("" if r["origin"] == "built-in" else " (user)"),
+                  "in the loop" if r["stage"] == "loop" else "on observation", r["description"])
+    err.print(t)
+
+
+@effects_app.command("show")
+@_reports_errors
+def effects_show(name: str = typer.Argument(..., help="An effect's name."),
+                 effect_file: Optional[list[str]] = EffectFileOpt):
+    """One effect: what it is, how it acts, its parameters with units, bounds and defaults."""
+    _load_effect_files(effect_file)
+    from .effects import get
+
+    c = get(name)
+    lines = [f"{c.name}: {c.description}",
+             f"acts {'in the loop (the drives and the process feel it)' if c.stage == 'loop' else 'on observation (a transform of the simulated trace)'}",
+             f"changes: {', '.join(c.signals)}", "parameters:"]
+    for p in c.params:
+        unit = f" {p.unit}" if p.unit else ""
+        lines.append(f"  {p.name:10} default {p.default:g}{unit}, within [{p.lower:g}, {p.upper:g}]  {p.doc} {p.source}")
+    lines.append(f"use: --effect {c.name}:" + ",".join(f"{p.name}={p.default:g}" for p in c.params[:2])
+                 + f"   or in a twin file: [effects.{c.name}]")
+    sys.stdout.write("\n".join(lines) + "\n")
 
 
 cache_app = typer.Typer(help="The compiled-kernel cache.", no_args_is_help=True, rich_markup_mode=None)

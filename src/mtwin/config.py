@@ -33,7 +33,7 @@ from .errors import ConfigError
 
 _SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "cutter_comp", "machine", "controller", "axes", "spindle",
              "timing",
-             "tools", "materials", "cutting"}
+             "tools", "materials", "cutting", "effects"}
 _INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30", "subroutine_path"}
 
 
@@ -79,6 +79,27 @@ def load_cutting(path: str | None):
     if path is None:
         return cutting_from_dict({})
     return cutting_from_dict(read_twin_toml(path), str(path))
+
+
+def load_effects(path: str | None) -> tuple:
+    """The effects of a twin file, in the file's order: ``[effects.NAME]`` tables of parameter
+    values (an empty table: the effect at its defaults)."""
+    if path is None:
+        return ()
+    raw = read_twin_toml(path).get("effects", {})
+    from .effects import get
+
+    out = []
+    for name, values in raw.items():
+        if not isinstance(values, dict):
+            raise ConfigError(f"{path}: [effects.{name}] must be a table of parameter values")
+        try:
+            eff = get(name)(**values)
+            eff.resolved()
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: [effects.{name}]: {exc}") from None
+        out.append(eff)
+    return tuple(out)
 
 
 def load_twin_file(path: str | None) -> dict:

@@ -24,7 +24,8 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from ..errors import ConfigError
-from ..twin.machine import P, _check
+from ..params import P
+from ..params import check_value as _check
 
 TOOL_TYPES = ("flat", "ball", "bull")
 

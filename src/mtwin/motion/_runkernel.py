@@ -149,7 +149,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
              dt, k0, k1, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd,
              ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
              t_out, line_out, cmd, act, err, vel, trq, pathv,
-             eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, hand, spin_cmd, spin_acc, loss, spin_curve,
+             eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, kscale, hand, spin_cmd, spin_acc, loss,
+             spin_curve,
              eprof, sl_starts, skind, skap, sr, szlo, szhi, sdrho, tan_helix,
              spin, cstats, force_out, cut_out):
     """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
@@ -353,6 +354,17 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                         ta = kc[0] * S[8] * 1e-3  # N*m per mm of feed per tooth
                         tb = kc[3] * S[17] * 1e-3
                         ha = eng_q[m_, 3]
+                    if kscale.size > 0:
+                        # effects that change the cutting coefficients along the path (tool wear)
+                        ks = kscale[m_]
+                        ax_ *= ks
+                        ay_ *= ks
+                        az_ *= ks
+                        bx *= ks
+                        by *= ks
+                        bz *= ks
+                        ta *= ks
+                        tb *= ks
                     dxv = eng_q[m_, 4]
                     dyv = eng_q[m_, 5]
                     yxv = -dyv * hand[i]

@@ -72,7 +72,7 @@ def _program_cutting(twin, program):
     return cut
 
 
-def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False):
+def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False, loop_effects=()):
     """Engagement arrays and coefficients for the kernel (empty arrays: no cutting model)."""
     seg = plan.seg
     nseg = max(len(seg), 1)
@@ -90,7 +90,7 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
         z = np.zeros(nseg, np.int64)
         z1 = np.zeros(1)
         return None, (z, z, np.zeros((0, 18), np.float32), np.zeros((0, 8), np.float32), z, np.zeros((1, 3)),
-                      np.zeros(6), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve,
+                      np.zeros(6), np.zeros(0), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve,
                       np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64), z1, z1, z1, z1,
                       z1, z1)
     turning = program.turning_line() if hasattr(program, "turning_line") else 0
@@ -104,8 +104,30 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
-    return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, hand, spin_cmd,
+    kscale = _cutting_scale(eng, plan, loop_effects)
+    return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, kscale, hand, spin_cmd,
                  m.spindle.acceleration, np.array(cut.spindle_loss), curve, prof, *eng.slices, eng.helix)
+
+
+def _cutting_scale(eng, plan, loop_effects) -> np.ndarray:
+    """The product of the in-loop effects' factors on the cutting coefficients, per engagement
+    step (empty: none changes them)."""
+    from ..effects import Effect, StepInfo
+
+    users = [(e, p) for e, p in loop_effects if type(e).cutting_scale is not Effect.cutting_scale]
+    if not users or not len(eng.q):
+        return np.zeros(0)
+    steps = StepInfo.from_engagement(eng, plan)
+    scale = np.ones(len(eng.q))
+    for e, p in users:
+        f = e.cutting_scale(steps, p)
+        if f is not None:
+            f = np.asarray(f, dtype=np.float64)
+            if f.shape != scale.shape or not np.isfinite(f).all() or (f < 0).any():
+                raise MtwinError(f"effect {e.name}: cutting_scale must give one finite factor >= 0 per "
+                                 f"engagement step ({scale.size}), got shape {f.shape}")
+            scale *= f
+    return scale
 
 
 def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
@@ -145,6 +167,18 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             raise MtwinError(f"disturbance must have shape (samples, 3), got {fd.shape}")
     x0 = plan.start_point.astype(np.float64)
     sv = servo_table(machine)
+    # the twin's effects, in their order: in the loop they change what the kernel reads,
+    # on observation they change the finished trace
+    resolved = [(e, e.resolved()) for e in getattr(twin, "effects", ())]
+    loop_effects = [(e, p) for e, p in resolved if e.stage == "loop"]
+    for e, p in loop_effects:
+        e.servo(sv, p)
+    observed = [(e, p) for e, p in resolved if e.stage == "observation"]
+    keep_every = every
+    if observed:
+        # observation effects act on every servo period, so the summary taken again from the
+        # trace has the true peaks; the trace is thinned to the asked rate afterwards
+        every = 1
     if len(seg):
         args = (seg["kind"].astype(np.int64), np.ascontiguousarray(seg["p0"]), np.ascontiguousarray(seg["p1"]),
                 np.ascontiguousarray(seg["u0"]), np.ascontiguousarray(seg["c"]), np.ascontiguousarray(seg["e1"]),
@@ -160,7 +194,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         z = np.zeros(1)
         args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
                 z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
-    eng, cut_args = _cutting_args(twin, program, plan, stock, cutting, tooth)
+    eng, cut_args = _cutting_args(twin, program, plan, stock, cutting, tooth, loop_effects)
     spin = np.zeros(2)  # speed (rpm), angle (rad)
     cstats = np.zeros(16)
     state = RK.State(nfilt, x0, sv, len(seg))
@@ -278,8 +312,53 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
             defaults=list(cutting_part.defaults_used))
     kt = np.array([ax.torque_constant for ax in machine.axes])
-    return Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
-                 force if eng is not None else None, cut if eng is not None else None, eng, record)
+    trace = Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
+                  force if eng is not None else None, cut if eng is not None else None, eng, record)
+    changed: set[str] = set()
+    for e, p in observed:
+        if eng is None and any(s in CUT_SIGNALS for s in e.signals):
+            continue  # no cutting model: nothing for it to act on
+        e.observe(trace, p)
+        changed.update(e.signals)
+    if changed:
+        _summary_from_trace(trace, changed)
+    if keep_every > 1 and observed:
+        trace = trace.thinned(keep_every)
+    return trace
+
+
+CUT_SIGNALS = {"spindle_speed", "spindle_torque", "spindle_power", "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"}
+
+
+def _summary_from_trace(trace: Trace, changed: set[str]) -> None:
+    """Figures of the summary that an observation effect changed, taken again from the trace's
+    samples, so the reported peaks are never out of step with the trace (from the stored
+    samples: with --every N they are those of every N-th servo period)."""
+    s = trace.summary
+    if not len(trace.t):
+        return
+    if changed & {"x", "y", "z"}:
+        e = np.abs(trace.err.astype(np.float64))
+        for k, a in enumerate(AXES):
+            i = int(np.argmax(e[:, k]))
+            s.max_following_error[a] = float(e[i, k])
+            s.max_following_error_line[a] = int(trace.line[i])
+    c = s.cutting
+    if c is None or trace.cut is None:
+        return
+    dt = np.diff(trace.t, append=trace.t[-1] + s.servo_period * trace.every)
+    cutting = trace.cut[:, 5] > 0  # material removed in this sample
+    if "spindle_power" in changed:
+        pw = trace.cut[:, 2].astype(np.float64)
+        i = int(np.argmax(pw))
+        c.peak_power, c.peak_power_line = float(pw[i]), int(trace.line[i])
+        c.cutting_energy = float(np.sum(np.where(cutting, pw * dt, 0.0)))
+        c.mean_cutting_power = float(c.cutting_energy / max(np.sum(np.where(cutting, dt, 0.0)), 1e-300))
+    if changed & {"fx", "fy"}:
+        load = np.hypot(trace.force[:, 0].astype(np.float64), trace.force[:, 1].astype(np.float64))
+        i = int(np.argmax(load))
+        c.peak_load, c.peak_load_line = float(load[i]), int(trace.line[i]) if load[i] > 0 else 0
+        c.mean_load = float(np.sum(np.where(cutting, load * dt, 0.0)) / max(np.sum(np.where(cutting, dt, 0.0)), 1e-300))
 
 
 def _error_context(cmd, err, line, segno, seg) -> dict:

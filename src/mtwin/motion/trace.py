@@ -89,6 +89,29 @@ class Summary:
         return d
 
 
+_AXIS_SIGNALS = {"": "act", "_cmd": "cmd", "_err": "err", "_vel": "vel", "_torque": "torque", "_current": "current"}
+_CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")
+
+
+def _source(name: str) -> tuple[str, int]:
+    """(Trace attribute, column) of a measurement-format signal."""
+    if name == "feed":
+        return "feed", 0
+    if name in _CUT_SIGNALS:
+        return "cut", _CUT_SIGNALS.index(name)
+    if name in ("fx", "fy", "fz"):
+        return "force", AXES.index(name[1])
+    if name[:1] in AXES and name[1:] in _AXIS_SIGNALS:
+        return _AXIS_SIGNALS[name[1:]], AXES.index(name[0])
+    raise KeyError(f"no signal {name!r} in the measurement format")
+
+
+#: every signal a trace can hold, in the measurement format's order
+SIGNALS = (tuple(a + s for s in ("", "_cmd", "_err", "_vel") for a in AXES) + ("feed",)
+           + tuple(a + s for s in ("_torque", "_current") for a in AXES) + _CUT_SIGNALS[:3]
+           + ("fx", "fy", "fz") + _CUT_SIGNALS[3:])
+
+
 @dataclass
 class Trace:
     """Time series of one simulation (stored every ``every``-th servo period)."""
@@ -112,6 +135,50 @@ class Trace:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def thinned(self, every: int) -> "Trace":
+        """Every ``every``-th sample of a full-rate trace (and the last), as the servo loop
+        stores them with ``every``."""
+        from dataclasses import replace
+
+        n = len(self.t)
+        idx = np.arange(0, n, every)
+        if n and idx[-1] != n - 1:
+            idx = np.append(idx, n - 1)
+        pick = {k: (getattr(self, k)[idx] if getattr(self, k) is not None else None)
+                for k in ("t", "line", "cmd", "act", "err", "vel", "torque", "path_speed", "force", "cut", "record")}
+        return replace(self, every=every, **pick)
+
+    def signal(self, name: str) -> np.ndarray:
+        """One measurement-format signal (``docs/measurement-format.md``) as a float64 array."""
+        return np.asarray(self.columns_of(name), dtype=np.float64)
+
+    def columns_of(self, name: str) -> np.ndarray:
+        attr, col = _source(name)
+        if attr == "feed":
+            return self.feed
+        if attr == "current":
+            return self.torque[:, col] / self.torque_constant[col]
+        a = getattr(self, attr)
+        if a is None:
+            from ..errors import MtwinError
+
+            raise MtwinError(f"signal {name!r} needs the cutting model (this trace has none)")
+        return a[:, col]
+
+    def set_signal(self, name: str, values: np.ndarray) -> None:
+        """Replace one signal (a new array: the old one may be shared).  A measured position
+        (``x``, ``y``, ``z``) also changes the following error of that axis."""
+        attr, col = _source(name)
+        if attr in ("feed", "current", "t", "line"):
+            raise ValueError(f"signal {name!r} is derived from others and cannot be set")
+        a = getattr(self, attr).copy()
+        a[:, col] = values
+        setattr(self, attr, a)
+        if attr == "act":
+            e = self.err.copy()
+            e[:, col] = self.cmd[:, col] - a[:, col]
+            self.err = e
 
     @property
     def feed(self) -> np.ndarray:

@@ -18,7 +18,8 @@ from .machine import Machine
 class Twin:
     """A machine twin: its configuration and the stages that run a program on it."""
 
-    def __init__(self, machine: Machine | None = None, interpreter=None, path: str | None = None, cutting=None):
+    def __init__(self, machine: Machine | None = None, interpreter=None, path: str | None = None, cutting=None,
+                 effects=()):
         from ..cutting.library import Cutting, cutting_from_dict
         from ..gcode.interpreter import InterpreterSettings
 
@@ -26,6 +27,9 @@ class Twin:
         self.interpreter = interpreter or InterpreterSettings()
         self.path = path
         self.cutting: Cutting = cutting or cutting_from_dict({})
+        # the base model's physical effects, in order (mtwin.effects); the twin file's
+        # [effects.NAME] tables, or with_effects
+        self.effects: tuple = tuple(effects)
         from ..cutting.engagement import EngagementCache
 
         # engagement depends only on the path: kept between simulations of this twin
@@ -34,9 +38,22 @@ class Twin:
     @classmethod
     def from_toml(cls, path: str | None, **interpreter_overrides) -> "Twin":
         """Twin from a twin file (None = the embedded default machine)."""
-        from ..config import interpreter_settings, load_cutting, load_machine
+        from ..config import interpreter_settings, load_cutting, load_effects, load_machine
 
-        return cls(load_machine(path), interpreter_settings(path, **interpreter_overrides), path, load_cutting(path))
+        return cls(load_machine(path), interpreter_settings(path, **interpreter_overrides), path, load_cutting(path),
+                   load_effects(path))
+
+    def with_effects(self, *effects) -> "Twin":
+        """A copy with these effects added after the twin's own (Effect instances or
+        ``"name:param=value,…"`` strings).  The engagement cache is shared."""
+        from ..effects import parse_effect_spec
+
+        new = tuple(parse_effect_spec(e) if isinstance(e, str) else e for e in effects)
+        for e in new:
+            e.resolved()
+        tw = Twin(self.machine, self.interpreter, self.path, self.cutting, self.effects + new)
+        tw.engagement_cache = self.engagement_cache
+        return tw
 
     def load(self, source, *, path: str | None = None):
         """Read and interpret a program with this twin's interpreter settings."""
@@ -47,7 +64,7 @@ class Twin:
     def with_controller(self, **changes) -> "Twin":
         """A copy with some controller parameters changed (e.g. ``style="grbl"``)."""
         m = replace(self.machine, controller=replace(self.machine.controller, **changes))
-        return Twin(m, self.interpreter, self.path, self.cutting)
+        return Twin(m, self.interpreter, self.path, self.cutting, self.effects)
 
     def with_params(self, values: dict) -> "Twin":
         """A copy with machine parameters changed by dotted name, e.g.
@@ -56,7 +73,22 @@ class Twin:
         the planner changes it, and the cache key covers that."""
         from .machine import with_params
 
-        tw = Twin(with_params(self.machine, values), self.interpreter, self.path, self.cutting)
+        machine_values = {k: v for k, v in values.items() if not k.startswith("effects.")}
+        effects = list(self.effects)
+        for key, value in values.items():
+            if not key.startswith("effects."):
+                continue
+            param = key.rsplit(".", 1)[-1]  # effects.<name>.<param>; names hold '-', not '.'
+            name = key[len("effects."):-(len(param) + 1)]
+            idx = [i for i, e in enumerate(effects) if e.name == name]
+            if not idx:
+                from ..errors import ConfigError
+
+                raise ConfigError(f"{key}: this twin has no effect {name!r} "
+                                  f"(has {', '.join(e.name for e in effects) or 'none'})")
+            effects[idx[-1]] = effects[idx[-1]].with_values(**{param: value})
+            effects[idx[-1]].resolved()
+        tw = Twin(with_params(self.machine, machine_values), self.interpreter, self.path, self.cutting, effects)
         tw.engagement_cache = self.engagement_cache
         return tw
 

@@ -16,17 +16,13 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from ..errors import ConfigError
-from ..units import UnitError, convert
+from ..params import P
+from ..params import check_value as _check
 
 STYLES = ("fanuc", "linuxcnc", "grbl")
 BEFORE_SHAPES = ("bell", "linear")
 AFTER_FILTERS = ("linear", "bell", "exponential", "none")
 AXES = ("x", "y", "z")
-
-
-def P(default, unit: str, doc: str, check: str = "positive", choices: tuple = ()):
-    """A parameter: default, unit ('' = dimensionless, 'bool', 'str', 'int'), doc, check."""
-    return field(default=default, metadata={"unit": unit, "doc": doc, "check": check, "choices": choices})
 
 
 @dataclass(frozen=True)
@@ -149,43 +145,6 @@ class Machine:
 
 
 MACHINE_SECTIONS = ("machine", "controller", "axes", "spindle", "timing")
-
-
-def _check(value, meta, key):
-    unit, check = meta["unit"], meta["check"]
-    if unit == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(f"{key}: expected true or false, got {value!r}")
-        return value
-    if unit == "str":
-        if not isinstance(value, str):
-            raise ConfigError(f"{key}: expected a string, got {value!r}")
-        if check == "choice" and value not in meta["choices"]:
-            raise ConfigError(f"{key}: {value!r} is not one of {', '.join(meta['choices'])}")
-        return value
-    if unit == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key}: expected an integer, got {value!r}")
-        if value < 1:
-            raise ConfigError(f"{key}: must be at least 1, got {value}")
-        return value
-    try:
-        x = convert(value, unit or "1", key)
-    except UnitError as exc:
-        raise ConfigError(str(exc)) from None
-    bad = {
-        "positive": x <= 0,
-        "nonneg": x < 0,
-        "unit_interval": not 0 <= x <= 1,
-        "unit_interval_open": not 0 < x <= 1,
-        "finite": False,
-    }[check]
-    if bad:
-        want = {"positive": "> 0", "nonneg": ">= 0", "unit_interval": "between 0 and 1",
-                "unit_interval_open": "in (0, 1]"}[check]
-        shown = f"{value}" if not isinstance(value, str) else repr(value)
-        raise ConfigError(f"{key}: must be {want}{' ' + unit if unit and check != 'unit_interval' else ''}, got {shown}")
-    return x
 
 
 def _parse_into(obj, table: dict, prefix: str, where: str):

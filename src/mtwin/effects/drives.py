@@ -1,0 +1,68 @@
+"""Effects in the feed drives: friction, gravity.  They change the per-axis table the servo
+loop reads (``motion._runkernel.SV_*``), so the drives feel them and the motor torques,
+currents and following errors change with them."""
+from __future__ import annotations
+
+from ..motion import _runkernel as RK
+from ..motion.trace import AXES
+from ..params import Param
+from .base import Effect
+
+G = 9.80665  # m/s²
+
+_TORQUES = tuple(f"{a}_torque" for a in AXES) + tuple(f"{a}_current" for a in AXES)
+
+
+class CoulombFriction(Effect):
+    name = "coulomb-friction"
+    description = "more (or less) Coulomb friction in an axis' guideways and screw than the twin file has"
+    stage = "loop"
+    params = tuple(Param(f"f{a}", "N", 0.0, -300.0, 2000.0, f"Coulomb friction added to {a.upper()}, both directions")
+                   for a in AXES)
+    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+
+    def servo(self, sv, p):
+        for k, a in enumerate(AXES):
+            d = p["f" + a]
+            for c_col, s_col in ((RK.SV_FCP, RK.SV_FSP), (RK.SV_FCN, RK.SV_FSN)):
+                sv[k, c_col] = max(0.0, sv[k, c_col] + d)
+                sv[k, s_col] = max(sv[k, c_col], sv[k, s_col] + d)
+
+
+class ViscousFriction(Effect):
+    name = "viscous-friction"
+    description = "more (or less) viscous friction B·v in an axis than the twin file has"
+    stage = "loop"
+    params = tuple(Param(f"b{a}", "N*s/m", 0.0, -1000.0, 20000.0, f"viscous coefficient added to {a.upper()}")
+                   for a in AXES)
+    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+
+    def servo(self, sv, p):
+        for k, a in enumerate(AXES):
+            sv[k, RK.SV_B] = max(0.0, sv[k, RK.SV_B] + p["b" + a])
+
+
+class StribeckFriction(Effect):
+    name = "stribeck-friction"
+    description = "breakaway (static) friction above Coulomb, decaying over the Stribeck velocity"
+    stage = "loop"
+    params = tuple(Param(f"s{a}", "N", 0.0, 0.0, 2000.0, f"breakaway friction added to {a.upper()}") for a in AXES) + (
+        Param("vs_scale", "", 1.0, 0.1, 10.0, "factor on every axis' Stribeck velocity"),)
+    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+
+    def servo(self, sv, p):
+        for k, a in enumerate(AXES):
+            sv[k, RK.SV_FSP] += p["s" + a]
+            sv[k, RK.SV_FSN] += p["s" + a]
+            sv[k, RK.SV_VS] *= p["vs_scale"]
+
+
+class Gravity(Effect):
+    name = "gravity"
+    description = "the Z axis carries a weight no counterbalance takes: m·g on its drive"
+    stage = "loop"
+    params = (Param("mass", "kg", 0.0, 0.0, 2000.0, "uncompensated mass on Z"),)
+    signals = ("z_torque", "z_current", "z_err")
+
+    def servo(self, sv, p):
+        sv[2, RK.SV_FG] += p["mass"] * G
