@@ -574,6 +574,56 @@ def config_check(path: str = typer.Argument(..., help="Twin file to validate."))
     err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
 
 
+@app.command(short_help="A synthetic measurement: the twin, extra effects, noise.")
+@_reports_errors
+def synth(
+    part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
+    output: str = typer.Option(..., "-o", "--output", help="Measurement file (.csv, .parquet, or '-')."),
+    effect: Optional[list[str]] = EffectOpt,
+    effect_file: Optional[list[str]] = EffectFileOpt,
+    rate: float = typer.Option(100.0, "--rate", help="Samples per second."),
+    noise: float = typer.Option(0.0, "--noise", help="Gaussian noise, a fraction of each signal's RMS (0.02 = 2 %)."),
+    signals: Optional[str] = typer.Option(None, "--signals", help="Comma-separated signals (default: positions, "
+                                          "spindle speed and power, axis torques, forces)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the noise."),
+    no_line: bool = typer.Option(False, "--no-line", help="Leave out the line column (a logger that does not record it)."),
+    stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
+    twin: Optional[str] = TwinOpt,
+    dialect: Optional[str] = DialectOpt,
+    lenient: bool = LenientOpt,
+    block_delete: Optional[bool] = BlockDeleteOpt,
+):
+    """Write what a machine would record running PART on the twin with extra effects (hidden
+    from a plain twin) and sensor noise — for learning and testing compare/diagnose/calibrate."""
+    from .config import interpreter_settings, load_cutting, load_effects, load_machine
+    from .loop.synth import synthesize
+    from .motion.trace import write_columns
+    from .twin import Twin
+
+    _load_effect_files(effect_file)
+    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
+    tw = Twin(load_machine(twin), settings, twin, load_cutting(twin), load_effects(twin))
+    if effect:
+        tw = tw.with_effects(*effect)
+    box = None
+    if stock is not None:
+        from .cutting.library import parse_box
+
+        box = parse_box(stock, "--stock")
+    prog = _load(part, settings)
+    cols = synthesize(tw, prog, rate=rate, noise=noise, seed=seed, line=not no_line, stock=box,
+                      signals=[s.strip() for s in signals.split(",")] if signals else None)
+    from . import __version__
+
+    meta = {"source": f"mtwin {__version__} synth", "program": prog.path,
+            "effects": "; ".join(f"{e.name}:" + ",".join(f"{k}={v:g}" for k, v in e.resolved().items())
+                                 for e in tw.effects) or "none",
+            "noise": f"{noise:g} of each signal's RMS, seed {seed}", "rate_hz": f"{rate:g}"}
+    write_columns(output, cols, meta)
+    err.print(f"wrote {output}: {len(cols['t']):,} samples at {rate:g} Hz, {len(cols) - 1} columns; "
+              f"effects: {meta['effects']}", soft_wrap=True)
+
+
 effects_app = typer.Typer(help="The physical effects a twin can be given.",
                           invoke_without_command=True, rich_markup_mode=None)
 app.add_typer(effects_app, name="effects")

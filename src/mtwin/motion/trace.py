@@ -216,38 +216,48 @@ class Trace:
 
     def write(self, path: str | os.PathLike, metadata: dict[str, str] | None = None) -> None:
         """Write CSV (or Parquet when the name ends in .parquet) atomically."""
-        from ..io import atomic_output
+        write_columns(path, self.columns(), {"source": "mtwin simulate", **(metadata or {})})
 
-        path = os.fspath(path)
-        cols = self.columns()
-        if path.endswith(".parquet"):
-            try:
-                import pyarrow as pa
-                import pyarrow.parquet as pq
-            except ImportError:
-                from ..errors import MtwinError
 
-                raise MtwinError("writing .parquet needs pyarrow (pip install pyarrow); use .csv") from None
-            table = pa.table({k: np.asarray(v) for k, v in cols.items()})
-            with atomic_output(path, binary=True) as fh:
-                pq.write_table(table, fh)
-            return
-        meta = {"format": "mtwin-measurement 1", "source": "mtwin simulate", **(metadata or {})}
-        with atomic_output(path) as fh:
-            for k, v in meta.items():
-                fh.write(f"# {k}: {v}\n")
-            fh.write(",".join(cols) + "\n")
-            fmts = []
-            for name in cols:
-                if name in ("line", "record"):
-                    fmts.append("%d")
-                elif name == "t":
-                    fmts.append("%.6f")
-                elif name.endswith("_err") or name in AXES or name.endswith("_cmd"):
-                    fmts.append("%.6f")  # positions to the nanometre
-                elif name == "h_max":
-                    fmts.append("%.6g")
-                else:
-                    fmts.append("%.6g")
-            data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()])
-            np.savetxt(fh, data, fmt=fmts, delimiter=",")
+def write_columns(path: str | os.PathLike, cols: dict[str, np.ndarray], metadata: dict[str, str] | None = None) -> None:
+    """Write measurement-format columns as CSV (or Parquet for a .parquet name) atomically,
+    or to standard output for ``-``."""
+    import sys
+
+    from ..io import atomic_output
+
+    path = os.fspath(path)
+    if path.endswith(".parquet"):
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError:
+            from ..errors import MtwinError
+
+            raise MtwinError("writing .parquet needs pyarrow (pip install pyarrow); use .csv") from None
+        table = pa.table({k: np.asarray(v) for k, v in cols.items()})
+        with atomic_output(path, binary=True) as fh:
+            pq.write_table(table, fh)
+        return
+    meta = {"format": "mtwin-measurement 1", **(metadata or {})}
+    fmts = []
+    for name in cols:
+        if name in ("line", "record"):
+            fmts.append("%d")
+        elif name == "t" or name.endswith("_err") or name in AXES or name.endswith("_cmd"):
+            fmts.append("%.6f")  # seconds to the microsecond, positions to the nanometre
+        else:
+            fmts.append("%.6g")
+    data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()]) if cols else np.zeros((0, 0))
+
+    def emit(fh):
+        for k, v in meta.items():
+            fh.write(f"# {k}: {v}\n")
+        fh.write(",".join(cols) + "\n")
+        np.savetxt(fh, data, fmt=fmts, delimiter=",")
+
+    if path == "-":
+        emit(sys.stdout)
+        return
+    with atomic_output(path) as fh:
+        emit(fh)

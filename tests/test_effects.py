@@ -1,0 +1,299 @@
+"""Physical effects (issue 10, first part): the contract every registered effect keeps, each
+built-in effect against a closed form, user effects from a file and from an installed
+package's entry point, effects in the twin file, and synthetic measurements."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import mtwin
+from conftest import SAMPLES
+from mtwin import effects as FX
+from mtwin.errors import ConfigError
+from mtwin.motion.trace import SIGNALS
+from test_cli import mtwin as run_cli
+
+# a slot along X in one line, then a return: constant conditions for the closed forms
+SLOT = ("G21 G90 G94\nT1 M6\nS8000 M3\nG0 X-5 Y10 Z2\nG1 Z-1 F300\nG1 X150 F900\nG0 Z5\nG0 X0 Y0\nM30\n"
+        "(MTWIN STOCK 0,0,-10,160,20,0)\n")
+# motion only: a long constant-velocity move along +X, then back
+MOVE = "G21 G90 G94\nG0 X0 Y0 Z0\nG1 X200 F3000\nG1 X0\nM30\n"
+
+
+@pytest.fixture(scope="module")
+def twin():
+    return mtwin.Twin()
+
+
+@pytest.fixture(scope="module")
+def slot(twin):
+    return twin.load(SLOT.encode(), path="slot.nc")
+
+
+@pytest.fixture(scope="module")
+def move(twin):
+    return twin.load(MOVE.encode(), path="move.nc")
+
+
+@pytest.fixture(scope="module")
+def pocket(twin):
+    return twin.load(str(SAMPLES / "pocket.nc"))
+
+
+@pytest.fixture(scope="module")
+def base_pocket(twin, pocket):
+    return twin.simulate(pocket)
+
+
+def _typical(p):
+    """A value inside the bounds that is not the default (for the conformance checks)."""
+    span = p.upper - p.lower
+    v = p.default + 0.25 * span if p.default + 0.25 * span <= p.upper else p.default - 0.25 * span
+    return v
+
+
+# ---------------------------------------------------------------- the contract, for every effect
+
+@pytest.mark.parametrize("name", sorted(FX.available()))
+def test_every_effect_keeps_the_contract(name, twin, pocket, base_pocket):
+    cls = FX.get(name)
+    assert cls.name == name and cls.description and cls.stage in ("loop", "observation")
+    assert cls.signals and set(cls.signals) <= set(SIGNALS)
+    for p in cls.params:
+        assert p.lower <= p.default <= p.upper and p.doc and isinstance(p.unit, str)
+    # __init__ stores, resolved() checks
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        cls(no_such_parameter=1.0).resolved()
+    if cls.params:
+        p = cls.params[0]
+        with pytest.raises(ConfigError, match="must be within"):
+            cls(**{p.name: p.upper + abs(p.upper) + 1.0}).resolved()
+    # at its defaults an effect leaves the twin as it is
+    same = twin.with_effects(cls()).simulate(pocket)
+    assert same.summary.cycle_time == base_pocket.summary.cycle_time
+    for s in cls.signals:
+        np.testing.assert_allclose(same.signal(s), base_pocket.signal(s), rtol=1e-6, atol=1e-9, err_msg=s)
+    # away from its defaults it changes what it says it changes ...
+    values = {p.name: _typical(p) for p in cls.params}
+    tr = twin.with_effects(cls(**values)).simulate(pocket)
+    if len(tr.t) == len(base_pocket.t):
+        changed = [s for s in SIGNALS if not np.allclose(tr.signal(s), base_pocket.signal(s), rtol=1e-9, atol=1e-12)]
+        assert set(changed) & set(cls.signals), name
+        # ... and on observation nothing else
+        if cls.stage == "observation":
+            assert set(changed) <= set(cls.signals) | {f"{a}_err" for a in "xyz"}, (name, changed)
+
+
+# ---------------------------------------------------------------- closed forms
+
+def test_spindle_no_load_adds_its_polynomial_where_the_spindle_turns(twin, pocket, base_pocket):
+    tr = twin.with_effects("spindle-no-load:p0=120,b=0.02,c=2e-6").simulate(pocket)
+    n = np.abs(base_pocket.signal("spindle_speed"))
+    want = np.where(n >= 1.0, 120 + 0.02 * n + 2e-6 * n * n, 0.0)
+    np.testing.assert_allclose(tr.signal("spindle_power") - base_pocket.signal("spindle_power"), want, atol=1e-3)
+    # the summary is taken again from the trace: the peak moves with the effect
+    assert tr.summary.cutting.peak_power == pytest.approx(float(tr.signal("spindle_power").max()), rel=1e-6)
+    assert tr.summary.cutting.peak_power > base_pocket.summary.cutting.peak_power + 120
+
+
+def test_thermal_drift_is_an_exponential_approach(twin, move):
+    base = twin.simulate(move, cutting=False)
+    tr = twin.with_effects("thermal-drift:dx=0.05,dz=-0.02,tau=10").simulate(move, cutting=False)
+    t = base.t - base.t[0]
+    # positions are stored as float32: 8 µm steps at 100 mm
+    np.testing.assert_allclose(tr.signal("x") - base.signal("x"), 0.05 * (1 - np.exp(-t / 10)), atol=2e-5)
+    np.testing.assert_allclose(tr.signal("z") - base.signal("z"), -0.02 * (1 - np.exp(-t / 10)), atol=2e-5)
+    np.testing.assert_allclose(tr.signal("y"), base.signal("y"))
+    # the measured following error follows the measured position
+    np.testing.assert_allclose(tr.signal("x_err"), base.signal("x_cmd") - tr.signal("x"), atol=2e-5)
+
+
+def test_servo_delay_shifts_the_positions_by_whole_samples(twin, move):
+    base = twin.simulate(move, cutting=False)
+    tr = twin.with_effects("servo-delay:delay=0.012").simulate(move, cutting=False)
+    k = 12  # 12 ms at the 1 ms servo period
+    np.testing.assert_allclose(tr.signal("x")[k:], base.signal("x")[:-k], atol=1e-6)
+
+
+def test_backlash_trails_the_motion_by_half_of_it(twin, move):
+    base = twin.simulate(move, cutting=False)
+    tr = twin.with_effects("backlash:bx=0.04").simulate(move, cutting=False)
+    d = tr.signal("x") - base.signal("x")
+    assert set(np.round(np.unique(d), 4)) <= {-0.02, 0.0, 0.02}  # float32 positions
+    going = np.argmax(base.signal("x") > 100)  # on the way out (+X): the load trails by -b/2
+    coming = len(d) - 1 - np.argmax(base.signal("x")[::-1] > 100)  # on the way back: +b/2
+    assert d[going] == pytest.approx(-0.02, abs=2e-5) and d[coming] == pytest.approx(0.02, abs=2e-5)
+
+
+def test_runout_modulates_the_force_once_per_revolution(twin, slot):
+    base = twin.simulate(slot)
+    tr = twin.with_effects("runout:e=0.2,phase=0.5").simulate(slot)
+    t = base.t
+    n = base.signal("spindle_speed")
+    theta = 2 * np.pi * np.cumsum(n / 60.0 * np.diff(t, prepend=t[0]))
+    np.testing.assert_allclose(tr.signal("fy"), base.signal("fy") * (1 + 0.2 * np.cos(theta + 0.5)), rtol=1e-5,
+                               atol=1e-4)
+    # over whole revolutions the average force is the same
+    cut = base.signal("mrr") > 0
+    assert tr.signal("fy")[cut].mean() == pytest.approx(base.signal("fy")[cut].mean(), rel=0.01)
+
+
+def test_tool_wear_grows_the_cutting_power_with_the_length_cut(twin, slot):
+    base = twin.simulate(slot)
+    tr = twin.with_effects("tool-wear:rate=0.5").simulate(slot)
+    assert len(tr.t) == len(base.t)
+    x = base.signal("x")
+    steady = (base.signal("mrr") > 0) & (x > 20) & (x < 140)  # full slot, away from entry and exit
+    ratio = tr.signal("spindle_power")[steady] / base.signal("spindle_power")[steady]
+    # the tool enters the stock at X = -3 (X0 minus its radius): cut length ≈ x + 3 mm
+    want = 1 + 0.5 * (x[steady] + 3.0) / 1000.0
+    np.testing.assert_allclose(ratio, want, rtol=0.01)
+
+
+def test_gravity_loads_the_z_drive_by_m_g(twin, move):
+    base = twin.simulate(move, cutting=False)
+    tr = twin.with_effects("gravity:mass=80").simulate(move, cutting=False)
+    fpt = twin.machine.z.force_per_torque
+    # at rest at the end every force is static: the drive holds the weight
+    assert tr.signal("z_torque")[-1] - base.signal("z_torque")[-1] == pytest.approx(80 * 9.80665 / fpt, rel=1e-3)
+
+
+def test_coulomb_and_viscous_friction_at_constant_velocity(twin, move):
+    base = twin.simulate(move, cutting=False)
+    fpt = twin.machine.x.force_per_torque
+    def cruise_torque(tr):
+        cruise = np.abs(tr.signal("x_vel") - 50.0) < 0.01  # 3000 mm/min = 50 mm/s out along +X
+        assert cruise.sum() > 1000
+        return float(np.median(tr.signal("x_torque")[cruise]))
+
+    c = twin.with_effects("coulomb-friction:fx=120").simulate(move, cutting=False)
+    assert cruise_torque(c) - cruise_torque(base) == pytest.approx(120 / fpt, rel=0.01)
+    vb = twin.with_effects("viscous-friction:bx=4000").simulate(move, cutting=False)
+    want = 4000 * 0.050 / fpt  # N·s/m × m/s
+    assert cruise_torque(vb) - cruise_torque(base) == pytest.approx(want, rel=0.01)
+
+
+# ---------------------------------------------------------------- user effects, twin file, CLI
+
+USER_EFFECT = '''
+import numpy as np
+from mtwin.effects import Effect
+from mtwin.params import Param
+
+
+class CoolantPump(Effect):
+    name = "coolant-pump"
+    description = "a coolant pump on the spindle drive's supply: a constant power while M8 runs"
+    params = (Param("power", "W", 0.0, 0.0, 3000.0, "pump power"),)
+    signals = ("spindle_power",)
+
+    def observe(self, trace, p):
+        trace.set_signal("spindle_power", trace.signal("spindle_power") + p["power"])
+'''
+
+
+def test_a_user_effect_from_a_file_is_listed_and_used_like_a_built_in(tmp_path, twin, pocket, base_pocket):
+    f = tmp_path / "pump.py"
+    f.write_text(USER_EFFECT)
+    r = run_cli("effects", "--effect-file", str(f), "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    rows = {x["name"]: x for x in json.loads(r.stdout)}
+    assert rows["coolant-pump"]["origin"] == "user" and "spindle-no-load" in rows
+    r = run_cli("simulate", str(SAMPLES / "pocket.nc"), "--effect-file", str(f), "--effect", "coolant-pump:power=500",
+                "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    assert json.loads(r.stdout)["peak_power"] == pytest.approx(base_pocket.summary.cutting.peak_power + 500, rel=1e-4)
+    bad = tmp_path / "bad.py"
+    bad.write_text("x = 1\n")
+    r = run_cli("effects", "--effect-file", str(bad))
+    assert r.returncode == 2 and "defines no subclass" in r.stderr.decode()
+
+
+def test_an_installed_package_s_entry_point_registers_its_effect(tmp_path, monkeypatch):
+    # a package as pip would install it: its module and a dist-info with the entry point
+    site = tmp_path / "site"
+    (site / "pump_fx-0.1.dist-info").mkdir(parents=True)
+    (site / "pump_fx.py").write_text(USER_EFFECT)
+    (site / "pump_fx-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: pump-fx\nVersion: 0.1\n")
+    (site / "pump_fx-0.1.dist-info" / "entry_points.txt").write_text(
+        "[mtwin.effects]\ncoolant-pump = pump_fx:CoolantPump\n")
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.setattr(FX, "_entry_points_loaded", None)
+    try:
+        assert "coolant-pump" in FX.available()
+        assert FX.get("coolant-pump")(power=10.0).resolved() == {"power": 10.0}
+    finally:
+        FX._entry_points_loaded = None
+        sys.modules.pop("pump_fx", None)
+
+
+def test_effects_in_the_twin_file_and_by_dotted_name(tmp_path, pocket, base_pocket):
+    f = tmp_path / "m.toml"
+    f.write_text(textwrap.dedent("""
+        [effects.spindle-no-load]
+        p0 = 100.0
+        [effects.tool-wear]
+        rate = 0.2
+    """))
+    tw = mtwin.Twin.from_toml(str(f))
+    assert [e.name for e in tw.effects] == ["spindle-no-load", "tool-wear"]
+    tw2 = tw.with_params({"effects.spindle-no-load.p0": 300.0})
+    assert tw2.effects[0].resolved()["p0"] == 300.0 and tw.effects[0].resolved()["p0"] == 100.0
+    with pytest.raises(ConfigError, match="no effect 'gravity'"):
+        tw.with_params({"effects.gravity.mass": 1.0})
+    f.write_text("[effects.spindle-no-load]\np0 = -5.0\n")
+    with pytest.raises(ConfigError, match=r"\[effects.spindle-no-load\].*must be within"):
+        mtwin.Twin.from_toml(str(f))
+    f.write_text("[effects.warp-drive]\n")
+    with pytest.raises(ConfigError, match="unknown effect 'warp-drive'"):
+        mtwin.Twin.from_toml(str(f))
+
+
+def test_effects_cli_lists_and_explains(tmp_path):
+    r = run_cli("effects", "--json")
+    names = [x["name"] for x in json.loads(r.stdout)]
+    for want in ("spindle-no-load", "tool-wear", "runout", "coulomb-friction", "viscous-friction",
+                 "stribeck-friction", "gravity", "backlash", "servo-delay", "thermal-drift"):
+        assert want in names
+    r = run_cli("effects", "show", "tool-wear")
+    assert r.returncode == 0 and "rate" in r.stdout.decode() and "1/m" in r.stdout.decode()
+    r = run_cli("effects", "show", "flux-capacitor")
+    assert r.returncode == 2 and "unknown effect" in r.stderr.decode()
+    r = run_cli("simulate", str(SAMPLES / "pocket.nc"), "--effect", "tool-wear:rate=99")
+    assert r.returncode == 2 and "must be within [0, 5]" in r.stderr.decode()
+
+
+def _read(path):
+    lines = path.read_text().splitlines()
+    k = next(i for i, x in enumerate(lines) if not x.startswith("#"))
+    return np.genfromtxt(lines[k:], delimiter=",", names=True)
+
+
+def test_synth_writes_a_noisy_measurement_of_the_hidden_effect(tmp_path):
+    out = tmp_path / "meas.csv"
+    args = ("synth", str(SAMPLES / "pocket.nc"), "--effect", "spindle-no-load:p0=200", "--noise", "0.02",
+            "--rate", "100", "--signals", "spindle_power,x,fy", "--seed", "3", "-o", str(out))
+    r = run_cli(*args)
+    assert r.returncode == 0, r.stderr.decode()
+    text = out.read_text()
+    assert "# effects: spindle-no-load:p0=200,b=0,c=0" in text and "# noise: 0.02" in text
+    data = _read(out)
+    assert data.dtype.names == ("t", "line", "spindle_power", "x", "fy")
+    assert np.allclose(np.diff(data["t"]), 0.01, atol=1e-9)  # 100 Hz
+    # the noise: 2 % of the RMS, reproducible with the seed, different with another
+    clean = tmp_path / "clean.csv"
+    assert run_cli(*args[:6], "--rate", "100", "--signals", "spindle_power,x,fy", "-o", str(clean)).returncode == 0
+    c = _read(clean)
+    res = data["spindle_power"] - c["spindle_power"]
+    rms = math.sqrt(float(np.mean(c["spindle_power"] ** 2)))
+    assert res.std() == pytest.approx(0.02 * rms, rel=0.1)
+    again = tmp_path / "again.csv"
+    run_cli(*args[:-1], str(again))
+    assert again.read_text() == text
+    r = run_cli("synth", str(SAMPLES / "pocket.nc"), "--rate", "-1", "-o", str(tmp_path / "x.csv"))
+    assert r.returncode == 2 and not (tmp_path / "x.csv").exists()
