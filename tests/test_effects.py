@@ -287,7 +287,7 @@ def test_synth_writes_a_noisy_measurement_of_the_hidden_effect(tmp_path):
     assert np.allclose(np.diff(data["t"]), 0.01, atol=1e-9)  # 100 Hz
     # the noise: 2 % of the RMS, reproducible with the seed, different with another
     clean = tmp_path / "clean.csv"
-    assert run_cli(*args[:6], "--rate", "100", "--signals", "spindle_power,x,fy", "-o", str(clean)).returncode == 0
+    assert run_cli(*args[:4], "--rate", "100", "--signals", "spindle_power,x,fy", "-o", str(clean)).returncode == 0
     c = _read(clean)
     res = data["spindle_power"] - c["spindle_power"]
     rms = math.sqrt(float(np.mean(c["spindle_power"] ** 2)))
