@@ -20,6 +20,7 @@ mill, and the material is ``al6061`` with the reference's identified Kt and Ke.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, fields, replace
 
@@ -107,6 +108,14 @@ class Cutting:
         return self.tools[number]
 
 
+@functools.lru_cache(maxsize=8)
+def _scan(data: bytes):
+    # an optimiser re-simulates one program many times, each time as a new Program object
+    from .tool_comments import scan_tool_comments
+
+    return scan_tool_comments(data)
+
+
 def for_program(cutting: Cutting, program) -> Cutting:
     """The cutting part for one program: a twin file's tool table stands; without one, the
     tools the program's comments declare (CAM post-processors write them: Fusion 360's
@@ -114,10 +123,10 @@ def for_program(cutting: Cutting, program) -> Cutting:
     and ``defaults_used`` says for each tool the program uses where its description came from."""
     if cutting.tools:
         return cutting
-    from .tool_comments import scan_tool_comments, to_library_tool
+    from .tool_comments import to_library_tool
 
     used = sorted(set(int(t) for t in program.records["tool"]))
-    found = scan_tool_comments(program.data)
+    found = _scan(bytes(program.data))
     tools: dict[int, Tool] = {}
     notes = []
     only = None

@@ -534,6 +534,8 @@ def _decode(data: bytes | str) -> str:
 
 def _split(line: str) -> tuple[str, list[str]]:
     """Code and comments of one line: (...) comments and a ';' comment to the end."""
+    if "(" not in line and ";" not in line:  # most lines of a long program: no comment
+        return line, []
     code, comments, i, n = [], [], 0, len(line)
     while i < n:
         c = line[i]
@@ -614,6 +616,23 @@ def _block(code: str) -> _Block:
     return b
 
 
+class _Blocks:
+    """``_block`` of each code line, computed when first asked for."""
+
+    def __init__(self, codes: list[str]):
+        self._codes = codes
+        self._done: dict[int, _Block] = {}
+
+    def __len__(self) -> int:
+        return len(self._codes)
+
+    def __getitem__(self, i: int) -> _Block:
+        b = self._done.get(i)
+        if b is None:
+            b = self._done[i] = _block(self._codes[i])
+        return b
+
+
 def scan_tool_comments(data: bytes | str, inch: bool | None = None) -> ToolComments:
     """Every tool declared in the comments of a program.
 
@@ -621,19 +640,24 @@ def scan_tool_comments(data: bytes | str, inch: bool | None = None) -> ToolComme
     the first G20/G21 in the program (if there is none, bare numbers give no tool).
     """
     lines = _decode(data).split("\n")
-    blocks: list[_Block] = []
+    codes: list[str] = []
     comments: list[list[str]] = []
     for raw in lines:
         code, cs = _split(raw.rstrip("\r"))
-        blocks.append(_block(code))
+        codes.append(code)
         comments.append(cs)
+    # blocks are read only where a comment needs them (near it), so a long program without
+    # tool comments costs one pass of string splitting
+    blocks = _Blocks(codes)
     if inch is None:
-        inch = next((b.g20 for b in blocks if b.g20 is not None), None)
+        inch = next((b.g20 for b in (blocks[i] for i, c in enumerate(codes) if "G" in c.upper())
+                     if b.g20 is not None), None)
 
     # parameters assigned exactly once with a literal, for T#<name>
     assigned: dict[str, list[str]] = {}
-    for raw in lines:
-        code, _ = _split(raw.rstrip("\r"))
+    for code in codes:
+        if "#" not in code or "=" not in code:
+            continue
         m = _ASSIGN.match(code)
         if m:
             key = m.group(1).replace(" ", "").lower()

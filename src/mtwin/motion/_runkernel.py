@@ -528,3 +528,46 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     segp[0] = i
     segp[6] = kstep
     return kstep
+
+
+@njit
+def error_stats(cmd, err, segno, seg_rapid, seg_pause, out_idx, out_val):
+    """Following-error statistics over the stored samples, in one pass without temporaries.
+
+    ``segno``: 1-based segment of each sample (0: none); per segment ``seg_rapid`` and
+    ``seg_pause`` (0/1).  Fills, per axis k: ``out_idx[k]``/``out_val[k]`` the sample and
+    value of the largest |error|, ``out_val[3 + k]`` the largest |error| in feed moves;
+    ``out_idx[3]``/``out_val[6]`` the sample and value of the largest contour error (the
+    error's part normal to the commanded direction of travel, central differences of the
+    command) in feed moves."""
+    n = cmd.shape[0]
+    for k in range(3):
+        out_idx[k] = 0
+        out_val[k] = 0.0
+        out_val[3 + k] = 0.0
+    out_idx[3] = -1
+    out_val[6] = 0.0
+    for i in range(n):
+        sg = segno[i]
+        feed = sg > 0 and seg_rapid[sg - 1] == 0 and seg_pause[sg - 1] == 0
+        for k in range(3):
+            e = abs(err[i, k])
+            if e > out_val[k]:
+                out_val[k] = e
+                out_idx[k] = i
+            if feed and e > out_val[3 + k]:
+                out_val[3 + k] = e
+        if feed and 0 < i < n - 1:
+            dx = cmd[i + 1, 0] - cmd[i - 1, 0]
+            dy = cmd[i + 1, 1] - cmd[i - 1, 1]
+            dz = cmd[i + 1, 2] - cmd[i - 1, 2]
+            dn = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if dn > 1e-9:
+                ux, uy, uz = dx / dn, dy / dn, dz / dn
+                ex, ey, ez = err[i, 0], err[i, 1], err[i, 2]
+                a = ex * ux + ey * uy + ez * uz
+                nx, ny, nz = ex - a * ux, ey - a * uy, ez - a * uz
+                c = math.sqrt(nx * nx + ny * ny + nz * nz)
+                if c > out_val[6]:
+                    out_val[6] = c
+                    out_idx[3] = i

@@ -370,24 +370,18 @@ def _error_context(cmd, err, line, segno, seg) -> dict:
            "max_contour_error": 0.0, "max_contour_error_line": 0}
     if len(err) == 0 or len(seg) == 0:
         return out
-    e = np.abs(err.astype(np.float64))
-    rapid = np.concatenate(([1], seg["rapid"]))[segno] != 0
-    moving_feed = ~rapid & (segno > 0) & (np.concatenate(([PAUSE], seg["kind"]))[segno] != PAUSE)
+    idx = np.zeros(4, np.int64)
+    val = np.zeros(7)
+    rapid = seg["rapid"].astype(np.int64)
+    pause = (seg["kind"] == PAUSE).astype(np.int64)
+    RK.error_stats(cmd, err, segno, rapid, pause, idx, val)
     for k, a in enumerate(AXES):
-        i = int(np.argmax(e[:, k]))
+        i = int(idx[k])
         out["max_following_error_line"][a] = int(line[i])
-        out["max_following_error_in"][a] = "rapid" if rapid[i] else "feed move"
-        out["max_following_error_feed"][a] = float(e[moving_feed, k].max()) if moving_feed.any() else 0.0
-    if len(cmd) > 2 and moving_feed.any():
-        d = np.gradient(cmd, axis=0)
-        n = np.linalg.norm(d, axis=1)
-        ok = moving_feed & (n > 1e-9)
-        if ok.any():
-            u = d[ok] / n[ok, None]
-            ev = err[ok].astype(np.float64)
-            normal = ev - (ev * u).sum(axis=1)[:, None] * u
-            c = np.linalg.norm(normal, axis=1)
-            j = int(np.argmax(c))
-            out["max_contour_error"] = float(c[j])
-            out["max_contour_error_line"] = int(line[ok][j])
+        sg = int(segno[i])
+        out["max_following_error_in"][a] = "rapid" if sg == 0 or rapid[sg - 1] else "feed move"
+        out["max_following_error_feed"][a] = float(val[3 + k])
+    if idx[3] >= 0:
+        out["max_contour_error"] = float(val[6])
+        out["max_contour_error_line"] = int(line[int(idx[3])])
     return out
