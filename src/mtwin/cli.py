@@ -624,6 +624,76 @@ def synth(
               f"effects: {meta['effects']}", soft_wrap=True)
 
 
+@app.command(short_help="Compare the twin with a measurement: errors, and where.")
+@_reports_errors
+def compare(
+    part: str = typer.Argument(..., help="G-code program the measurement was recorded on."),
+    measurement: str = typer.Argument(..., help="Measurement file (measurement format: CSV or .parquet)."),
+    align: str = typer.Option("auto", "--align", help="auto | line | position | xcorr."),
+    xcorr_signal: Optional[str] = typer.Option(None, "--xcorr-signal", help="Signal for --align xcorr."),
+    maps: Optional[list[str]] = typer.Option(None, "--map", metavar="SRC=DST[*SCALE]",
+                                             help="Read column SRC as signal DST (times SCALE)."),
+    json_out: bool = typer.Option(False, "--json", help="The comparison as JSON on stdout."),
+    effect: Optional[list[str]] = EffectOpt,
+    effect_file: Optional[list[str]] = EffectFileOpt,
+    stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
+    twin: Optional[str] = TwinOpt,
+    dialect: Optional[str] = DialectOpt,
+    lenient: bool = LenientOpt,
+    block_delete: Optional[bool] = BlockDeleteOpt,
+):
+    """How far the twin is from a measurement of PART, signal by signal, and the program lines
+    where it is farthest."""
+    from .config import interpreter_settings, load_cutting, load_effects, load_machine
+    from .loop.compare import compare as run_compare
+    from .loop.measurement import read_measurement
+    from .twin import Twin
+
+    _load_effect_files(effect_file)
+    meas = read_measurement(measurement, maps)
+    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
+    tw = Twin(load_machine(twin), settings, twin, load_cutting(twin), load_effects(twin))
+    if effect:
+        tw = tw.with_effects(*effect)
+    box = None
+    if stock is not None:
+        from .cutting.library import parse_box
+
+        box = parse_box(stock, "--stock")
+    prog = _load(part, settings)
+    cutting = any(s in ("spindle_speed", "spindle_power", "spindle_torque", "fx", "fy", "fz", "ae", "ap", "mrr",
+                        "h_max") for s in meas.signals)
+    trace = tw.simulate(prog, stock=box, cutting=cutting)
+    res = run_compare(trace, meas, align, xcorr_signal)
+    for n in res.notes:
+        err.print(f"note: {n}", soft_wrap=True)
+    if json_out:
+        sys.stdout.write(json.dumps(res.as_dict(), indent=2) + "\n")
+        return
+    from rich.table import Table
+
+    c = res.cycle_time
+    rel = f"{c['relative_error']:+.2%}" if c["relative_error"] is not None else "-"
+    err.print(f"{prog.path} against {measurement}: aligned by {res.alignment}, time offset {res.time_offset:+.3f} s; "
+              f"cycle time measured {c['measured']:.3f} s, simulated {c['simulated']:.3f} s ({rel})", soft_wrap=True)
+    t = Table(title="signals (measured − simulated)", title_justify="left")
+    for col in ("signal", "RMS", "NRMSE", "max", "bias", "corr.", "samples"):
+        t.add_column(col, justify="right" if col != "signal" else "left", no_wrap=col == "signal")
+    fmt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
+    for s, m in res.signals.items():
+        t.add_row(s, fmt(m["rms"], ".4g"), fmt(m["nrmse"], ".2%"), fmt(m["max_error"], ".4g"), fmt(m["bias"], "+.4g"),
+                  fmt(m["correlation"], ".3f"), f"{m['samples']:,}")
+    err.print(t)
+    if res.worst_regions:
+        w = Table(title="where it fails (share of each signal's squared error)", title_justify="left")
+        for col in ("signal", "lines", "RMS", "share", "samples"):
+            w.add_column(col)
+        for r in res.worst_regions:
+            lines = str(r["first_line"]) if r["first_line"] == r["last_line"] else f"{r['first_line']}–{r['last_line']}"
+            w.add_row(r["signal"], lines, f"{r['rms']:.4g}", f"{r['share']:.1%}", f"{r['samples']:,}")
+        err.print(w)
+
+
 effects_app = typer.Typer(help="The physical effects a twin can be given.",
                           invoke_without_command=True, rich_markup_mode=None)
 app.add_typer(effects_app, name="effects")

@@ -240,14 +240,18 @@ def write_columns(path: str | os.PathLike, cols: dict[str, np.ndarray], metadata
             pq.write_table(table, fh)
         return
     meta = {"format": "mtwin-measurement 1", **(metadata or {})}
+    # enough digits that a trace read back is the trace: 9 significant digits hold a float32
+    # exactly (the stored channels), 12 the float64 command to a picometre at a metre
     fmts = []
     for name in cols:
         if name in ("line", "record"):
             fmts.append("%d")
-        elif name == "t" or name.endswith("_err") or name in AXES or name.endswith("_cmd"):
-            fmts.append("%.6f")  # seconds to the microsecond, positions to the nanometre
+        elif name == "t":
+            fmts.append("%.9f")
+        elif name.endswith("_cmd"):
+            fmts.append("%.12g")
         else:
-            fmts.append("%.6g")
+            fmts.append("%.9g")
     data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()]) if cols else np.zeros((0, 0))
 
     def emit(fh):

@@ -1,0 +1,250 @@
+"""Model against measurement: align a measurement with the twin's simulation, and say how
+far apart they are and where.
+
+Alignment maps each measured sample to a time of the simulation:
+
+* ``line``: by the measured ``line`` column.  Both sides are cut into runs of one line (a
+  line run several times by a loop or subprogram is several runs); runs are paired in
+  order, skipping simulated runs the logger did not see (short lines between two samples),
+  and time inside a pair is mapped linearly.  Right even where the twin's timing is off.
+* ``position``: each measured sample goes to the nearest point of the simulated path,
+  searched forward only (monotonic in path length), preferring, among equally near points,
+  the one the elapsed time predicts (a standstill).
+* ``xcorr``: one constant time offset, the maximum of the cross-correlation of a signal
+  both sides have.
+
+The result is data (:class:`Comparison`); the CLI and reports render it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MtwinError
+
+ALIGNMENTS = ("line", "position", "xcorr")
+
+
+@dataclass
+class Comparison:
+    alignment: str
+    time_offset: float  # s, simulated minus measured time, median over the samples
+    cycle_time: dict  # measured, simulated, relative_error
+    signals: dict  # name -> {rms, nrmse, max_error, bias, correlation, samples}
+    worst_regions: list  # [{signal, first_line, last_line, rms, samples}] worst first
+    t: np.ndarray = field(repr=False, default=None)  # measured times used
+    t_sim: np.ndarray = field(repr=False, default=None)  # the simulated time of each
+    measured: dict = field(repr=False, default_factory=dict)  # signal -> measured values
+    simulated: dict = field(repr=False, default_factory=dict)  # signal -> simulated values there
+    line: np.ndarray = field(repr=False, default=None)  # program line of each sample (simulation's)
+    notes: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return {"alignment": self.alignment, "time_offset": self.time_offset, "cycle_time": self.cycle_time,
+                "signals": self.signals, "worst_regions": self.worst_regions, "notes": self.notes,
+                "units": "signals in the measurement format's units (docs/measurement-format.md); times in s"}
+
+
+def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, regions: int = 10) -> Comparison:
+    """Compare a full-rate simulated ``trace`` with a time-series measurement ``meas``."""
+    if meas.is_summary:
+        raise MtwinError(f"{meas.path}: a summary measurement (first_line/last_line rows) is compared row by row; "
+                         "this needs a time series")
+    common = [s for s in meas.signals if _has(trace, s)]
+    if not common:
+        raise MtwinError(f"{meas.path}: no signal in common with the simulation "
+                         f"(measured: {', '.join(meas.signals) or 'none'})")
+    notes = [f"column {c!r} is not in the measurement format: kept, ignored" for c in meas.ignored]
+    if align == "auto":
+        if meas.line is not None and (meas.line >= 0).any():
+            align = "line"
+        elif all(a in meas.signals for a in ("x", "y", "z")):
+            align = "position"
+        else:
+            align = "xcorr"
+    if align not in ALIGNMENTS:
+        raise MtwinError(f"--align must be auto, {', '.join(ALIGNMENTS)}; got {align!r}")
+    ts = np.asarray(trace.t, dtype=np.float64)
+    tm = meas.t
+    if align == "line":
+        if meas.line is None:
+            raise MtwinError(f"{meas.path}: --align line needs a 'line' column")
+        t_sim = _align_line(ts, np.asarray(trace.line), tm, meas.line)
+    elif align == "position":
+        if not all(a in meas.signals for a in ("x", "y", "z")):
+            raise MtwinError(f"{meas.path}: --align position needs x, y and z columns")
+        t_sim = _align_position(ts, trace, tm, np.stack([meas.signals[a] for a in ("x", "y", "z")], axis=1))
+    else:
+        sig = xcorr_signal or next((s for s in ("spindle_power", "feed", "x", "y", "z") if s in common), common[0])
+        if sig not in common:
+            raise MtwinError(f"--xcorr-signal {sig}: not in both the measurement and the simulation")
+        t_sim = tm + _xcorr_offset(ts, trace.signal(sig), tm, meas.signals[sig])
+        notes.append(f"cross-correlation of {sig}")
+    inside = (t_sim >= ts[0] - 1e-9) & (t_sim <= ts[-1] + 1e-9)
+    if not inside.any():
+        raise MtwinError(f"{meas.path}: no measured sample falls inside the simulation after {align} alignment")
+    if (~inside).any():
+        notes.append(f"{int((~inside).sum())} measured samples fall outside the simulation and are left out")
+    tm_i, t_sim_i = tm[inside], t_sim[inside]
+    line = _at(ts, np.asarray(trace.line, dtype=np.float64), t_sim_i, step=True).astype(np.int64)
+    stats, measured, simulated = {}, {}, {}
+    for s in common:
+        mv = meas.signals[s][inside]
+        sv = _at(ts, trace.signal(s), t_sim_i)
+        measured[s], simulated[s] = mv, sv
+        stats[s] = _metrics(mv, sv)
+    cyc_m = float(tm[-1] - tm[0]) if len(tm) > 1 else 0.0
+    cyc_s = float(trace.summary.cycle_time)
+    cycle = {"measured": cyc_m, "simulated": cyc_s,
+             "relative_error": (cyc_s - cyc_m) / cyc_m if cyc_m > 0 else None}
+    if align == "line":
+        notes.append("measured cycle time: first to last sample")
+    worst = _worst_regions(measured, simulated, line, regions)
+    offset = float(np.median(t_sim_i - tm_i))
+    return Comparison(align, offset, cycle, stats, worst, tm_i, t_sim_i, measured, simulated, line, notes)
+
+
+def _has(trace, s: str) -> bool:
+    try:
+        trace.columns_of(s)
+    except (KeyError, MtwinError):
+        return False
+    return True
+
+
+def _at(ts, values, t, step: bool = False):
+    """``values`` (sampled at ``ts``) at times ``t``: linear, or the sample at or before."""
+    v = np.asarray(values, dtype=np.float64)
+    if step:
+        idx = np.clip(np.searchsorted(ts, t + 1e-12, side="right") - 1, 0, len(ts) - 1)
+        return v[idx]
+    return np.interp(t, ts, v)
+
+
+def _run_bounds(line: np.ndarray):
+    """(line, first index, end index) of each run of one line."""
+    if not len(line):
+        return []
+    cut = np.flatnonzero(np.diff(line) != 0) + 1
+    starts = np.concatenate(([0], cut))
+    ends = np.concatenate((cut, [len(line)]))
+    return [(int(line[a]), int(a), int(b)) for a, b in zip(starts, ends)]
+
+
+def _align_line(ts, sline, tm, mline) -> np.ndarray:
+    """Measured times -> simulated times, run by run of the same line.
+
+    A measured run's true start lies between its first sample and the sample before it,
+    its end between its last sample and the next; the shift (simulated minus measured) at
+    each end is chosen inside what those brackets allow, as close as possible to the shift
+    so far — so a measurement that agrees with the twin maps to itself exactly, and one
+    whose timing differs follows the difference run by run."""
+    sim = _run_bounds(sline)
+    t_sim = np.full(len(tm), -np.inf)
+    nsim = len(ts)
+    j = 0
+    shift = 0.0
+    for ln, a, b in _run_bounds(mline):
+        jj = j
+        while jj < len(sim) and sim[jj][0] != ln:
+            jj += 1
+        if jj == len(sim) or ln < 0:  # a line the simulation does not run (here): left out
+            continue
+        _, sa, sb = sim[jj]
+        s0 = ts[sa]
+        s1 = ts[sb] if sb < nsim else ts[-1]
+        t_prev = tm[a - 1] if a > 0 else -np.inf
+        t_next = tm[b] if b < len(tm) else np.inf
+        d0 = min(max(shift, s0 - tm[a]), s0 - t_prev)
+        d1 = min(max(d0, s1 - t_next), s1 - tm[b - 1])
+        seg = slice(a, b)
+        if b - 1 > a:
+            f = (tm[seg] - tm[a]) / (tm[b - 1] - tm[a])
+            t_sim[seg] = tm[seg] + d0 + f * (d1 - d0)
+        else:
+            t_sim[seg] = tm[seg] + d0
+        shift = d1
+        j = jj + 1
+    return t_sim
+
+
+def _align_position(ts, trace, tm, pm) -> np.ndarray:
+    from . import _alignkernel as AK
+
+    ps = np.ascontiguousarray(np.stack([trace.signal(a) for a in ("x", "y", "z")], axis=1))
+    pm = np.ascontiguousarray(pm, dtype=np.float64)
+    dt = float(ts[1] - ts[0]) if len(ts) > 1 else 1.0
+    idx = np.zeros(len(tm), np.int64)
+    AK.nearest_forward(ps, pm, np.ascontiguousarray(tm - tm[0]), dt, idx)
+    return ts[idx]
+
+
+def _xcorr_offset(ts, sv, tm, mv) -> float:
+    """Time offset (s, simulated minus measured) maximising the cross-correlation, on a
+    common uniform grid at the measurement's median sampling interval."""
+    dt = float(np.median(np.diff(tm))) if len(tm) > 1 else float(ts[1] - ts[0])
+    grid_s = np.arange(ts[0], ts[-1] + 1e-12, dt)
+    a = np.interp(grid_s, ts, np.nan_to_num(np.asarray(sv, dtype=np.float64)))
+    good = ~np.isnan(mv)
+    grid_m = np.arange(tm[0], tm[-1] + 1e-12, dt)
+    b = np.interp(grid_m, tm[good], mv[good])
+    a = a - a.mean()
+    b = b - b.mean()
+    if not a.any() or not b.any():
+        return float(ts[0] - tm[0])
+    n = len(a) + len(b) - 1
+    nfft = 1 << (n - 1).bit_length()
+    c = np.fft.irfft(np.fft.rfft(a, nfft) * np.conj(np.fft.rfft(b, nfft)), nfft)
+    lags = np.concatenate((np.arange(0, len(a)), np.arange(-(len(b) - 1), 0)))
+    vals = np.concatenate((c[:len(a)], c[nfft - (len(b) - 1):]))
+    k = int(lags[int(np.argmax(vals))])
+    return float(grid_s[0] - grid_m[0] + k * dt)
+
+
+def _metrics(mv, sv) -> dict:
+    ok = ~np.isnan(mv) & ~np.isnan(sv)
+    n = int(ok.sum())
+    if n == 0:
+        return {"rms": None, "nrmse": None, "max_error": None, "bias": None, "correlation": None, "samples": 0}
+    r = mv[ok] - sv[ok]
+    rms = float(np.sqrt(np.mean(r * r)))
+    span = float(np.ptp(mv[ok]))
+    corr = None
+    if n > 1 and np.std(mv[ok]) > 0 and np.std(sv[ok]) > 0:
+        corr = float(np.corrcoef(mv[ok], sv[ok])[0, 1])
+    return {"rms": rms, "nrmse": rms / span if span > 0 else None, "max_error": float(np.max(np.abs(r))),
+            "bias": float(np.mean(r)), "correlation": corr, "samples": n}
+
+
+def _worst_regions(measured, simulated, line, k: int) -> list:
+    """Per signal, the program lines whose residual contributes most (sum of squares, as a
+    share of the signal's total), consecutive lines merged; the ``k`` worst over all
+    signals."""
+    out = []
+    for s in measured:
+        r = measured[s] - simulated[s]
+        ok = ~np.isnan(r)
+        if not ok.any():
+            continue
+        total = float(np.sum(r[ok] ** 2))
+        if total <= 0:
+            continue
+        lines, inv = np.unique(line[ok], return_inverse=True)
+        sse = np.bincount(inv, weights=r[ok] ** 2)
+        cnt = np.bincount(inv)
+        order = np.argsort(-sse)[:k]
+        top = sorted(int(i) for i in order)
+        # merge lines next to each other in the program into one region
+        groups = []
+        for i in top:
+            if groups and lines[i] == lines[groups[-1][-1]] + 1:
+                groups[-1].append(i)
+            else:
+                groups.append([i])
+        for g in groups:
+            e, c = float(sse[g].sum()), int(cnt[g].sum())
+            out.append({"signal": s, "first_line": int(lines[g[0]]), "last_line": int(lines[g[-1]]),
+                        "rms": float(np.sqrt(e / c)), "samples": c, "share": e / total})
+    out.sort(key=lambda d: -d["share"])
+    return out[:k]

@@ -1,0 +1,246 @@
+"""Reading measurements: the measurement format (``docs/measurement-format.md``).
+
+A time series (a ``t`` column and named signals, units fixed by name) or a summary
+measurement (one row per cut: ``first_line``, ``last_line`` and ``SIGNAL_STAT`` columns).
+Everything a file can get wrong is an :class:`~mtwin.errors.MtwinError` naming the file,
+the line and the column: an empty file, no time column, time going backwards, text in a
+numeric column, a unit that is not the signal's, a mapping to a name the twin cannot
+produce.  Empty cells and ``nan`` are missing values; irregular sampling and gaps are
+fine.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import GCodeError, MtwinError, SourceLocation
+from ..motion.trace import SIGNALS
+
+#: each signal's unit (the format fixes them by name)
+UNITS = {**{a: "mm" for a in ("x", "y", "z")}, **{f"{a}_cmd": "mm" for a in "xyz"},
+         **{f"{a}_err": "mm" for a in "xyz"}, **{f"{a}_vel": "mm/s" for a in "xyz"}, "feed": "mm/min",
+         **{f"{a}_torque": "N*m" for a in "xyz"}, **{f"{a}_current": "A" for a in "xyz"},
+         "spindle_speed": "rpm", "spindle_power": "W", "spindle_torque": "N*m", "spindle_load": "%",
+         "fx": "N", "fy": "N", "fz": "N", "ae": "mm", "ap": "mm", "mrr": "mm^3/s", "h_max": "mm"}
+STATS = ("mean", "rms", "std", "max", "min", "p2p")
+_KNOWN = set(SIGNALS) | {"spindle_load"}
+_HEADER_UNIT = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\[([^\]]*)\])?\s*$")
+
+
+class MeasurementError(GCodeError):
+    """A measurement file that cannot be read (exit 2), with its location."""
+
+
+@dataclass
+class Measurement:
+    """A read measurement.  ``signals``: name -> float64 array (NaN where missing), in the
+    format's units; ``line``: the program line of each sample (None when not recorded);
+    for a summary measurement ``t`` is None and ``rows`` holds (first_line, last_line,
+    {column: value})."""
+
+    path: str
+    t: np.ndarray | None
+    signals: dict[str, np.ndarray]
+    line: np.ndarray | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+    ignored: list[str] = field(default_factory=list)
+    rows: list = field(default_factory=list)
+
+    @property
+    def is_summary(self) -> bool:
+        return self.t is None
+
+
+def parse_maps(maps) -> dict[str, tuple[str, float]]:
+    """``SRC=DST`` or ``SRC=DST*SCALE`` -> {SRC: (DST, SCALE)}."""
+    out = {}
+    for m in maps or ():
+        src, eq, rest = m.partition("=")
+        if not eq or not src.strip() or not rest.strip():
+            raise MtwinError(f"--map {m}: expected SRC=DST or SRC=DST*SCALE")
+        dst, _, scale = rest.partition("*")
+        dst = dst.strip()
+        base = _summary_base(dst)
+        if dst not in _KNOWN and base is None and dst not in ("t", "line"):
+            raise MtwinError(f"--map {m}: {dst!r} is not a signal the twin produces "
+                             f"(known: {', '.join(sorted(_KNOWN))})")
+        try:
+            k = float(scale) if scale else 1.0
+        except ValueError:
+            raise MtwinError(f"--map {m}: the scale {scale!r} is not a number") from None
+        if not math.isfinite(k) or k == 0:
+            raise MtwinError(f"--map {m}: the scale must be a finite non-zero number")
+        out[src.strip()] = (dst, k)
+    return out
+
+
+def _summary_base(name: str) -> str | None:
+    for s in STATS:
+        if name.endswith("_" + s) and name[:-len(s) - 1] in _KNOWN:
+            return name[:-len(s) - 1]
+    return None
+
+
+def read_measurement(path: str, maps=()) -> Measurement:
+    """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there)."""
+    mapping = parse_maps(maps)
+    name = str(path)
+    if name.endswith(".parquet"):
+        header, rows, meta, first_row = _read_parquet(name)
+    else:
+        header, rows, meta, first_row = _read_csv(name)
+    # column names: maps, then units in brackets
+    cols: list[tuple[str, float]] = []
+    for j, h in enumerate(header):
+        m = _HEADER_UNIT.match(h)
+        if not m:
+            raise MeasurementError(f"column {j + 1} header {h!r} is not a signal name",
+                                   SourceLocation(name, first_row - 1, 1))
+        base, unit = m.group(1), m.group(2)
+        target, scale = mapping.get(h.strip(), mapping.get(base, (base.lower(), 1.0)))
+        if unit is not None:
+            scale *= _unit_scale(unit, target, name, first_row - 1, j)
+        cols.append((target, scale))
+    names = [c for c, _ in cols]
+    dup = sorted({c for c in names if names.count(c) > 1})
+    if dup:
+        raise MeasurementError(f"column(s) {', '.join(dup)} appear twice", SourceLocation(name, first_row - 1, 1))
+    summary = "first_line" in names and "last_line" in names
+    if "t" not in names and not summary:
+        raise MeasurementError("no time column 't' (and no first_line/last_line of a summary measurement); "
+                               "--map SRC=t names another", SourceLocation(name, first_row - 1, 1))
+    ignored = [c for c in names if c not in _KNOWN and c not in ("t", "line", "first_line", "last_line")
+               and _summary_base(c) is None]
+    # a column the twin does not know is kept out of the numbers: whatever it holds is fine
+    data = _numbers(rows, header, name, first_row, [c not in ignored for c in names])
+    if summary:
+        return _summary(name, names, cols, data, meta, ignored, first_row)
+    if len(data) == 0:
+        raise MeasurementError("no samples (the file has a header but no rows)", SourceLocation(name, first_row, 1))
+    k = names.index("t")
+    t = data[:, k] * cols[k][1]
+    if np.isnan(t).any():
+        i = int(np.argmax(np.isnan(t)))
+        raise MeasurementError("a sample without a time (t is empty or nan)", SourceLocation(name, first_row + i, k + 1))
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise MeasurementError(f"time goes backwards: t = {t[i]:g} s after {t[i - 1]:g} s",
+                               SourceLocation(name, first_row + i, k + 1))
+    signals = {}
+    line = None
+    for j, (c, scale) in enumerate(cols):
+        if c == "line":
+            v = data[:, j]
+            bad = ~np.isnan(v) & ((v != np.round(v)) | (v < 0))
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise MeasurementError(f"line {v[i]:g} is not a line number", SourceLocation(name, first_row + i, j + 1))
+            line = np.where(np.isnan(v), -1, v).astype(np.int64)
+        elif c in _KNOWN:
+            signals[c] = data[:, j] * scale
+    return Measurement(name, t, signals, line, meta, ignored)
+
+
+def _unit_scale(unit: str, target: str, path: str, line: int, col: int) -> float:
+    want = UNITS.get(target) or UNITS.get(_summary_base(target) or "", None)
+    if target in ("t",):
+        want = "s"
+    if want is None:
+        raise MeasurementError(f"column {target!r} takes no unit, got [{unit}]", SourceLocation(path, line, col + 1))
+    from ..units import UnitError, convert
+
+    try:
+        return float(convert(f"1 {unit}", want, target))
+    except UnitError as exc:
+        raise MeasurementError(f"unknown or wrong unit [{unit}] for {target} (its unit is {want}): {exc}",
+                               SourceLocation(path, line, col + 1)) from None
+
+
+def _read_csv(path: str):
+    try:
+        if path == "-":
+            import sys
+
+            text = sys.stdin.read()
+        else:
+            with open(path, encoding="utf-8", newline="") as fh:
+                text = fh.read()
+    except OSError as exc:
+        raise MtwinError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise MtwinError(f"{path}: not UTF-8 text (a measurement is a CSV file)") from None
+    lines = text.splitlines()
+    meta = {}
+    k = 0
+    while k < len(lines) and (lines[k].startswith("#") or not lines[k].strip()):
+        m = re.match(r"#\s*([^:]+):\s*(.*)$", lines[k])
+        if m:
+            meta[m.group(1).strip()] = m.group(2).strip()
+        k += 1
+    if k >= len(lines):
+        raise MeasurementError("the file is empty (no header row)", SourceLocation(path, max(k, 1), 1))
+    header = next(csv.reader([lines[k]]))
+    rows = list(csv.reader(io.StringIO("\n".join(lines[k + 1:]))))
+    return header, rows, meta, k + 2
+
+
+def _read_parquet(path: str):
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise MtwinError(f"{path}: reading .parquet needs pyarrow (pip install pyarrow)") from None
+    if not os.path.isfile(path):
+        raise MtwinError(f"cannot read {path}: no such file")
+    table = pq.read_table(path)
+    header = list(table.column_names)
+    cols = [table.column(c).to_pylist() for c in header]
+    rows = [list(r) for r in zip(*cols)]
+    return header, rows, {}, 2
+
+
+def _numbers(rows, header, path, first_row, read) -> np.ndarray:
+    n, m = len(rows), len(header)
+    out = np.full((n, m), np.nan)
+    for i, r in enumerate(rows):
+        if len(r) != m:
+            if not any(str(x).strip() for x in r):
+                continue  # a blank line
+            raise MeasurementError(f"{len(r)} cells where the header has {m}", SourceLocation(path, first_row + i, 1))
+        for j, cell in enumerate(r):
+            if cell is None or not read[j]:
+                continue
+            if isinstance(cell, (int, float)):
+                out[i, j] = float(cell)
+                continue
+            s = cell.strip()
+            if not s or s.lower() == "nan":
+                continue
+            try:
+                out[i, j] = float(s)
+            except ValueError:
+                raise MeasurementError(f"{s!r} in column {header[j]!r} is not a number",
+                                       SourceLocation(path, first_row + i, j + 1)) from None
+    keep = ~np.all(np.isnan(out), axis=1) if n else np.zeros(0, bool)
+    return out[keep]
+
+
+def _summary(name, names, cols, data, meta, ignored, first_row) -> Measurement:
+    a, b = names.index("first_line"), names.index("last_line")
+    rows = []
+    for i in range(len(data)):
+        f, l_ = data[i, a], data[i, b]
+        if not (f >= 1 and l_ >= f and f == int(f) and l_ == int(l_)):
+            raise MeasurementError(f"first_line {f:g} / last_line {l_:g} is not a range of program lines",
+                                   SourceLocation(name, first_row + i, a + 1))
+        stats = {c: data[i, j] * s for j, (c, s) in enumerate(cols) if _summary_base(c) is not None}
+        rows.append((int(f), int(l_), stats))
+    if not rows:
+        raise MeasurementError("no rows (the file has a header but no rows)", SourceLocation(name, first_row, 1))
+    return Measurement(name, None, {}, None, meta, ignored, rows)
