@@ -694,6 +694,165 @@ def compare(
         err.print(w)
 
 
+def _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient, block_delete):
+    """The twin (with its effects and --effect), the program, the measurement, the stock."""
+    from .config import interpreter_settings, load_cutting, load_effects, load_machine
+    from .loop.measurement import read_measurement
+    from .twin import Twin
+
+    _load_effect_files(effect_file)
+    meas = read_measurement(measurement, maps)
+    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
+    tw = Twin(load_machine(twin), settings, twin, load_cutting(twin), load_effects(twin))
+    if effect:
+        tw = tw.with_effects(*effect)
+    box = None
+    if stock is not None:
+        from .cutting.library import parse_box
+
+        box = parse_box(stock, "--stock")
+    return tw, _load(part, settings), meas, box
+
+
+SignalsOpt = typer.Option(None, "--signals", help="Comma-separated signals to use (default: all in both).")
+MapOpt = typer.Option(None, "--map", metavar="SRC=DST[*SCALE]", help="Read column SRC as signal DST (times SCALE).")
+AlignOpt = typer.Option("auto", "--align", help="auto | line | position | xcorr.")
+
+
+@app.command(short_help="Which physical effect is missing from the twin.")
+@_reports_errors
+def diagnose(
+    part: str = typer.Argument(..., help="G-code program the measurement was recorded on."),
+    measurement: str = typer.Argument(..., help="Measurement file."),
+    signals: Optional[str] = SignalsOpt,
+    candidates: Optional[str] = typer.Option(None, "--candidates", help="Comma-separated effects to try (default: all "
+                                             "not yet in the twin)."),
+    align: str = AlignOpt,
+    maps: Optional[list[str]] = MapOpt,
+    json_out: bool = typer.Option(False, "--json", help="The diagnosis as JSON on stdout."),
+    effect: Optional[list[str]] = EffectOpt,
+    effect_file: Optional[list[str]] = EffectFileOpt,
+    stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
+    twin: Optional[str] = TwinOpt,
+    dialect: Optional[str] = DialectOpt,
+    lenient: bool = LenientOpt,
+    block_delete: Optional[bool] = BlockDeleteOpt,
+):
+    """For each signal: does the twin fit the measurement, and if not, which effect not yet in
+    the twin explains the residual (each fitted alone, ranked by ΔBIC)."""
+    from .loop.fit import diagnose as run_diagnose
+    from .loop.fit import target
+
+    tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
+                                       block_delete)
+    tg = target(tw, prog, meas, align, [s.strip() for s in signals.split(",")] if signals else None, box)
+    d = run_diagnose(tg, [c.strip() for c in candidates.split(",")] if candidates else None)
+    if json_out:
+        sys.stdout.write(json.dumps({"alignment": tg.alignment, "signals": d}, indent=2) + "\n")
+        return
+    for s, v in d.items():
+        err.print(f"[bold]{s}[/bold]: RMS {v['rms']:.4g} against noise {v['noise']:.4g} — {v['verdict']}", soft_wrap=True)
+        for c in v["candidates"][:3]:
+            err.print(f"  {c['evidence']}", soft_wrap=True)
+
+
+@app.command(short_help="Fit effects to a measurement; write the twin file.")
+@_reports_errors
+def calibrate(
+    part: str = typer.Argument(..., help="G-code program the measurement was recorded on."),
+    measurement: str = typer.Argument(..., help="Measurement file."),
+    output: str = typer.Option(..., "-o", "--output", help="Twin file to write (the effects and the journal added)."),
+    fit_effect: Optional[list[str]] = typer.Option(None, "--fit", metavar="NAME[:P=V,…]",
+                                                   help="An effect to add and fit (repeatable; values are starts)."),
+    param: Optional[list[str]] = typer.Option(None, "--param", help="A base parameter to fit too, e.g. "
+                                              "axes.x.friction.viscous (repeatable)."),
+    validate: Optional[str] = typer.Option(None, "--validate", help="A second measurement: the error on it after the fit."),
+    signals: Optional[str] = SignalsOpt,
+    align: str = AlignOpt,
+    maps: Optional[list[str]] = MapOpt,
+    json_out: bool = typer.Option(False, "--json", help="The fit as JSON on stdout."),
+    effect: Optional[list[str]] = EffectOpt,
+    effect_file: Optional[list[str]] = EffectFileOpt,
+    stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
+    twin: Optional[str] = TwinOpt,
+    dialect: Optional[str] = DialectOpt,
+    lenient: bool = LenientOpt,
+    block_delete: Optional[bool] = BlockDeleteOpt,
+):
+    """Fit the --fit effects' parameters (and --param base parameters) to the measurement by
+    bounded least squares; write the twin file with them and a journal entry."""
+    from pathlib import Path as _P
+
+    from .effects import parse_effect_spec
+    from .loop.fit import fit, target
+    from .loop.journal import calibrated_text, journal_entry, read_journal
+
+    if not fit_effect and not param:
+        raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects) or --param NAME")
+    tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
+                                       block_delete)
+    new = [parse_effect_spec(e) for e in fit_effect or ()]
+    sig = [s.strip() for s in signals.split(",")] if signals else None
+    tg = target(tw, prog, meas, align, sig, box)
+    res = fit(tg, new, sig, tuple(param or ()))
+    fitted = {e.name: e for e in res.effects}
+    effects = [fitted.pop(e.name, e) for e in tw.effects] + list(fitted.values())
+    validation = None
+    if validate:
+        from .loop.measurement import read_measurement
+
+        tw2 = tw.with_params({k: v for k, v in res.params.items() if not k.startswith("effects.")}) \
+            if any(not k.startswith("effects.") for k in res.params) else tw
+        from .twin import Twin as _Twin
+
+        tw2 = _Twin(tw2.machine, tw2.interpreter, tw2.path, tw2.cutting, effects)
+        tg2 = target(tw2, prog, read_measurement(validate, maps), align, sig, box)
+        from .loop.fit import _rms_by_signal
+
+        validation = {"measurement": validate, **_rms_by_signal(tg2, tg2.base, list(tg2.measured))}
+    previous = read_journal(twin) if twin else []
+    source = _P(twin).read_text(encoding="utf-8") if twin else ""
+    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, measurement, res, validation), previous)
+    write_output(text.encode(), output, [part, measurement])
+    if json_out:
+        sys.stdout.write(json.dumps({**res.as_dict(), "validation": validation, "twin_file": output}, indent=2) + "\n")
+        return
+    for k, v in res.params.items():
+        u = res.uncertainty.get(k)
+        err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else ""), soft_wrap=True)
+    for s in res.rms_before:
+        err.print(f"{s}: RMS {res.rms_before[s]:.4g} → {res.rms_after[s]:.4g} (noise {res.noise[s]:.4g})", soft_wrap=True)
+    if validation:
+        err.print("validation on " + validate + ": " + ", ".join(f"{k} RMS {v:.4g}" for k, v in validation.items()
+                                                                  if k != "measurement"), soft_wrap=True)
+    err.print(f"wrote {output} ({res.evaluations} simulations)", soft_wrap=True)
+
+
+@app.command(short_help="The model journal of a twin file: the error across calibrations.")
+@_reports_errors
+def journal(path: str = typer.Argument(..., help="Twin file."),
+            json_out: bool = typer.Option(False, "--json", help="The journal as JSON on stdout.")):
+    """Each calibration of the twin file: effects fitted, values, and the RMS error before and after."""
+    from .loop.journal import read_journal
+
+    j = read_journal(path)
+    if json_out:
+        sys.stdout.write(json.dumps(j, indent=2) + "\n")
+        return
+    if not j:
+        err.print(f"{path}: no journal yet (mtwin calibrate … -o {path} writes one)")
+        return
+    from rich.table import Table
+
+    t = Table(title=f"{path}: model journal", title_justify="left")
+    for col in ("#", "effects", "measurement", "RMS before → after"):
+        t.add_column(col)
+    for e in j:
+        rms = ", ".join(f"{s} {e['rms_before'][s]:.4g} → {e['rms_after'][s]:.4g}" for s in e.get("rms_before", {}))
+        t.add_row(str(e.get("iteration")), ", ".join(e.get("effects", [])), str(e.get("measurement", "")), rms)
+    err.print(t)
+
+
 effects_app = typer.Typer(help="The physical effects a twin can be given.",
                           invoke_without_command=True, rich_markup_mode=None)
 app.add_typer(effects_app, name="effects")

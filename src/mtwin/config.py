@@ -33,7 +33,7 @@ from .errors import ConfigError
 
 _SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "cutter_comp", "machine", "controller", "axes", "spindle",
              "timing",
-             "tools", "materials", "cutting", "effects"}
+             "tools", "materials", "cutting", "effects", "journal"}
 _INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30", "subroutine_path"}
 
 
@@ -58,6 +58,10 @@ def read_twin_toml(path: str) -> dict:
     for section, body in raw.items():
         if section not in _SECTIONS:
             raise ConfigError(f"{path}: unknown section [{section}] (known: {', '.join(sorted(_SECTIONS))})")
+        if section == "journal":
+            if not (isinstance(body, list) and all(isinstance(x, dict) for x in body)):
+                raise ConfigError(f"{path}: journal must be an array of tables ([[journal]])")
+            continue
         if not isinstance(body, dict):
             raise ConfigError(f"{path}: [{section}] must be a table")
     return raw

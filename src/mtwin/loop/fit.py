@@ -1,0 +1,281 @@
+"""Fitting effects to a measurement, and finding which effect is missing.
+
+Both work on residuals: measured minus simulated, at the simulated times the alignment
+gave each measured sample (aligned once, with the twin as it is), per signal divided by
+that signal's noise level — estimated from the measurement itself as the scatter of
+successive samples (``std(diff(r))/√2``), which a smooth model error does not reach.
+
+* :func:`fit` fits the parameters of some effects (and named base parameters) by bounded
+  least squares (scipy's trust-region reflective), from their defaults or given starts;
+  an observation effect is re-applied to one stored simulation, an in-loop effect needs a
+  re-simulation (the engagement is reused).
+* :func:`diagnose` fits each candidate effect alone and ranks them per signal by ΔBIC
+  (an extra parameter has to earn its place) and explained variance, with a verdict:
+  ``fits`` (the residual is at the noise level already), ``explained`` (a candidate brings
+  it there, or most of the way), ``unexplained``.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MtwinError
+from .compare import compare
+
+_FIT_FACTOR = 1.5  # a residual within this many noise levels fits
+
+
+@dataclass
+class Target:
+    """A measurement aligned to a program on a twin: what fitting needs, computed once."""
+
+    twin: object
+    program: object
+    meas: object
+    t_sim: np.ndarray  # simulated time of each used measured sample
+    measured: dict  # signal -> values
+    noise: dict  # signal -> noise level (same unit)
+    alignment: str
+    base: object = None  # the base simulation (full rate)
+
+    def simulated(self, trace, signals) -> dict:
+        ts = np.asarray(trace.t, dtype=np.float64)
+        return {s: np.interp(self.t_sim, ts, trace.signal(s)) for s in signals}
+
+
+def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -> Target:
+    """Align ``meas`` with the twin's simulation of ``program`` and estimate each signal's
+    noise; ``signals`` limits the signals used (default: every one in both)."""
+    cutting = any(s in _CUTTING for s in meas.signals)
+    base = twin.simulate(program, stock=stock, cutting=cutting)
+    c = compare(base, meas, align)
+    use = [s for s in (signals or c.measured) if s in c.measured]
+    if not use:
+        raise MtwinError(f"none of the signals {', '.join(signals)} is in both the measurement and the simulation")
+    measured = {s: c.measured[s] for s in use}
+    noise = {}
+    for s in use:
+        r = c.measured[s] - c.simulated[s]
+        d = np.diff(r[~np.isnan(r)])
+        sigma = float(np.std(d) / math.sqrt(2.0)) if len(d) > 2 else 0.0
+        span = float(np.nanmax(np.abs(c.measured[s]))) if len(r) else 0.0
+        noise[s] = max(sigma, 1e-9 * max(span, 1.0))
+    return Target(twin, program, meas, c.t_sim, measured, noise, c.alignment, base)
+
+
+_CUTTING = {"spindle_speed", "spindle_torque", "spindle_power", "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"}
+
+
+def _trace_with(tg: Target, twin, effects) -> object:
+    """The simulation with ``effects`` added to ``twin`` — re-using the base simulation when
+    they all act on observation and the twin is the target's."""
+    if twin is tg.twin and all(e.stage == "observation" for e in effects):
+        tr = copy.copy(tg.base)
+        for e in effects:
+            e.observe(tr, e.resolved())
+        return tr
+    return twin.with_effects(*effects).simulate(tg.program, stock=None, cutting=tg.base.cut is not None)
+
+
+def residuals(tg: Target, trace, signals) -> np.ndarray:
+    sim = tg.simulated(trace, signals)
+    parts = []
+    for s in signals:
+        r = (tg.measured[s] - sim[s]) / tg.noise[s]
+        parts.append(np.where(np.isnan(r), 0.0, r))
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+@dataclass
+class FitResult:
+    effects: list  # fitted Effect instances
+    params: dict  # "effects.NAME.param" or base name -> value
+    uncertainty: dict  # same keys -> one standard deviation (from the Jacobian), or None
+    rms_before: dict  # signal -> RMS of measured − simulated
+    rms_after: dict
+    noise: dict
+    evaluations: int
+    signals: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return {"params": self.params, "uncertainty": self.uncertainty, "rms_before": self.rms_before,
+                "rms_after": self.rms_after, "noise": self.noise, "evaluations": self.evaluations,
+                "effects": [{"name": e.name, "params": e.resolved()} for e in self.effects]}
+
+
+def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None = None) -> FitResult:
+    """Fit every parameter of ``effects`` (Effect instances: their values are the starts)
+    and the named ``base_params`` of the twin to the target's signals."""
+    from scipy.optimize import least_squares
+
+    signals = list(signals or tg.measured)
+    free = []  # (key, lower, upper, start)
+    for e in effects:
+        p = e.resolved()
+        for d in e.params:
+            start = (starts or {}).get(f"effects.{e.name}.{d.name}", p[d.name])
+            free.append((f"effects.{e.name}.{d.name}", d.lower, d.upper, float(start)))
+    for name in base_params:
+        v = _base_value(tg.twin, name)
+        free.append((name, 0.0 if v >= 0 else -math.inf, math.inf, v))
+    if not free:
+        raise MtwinError("nothing to fit: give effects with parameters or --param names")
+    keys = [f[0] for f in free]
+    lo = np.array([f[1] for f in free])
+    hi = np.array([f[2] for f in free])
+    x0 = np.clip(np.array([f[3] for f in free]), lo, hi)
+    scale = np.array([_scale(lo_, hi_, x) for lo_, hi_, x in zip(lo, hi, x0)])
+    count = [0]
+
+    def build(x):
+        values = dict(zip(keys, x))
+        fitted = [type(e)(**{d.name: values[f"effects.{e.name}.{d.name}"] for d in e.params}) for e in effects]
+        twin = tg.twin
+        base = {k: v for k, v in values.items() if not k.startswith("effects.")}
+        if base:
+            twin = twin.with_params(base)
+        return twin, fitted
+
+    # the solver works on u = 1 + (x - x0) / scale, starting at 1: scipy's finite-difference
+    # steps are relative to u, so they are then a fixed share of each parameter's range, well
+    # above the float32 resolution of the simulated signals (relative to x itself they would
+    # vanish at a zero default)
+    def to_x(u):
+        return np.clip(x0 + (u - 1.0) * scale, lo, hi)
+
+    def fun(u):
+        count[0] += 1
+        twin, fitted = build(to_x(u))
+        return residuals(tg, _trace_with(tg, twin, fitted), signals)
+
+    ulo, uhi = 1.0 + (lo - x0) / scale, 1.0 + (hi - x0) / scale
+    res = least_squares(fun, np.ones(len(x0)), bounds=(ulo, uhi), method="trf", max_nfev=80,
+                        diff_step=1e-3, xtol=1e-8, ftol=1e-10)
+    xfit = to_x(res.x)
+    twin, fitted = build(xfit)
+    after_trace = _trace_with(tg, twin, fitted)
+    unc = [None if u is None else u * sc for u, sc in zip(_uncertainty(res, len(signals)), scale)]
+    return FitResult(fitted, dict(zip(keys, map(float, xfit))), dict(zip(keys, unc)),
+                     _rms_by_signal(tg, tg.base, signals), _rms_by_signal(tg, after_trace, signals),
+                     dict(tg.noise), count[0], signals)
+
+
+def _scale(lo, hi, x):
+    if math.isfinite(lo) and math.isfinite(hi) and hi > lo:
+        return 0.1 * (hi - lo)
+    return max(abs(x), 1.0)
+
+
+def _uncertainty(res, nsig):
+    try:
+        J = res.jac
+        dof = max(1, len(res.fun) - len(res.x))
+        s2 = float(np.sum(res.fun ** 2)) / dof
+        cov = np.linalg.pinv(J.T @ J) * s2
+        return [float(math.sqrt(max(v, 0.0))) for v in np.diag(cov)]
+    except Exception:  # noqa: BLE001 - an uncertainty we cannot compute is reported as unknown
+        return [None] * len(res.x)
+
+
+def _rms_by_signal(tg, trace, signals) -> dict:
+    sim = tg.simulated(trace, signals)
+    out = {}
+    for s in signals:
+        r = tg.measured[s] - sim[s]
+        r = r[~np.isnan(r)]
+        out[s] = float(np.sqrt(np.mean(r * r))) if len(r) else 0.0
+    return out
+
+
+def _base_value(twin, name: str) -> float:
+    from ..twin.machine import param_names
+
+    if name not in param_names(twin.machine):
+        raise MtwinError(f"--param {name}: not a machine parameter (e.g. axes.x.servo.kpp)")
+    obj = twin.machine
+    for part in name.split(".")[:-1]:
+        obj = getattr(obj, part)
+    return float(getattr(obj, name.split(".")[-1]))
+
+
+# ------------------------------------------------------------------------------ diagnose
+
+def diagnose(tg: Target, candidates=None) -> dict:
+    """Per signal of the target: RMS, noise, verdict and the candidate effects ranked."""
+    from ..effects import available
+
+    in_model = {e.name for e in getattr(tg.twin, "effects", ())}
+    classes = [c for n, c in available().items() if n not in in_model and (candidates is None or n in candidates)]
+    out = {}
+    fits = {}
+    for cls in classes:
+        used = [s for s in tg.measured if s in cls.signals]
+        if not used or not cls.params:
+            continue
+        fits[cls.name] = _fit_candidate(tg, cls, used)
+    for s in tg.measured:
+        rms0 = _rms_by_signal(tg, tg.base, [s])[s]
+        n = int(np.sum(~np.isnan(tg.measured[s])))
+        rows = []
+        for name, fr in fits.items():
+            if fr is None or s not in fr.rms_after:
+                continue
+            rss0 = n * rms0 ** 2
+            rss1 = n * fr.rms_after[s] ** 2
+            k = len(fr.params)
+            ev = 1.0 - rss1 / rss0 if rss0 > 0 else 0.0
+            dbic = n * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + k * math.log(max(n, 2))
+            p = {key.rsplit(".", 1)[-1]: round(v, 6) for key, v in fr.params.items()}
+            rows.append({"effect": name, "explained_variance": ev, "delta_bic": dbic, "params": p,
+                         "rms_after": fr.rms_after[s],
+                         "evidence": (f"{s} residual RMS {rms0:.4g} → {fr.rms_after[s]:.4g} with {name} "
+                                      f"({', '.join(f'{k_}={v:.4g}' for k_, v in p.items())}): "
+                                      f"{max(ev, 0.0):.0%} of it explained, ΔBIC {dbic:+.1f}")})
+        rows.sort(key=lambda r: r["delta_bic"])
+        noise = tg.noise[s]
+        if rms0 <= _FIT_FACTOR * noise:
+            verdict = "fits"
+        elif rows and rows[0]["delta_bic"] < -10 and rows[0]["explained_variance"] >= 0.5:
+            verdict = "explained"
+        else:
+            verdict = "unexplained"
+        out[s] = {"rms": rms0, "noise": noise, "verdict": verdict, "candidates": rows}
+    return out
+
+
+def _fit_candidate(tg: Target, cls, signals):
+    """One candidate fitted alone from a few starts (the best kept); None if it fails."""
+    best = None
+    for start in _starts(cls):
+        try:
+            fr = fit(tg, [cls(**start)], signals)
+        except (MtwinError, ValueError, FloatingPointError):
+            continue
+        cost = sum(fr.rms_after[s] ** 2 / tg.noise[s] ** 2 for s in signals)
+        if best is None or cost < best[0]:
+            best = (cost, fr)
+    return best[1] if best else None
+
+
+def _starts(cls):
+    """Starting points: the defaults; for an effect on observation (cheap to evaluate) also a
+    few spread over the range of each parameter whose default is not zero (a phase, a time
+    constant, a period: where least squares alone finds the nearest local minimum)."""
+    starts = [{}]
+    if cls.stage != "observation":
+        return starts
+    # the amplitudes (zero by default) start away from zero there, or the gradient along a
+    # period or a phase would vanish
+    lift = {d.name: 0.1 * d.upper for d in cls.params if d.default == 0 and d.upper > 0}
+    for d in cls.params:
+        if d.default == 0 or not (np.isfinite(d.lower) and np.isfinite(d.upper)):
+            continue
+        if d.lower > 0:
+            grid = np.geomspace(d.lower, d.upper, 14)[1:-1]
+        else:
+            grid = np.linspace(d.lower, d.upper, 14)[1:-1]
+        starts += [{**lift, d.name: float(v)} for v in grid]
+    return starts

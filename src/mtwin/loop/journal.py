@@ -1,0 +1,83 @@
+"""Writing a calibrated twin file, with its model journal.
+
+The twin file keeps everything it had; its ``[effects.NAME]`` tables are written anew (the
+twin's effects, with the calibrated values) and a ``[[journal]]`` entry is appended for each
+calibration: the effects fitted, the values with their uncertainty, the measurement, and
+the RMS error per signal before and after — so ``mtwin journal FILE`` shows the error
+falling across iterations.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import re
+
+from ..errors import ConfigError
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        if v is None or (isinstance(v, float) and not math.isfinite(v)):
+            return "nan"
+        return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(v)
+
+
+def _inline(d: dict) -> str:
+    return "{ " + ", ".join(f'"{k}" = {_toml_value(v if v is not None else float("nan"))}' for k, v in d.items()) + " }"
+
+
+def _strip_effects_and_journal(text: str) -> str:
+    """The file without its [effects.*] tables and [[journal]] entries (re-written after)."""
+    out, skip = [], False
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("["):
+            skip = bool(re.match(r"^\[\s*effects\.", s) or re.match(r"^\[\[\s*journal\s*\]\]", s))
+        if not skip:
+            out.append(line)
+    while out and not out[-1].strip():
+        out.pop()
+    return "\n".join(out)
+
+
+def read_journal(path: str) -> list[dict]:
+    from ..config import read_twin_toml
+
+    raw = read_twin_toml(path)
+    j = raw.get("journal", [])
+    if not isinstance(j, list):
+        raise ConfigError(f"{path}: journal must be an array of tables ([[journal]])")
+    return j
+
+
+def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]) -> str:
+    """The twin file's new text: its own sections, the effects, the journal with ``entry``."""
+    parts = [_strip_effects_and_journal(source_text)] if source_text.strip() else []
+    for e in effects:
+        values = e.resolved()
+        lines = [f"[effects.{e.name}]"] + [f"{k} = {_toml_value(v)}" for k, v in values.items()]
+        parts.append("\n".join(lines))
+    for j in list(previous) + [entry]:
+        lines = ["[[journal]]"]
+        for k, v in j.items():
+            lines.append(f"{k} = {_inline(v) if isinstance(v, dict) else _toml_value(v)}")
+        parts.append("\n".join(lines))
+    return "\n\n".join(p for p in parts if p) + "\n"
+
+
+def journal_entry(iteration: int, measurement: str, fit, validation: dict | None = None) -> dict:
+    e = {"iteration": iteration, "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+         "measurement": measurement, "effects": [x.name for x in fit.effects],
+         "params": {k: v for k, v in fit.params.items()},
+         "uncertainty": {k: (v if v is not None else float("nan")) for k, v in fit.uncertainty.items()},
+         "rms_before": fit.rms_before, "rms_after": fit.rms_after, "noise": fit.noise}
+    if validation:
+        e["validation"] = validation
+    return e

@@ -1,0 +1,150 @@
+"""The loop end to end (issue 10): a 100 Hz measurement with 2 % noise and one hidden effect;
+`diagnose` ranks the hidden effect first, `calibrate` recovers its parameters within 10 % and
+the error falls by at least half, to within 1.5x the noise; an effect outside the catalogue
+is "unexplained" until it is registered; the CLI writes a twin file with a journal."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+import numpy as np
+import pytest
+
+import mtwin
+from conftest import SAMPLES
+from mtwin import effects as FX
+from mtwin.loop.fit import diagnose, fit, target
+from mtwin.loop.measurement import Measurement
+from mtwin.loop.synth import synthesize
+from test_cli import mtwin as run_cli
+
+POCKET = str(SAMPLES / "pocket.nc")
+
+# hidden effect, the parameters it is hidden with, the signals measured, the parameters that
+# must come back within 10 % (the others are checked to stay near their hidden values)
+CASES = [
+    ("spindle-no-load", {"p0": 150.0, "b": 0.01}, ["spindle_power"], ["p0", "b"]),
+    ("tool-wear", {"rate": 0.5}, ["spindle_power"], ["rate"]),
+    ("coulomb-friction", {"fx": 150.0, "fy": 100.0}, ["x_torque", "y_torque"], ["fx", "fy"]),
+    ("viscous-friction", {"bx": 3000.0}, ["x_torque"], ["bx"]),
+    ("gravity", {"mass": 60.0}, ["z_torque"], ["mass"]),
+    ("stribeck-friction", {"sx": 300.0}, ["x_torque"], ["sx"]),
+]
+
+
+def _measure(twin, prog, hidden, signals, seed=1):
+    cols = synthesize(twin.with_effects(*hidden), prog, rate=100, noise=0.02, seed=seed, signals=signals)
+    return Measurement("hidden.csv", cols["t"], {s: cols[s] for s in signals}, cols["line"].astype(np.int64))
+
+
+@pytest.fixture(scope="module")
+def pocket():
+    tw = mtwin.Twin()
+    return tw, tw.load(POCKET)
+
+
+@pytest.mark.parametrize("name,values,signals,exact", CASES, ids=[c[0] for c in CASES])
+def test_a_hidden_effect_is_found_fitted_and_the_error_falls(pocket, name, values, signals, exact):
+    tw, prog = pocket
+    cls = FX.get(name)
+    meas = _measure(tw, prog, [cls(**values)], signals)
+    tg = target(tw, prog, meas)
+    d = diagnose(tg)
+    for s in signals:
+        assert d[s]["verdict"] == "explained", (s, d[s])
+        assert d[s]["candidates"][0]["effect"] == name, (s, [c["effect"] for c in d[s]["candidates"]])
+        assert "explained" in d[s]["candidates"][0]["evidence"]
+    res = fit(tg, [cls()], signals)
+    for p in exact:
+        assert res.params[f"effects.{name}.{p}"] == pytest.approx(values[p], rel=0.10), (p, res.params)
+    for s in signals:
+        assert res.rms_after[s] <= 0.5 * res.rms_before[s], (s, res.rms_before, res.rms_after)
+        assert res.rms_after[s] <= 1.5 * res.noise[s], (s, res.rms_after, res.noise)
+
+
+OUTSIDE = '''
+import math
+import numpy as np
+from mtwin.effects import Effect
+from mtwin.params import Param
+
+
+class SupplyRipple(Effect):
+    name = "supply-ripple"
+    description = "a slow ripple on the measured spindle power from the shop's supply"
+    params = (Param("amplitude", "W", 0.0, 0.0, 500.0, "ripple amplitude"),
+              Param("period", "s", 7.0, 1.0, 60.0, "ripple period"))
+    signals = ("spindle_power",)
+
+    def observe(self, trace, p):
+        t = np.asarray(trace.t, dtype=np.float64)
+        trace.set_signal("spindle_power", trace.signal("spindle_power")
+                         + p["amplitude"] * np.sin(2 * math.pi * t / p["period"]))
+'''
+
+
+def test_an_effect_outside_the_catalogue_is_unexplained_until_it_is_registered(pocket, tmp_path, monkeypatch):
+    tw, prog = pocket
+    # the effect exists only in this test: the measurement is made with it, unregistered
+    namespace: dict = {}
+    exec(compile(OUTSIDE, "supply_ripple.py", "exec"), namespace)  # noqa: S102 - the test's own code
+    ripple = namespace["SupplyRipple"]
+    meas = _measure(tw, prog, [ripple(amplitude=60.0, period=9.0)], ["spindle_power"])
+    tg = target(tw, prog, meas)
+    before = diagnose(tg)["spindle_power"]
+    assert before["verdict"] == "unexplained", before
+    # registered the way a package does it: a module and an entry point in a dist-info
+    site = tmp_path / "site"
+    (site / "ripple_fx-1.0.dist-info").mkdir(parents=True)
+    (site / "ripple_fx.py").write_text(OUTSIDE)
+    (site / "ripple_fx-1.0.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: ripple-fx\nVersion: 1.0\n")
+    (site / "ripple_fx-1.0.dist-info" / "entry_points.txt").write_text(
+        "[mtwin.effects]\nsupply-ripple = ripple_fx:SupplyRipple\n")
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.setattr(FX, "_entry_points_loaded", None)
+    try:
+        after = diagnose(tg)["spindle_power"]
+        assert after["verdict"] == "explained" and after["candidates"][0]["effect"] == "supply-ripple", after
+        res = fit(tg, [FX.get("supply-ripple")(period=8.0)], ["spindle_power"])
+        assert res.params["effects.supply-ripple.amplitude"] == pytest.approx(60.0, rel=0.1)
+        assert res.rms_after["spindle_power"] <= 0.5 * res.rms_before["spindle_power"]
+    finally:
+        FX._entry_points_loaded = None
+        sys.modules.pop("ripple_fx", None)
+
+
+def test_calibrate_writes_the_twin_file_and_the_journal_shows_the_error_fall(tmp_path):
+    meas = tmp_path / "m.csv"
+    r = run_cli("synth", POCKET, "--effect", "spindle-no-load:p0=120", "--noise", "0.02", "--signals",
+                "spindle_power", "-o", str(meas))
+    assert r.returncode == 0, r.stderr.decode()
+    r = run_cli("diagnose", POCKET, str(meas), "--json")
+    d = json.loads(r.stdout)
+    assert d["signals"]["spindle_power"]["candidates"][0]["effect"] == "spindle-no-load"
+    for key in ("rms", "verdict", "candidates"):
+        assert key in d["signals"]["spindle_power"]
+    for key in ("effect", "explained_variance", "delta_bic", "params", "evidence"):
+        assert key in d["signals"]["spindle_power"]["candidates"][0]
+    out = tmp_path / "twin.toml"
+    r = run_cli("calibrate", POCKET, str(meas), "--fit", "spindle-no-load", "-o", str(out), "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    res = json.loads(r.stdout)
+    assert res["params"]["effects.spindle-no-load.p0"] == pytest.approx(120, rel=0.1)
+    tw = mtwin.Twin.from_toml(str(out))
+    assert [e.name for e in tw.effects] == ["spindle-no-load"]
+    # the calibrated twin fits: the residual is at the noise level
+    r = run_cli("diagnose", POCKET, str(meas), "--twin", str(out), "--json")
+    assert json.loads(r.stdout)["signals"]["spindle_power"]["verdict"] == "fits"
+    r = run_cli("journal", str(out), "--json")
+    j = json.loads(r.stdout)
+    assert len(j) == 1 and j[0]["rms_after"]["spindle_power"] < 0.2 * j[0]["rms_before"]["spindle_power"]
+    # a second calibration appends to the journal and keeps the effect
+    out2 = tmp_path / "twin2.toml"
+    r = run_cli("calibrate", POCKET, str(meas), "--twin", str(out), "--fit", "tool-wear", "-o", str(out2))
+    assert r.returncode == 0, r.stderr.decode()
+    j2 = json.loads(run_cli("journal", str(out2), "--json").stdout)
+    assert [e["iteration"] for e in j2] == [1, 2]
+    assert [e.name for e in mtwin.Twin.from_toml(str(out2)).effects] == ["spindle-no-load", "tool-wear"]
+    r = run_cli("calibrate", POCKET, str(meas), "-o", str(tmp_path / "x.toml"))
+    assert r.returncode == 2 and "nothing to fit" in r.stderr.decode()
