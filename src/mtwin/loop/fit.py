@@ -210,12 +210,17 @@ def diagnose(tg: Target, candidates=None) -> dict:
     in_model = {e.name for e in getattr(tg.twin, "effects", ())}
     classes = [c for n, c in available().items() if n not in in_model and (candidates is None or n in candidates)]
     out = {}
-    fits = {}
-    for cls in classes:
-        used = [s for s in tg.measured if s in cls.signals]
-        if not used or not cls.params:
-            continue
-        fits[cls.name] = _fit_candidate(tg, cls, used)
+    jobs = [(cls, [s for s in tg.measured if s in cls.signals]) for cls in classes]
+    jobs = [(cls, used) for cls, used in jobs if used and cls.params]
+    # candidates are independent; the servo loop and the engagement release the GIL, so two
+    # fit at once on a 2-core machine
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    workers = max(1, min(len(jobs), os.cpu_count() or 1, 4))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        done = list(pool.map(lambda job: _fit_candidate(tg, *job), jobs))
+    fits = {cls.name: fr for (cls, _), fr in zip(jobs, done)}
     for s in tg.measured:
         rms0 = _rms_by_signal(tg, tg.base, [s])[s]
         n = int(np.sum(~np.isnan(tg.measured[s])))
