@@ -148,3 +148,23 @@ def test_calibrate_writes_the_twin_file_and_the_journal_shows_the_error_fall(tmp
     assert [e.name for e in mtwin.Twin.from_toml(str(out2)).effects] == ["spindle-no-load", "tool-wear"]
     r = run_cli("calibrate", POCKET, str(meas), "-o", str(tmp_path / "x.toml"))
     assert r.returncode == 2 and "nothing to fit" in r.stderr.decode()
+
+
+def test_a_base_cutting_coefficient_is_calibrated_by_its_dotted_name(pocket, tmp_path):
+    tw, prog = pocket
+    true = tw.with_params({"cutting.al6061.ktc": 1500.0})
+    cols = synthesize(true, prog, rate=100, noise=0.02, seed=2, signals=["spindle_power"])
+    meas = Measurement("ktc.csv", cols["t"], {"spindle_power": cols["spindle_power"]}, cols["line"].astype(np.int64))
+    res = fit(target(tw, prog, meas), [], ["spindle_power"], ("cutting.al6061.ktc",))
+    assert res.params["cutting.al6061.ktc"] == pytest.approx(1500.0, rel=0.02)
+    assert res.rms_after["spindle_power"] <= 1.5 * res.noise["spindle_power"]
+    from mtwin.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="the twin cuts al6061"):
+        tw.with_params({"cutting.steel1045.ktc": 2000.0})
+    with pytest.raises(ConfigError, match="not in the twin file's tool table"):
+        tw.with_params({"tools.1.diameter": 8.0})
+    f = tmp_path / "t.toml"
+    f.write_text("[tools.1]\ndiameter = 6.0\n")
+    t2 = mtwin.Twin.from_toml(str(f)).with_params({"tools.1.diameter": 8.0})
+    assert t2.cutting.tools[1].diameter == 8.0

@@ -108,6 +108,54 @@ class Cutting:
         return self.tools[number]
 
 
+def cutting_param_names(cutting: Cutting) -> list[str]:
+    """The cutting part's numeric parameters by dotted name: the active material's
+    coefficients (``cutting.<material>.ktc``) and each table tool's (``tools.<n>.diameter``)."""
+    out = [f"cutting.{cutting.material_name}.{f.name}" for f in fields(Material) if f.name != "source"]
+    for n, t in sorted(cutting.tools.items()):
+        out += [f"tools.{n}.{f.name}" for f in fields(Tool) if isinstance(getattr(t, f.name), (int, float))]
+    return out
+
+
+def cutting_param(cutting: Cutting, name: str) -> float:
+    obj, field_name = _cutting_target(cutting, name)
+    return float(getattr(obj, field_name))
+
+
+def with_cutting_params(cutting: Cutting, values: dict) -> Cutting:
+    """A copy with cutting parameters changed by dotted name (see ``cutting_param_names``)."""
+    for name, value in values.items():
+        obj, field_name = _cutting_target(cutting, name)
+        meta = {f.name: f for f in fields(obj)}[field_name].metadata
+        new = replace(obj, **{field_name: _check(value, meta, name)})
+        if isinstance(obj, Material):
+            cutting = replace(cutting, material=new)
+        else:
+            n = int(name.split(".")[1])
+            cutting = replace(cutting, tools={**cutting.tools, n: new})
+    return cutting
+
+
+def _cutting_target(cutting: Cutting, name: str):
+    parts = name.split(".")
+    if len(parts) == 3 and parts[0] == "cutting":
+        mat = MATERIAL_ALIASES.get(parts[1], parts[1])
+        if mat != cutting.material_name:
+            raise ConfigError(f"{name}: the twin cuts {cutting.material_name} (cutting.{cutting.material_name}.<coefficient>)")
+        if parts[2] not in {f.name for f in fields(Material)} - {"source"}:
+            raise ConfigError(f"{name}: no coefficient {parts[2]!r} (ktc krc kac kte kre kae)")
+        return cutting.material, parts[2]
+    if len(parts) == 3 and parts[0] == "tools" and parts[1].isdigit():
+        n = int(parts[1])
+        if n not in cutting.tools:
+            raise ConfigError(f"{name}: tool T{n} is not in the twin file's tool table"
+                              + ("" if cutting.tools else " (it has none: tools come from the program or the default)"))
+        if parts[2] not in {f.name for f in fields(Tool)}:
+            raise ConfigError(f"{name}: a tool has no {parts[2]!r}")
+        return cutting.tools[n], parts[2]
+    raise ConfigError(f"unknown cutting parameter {name!r} (cutting.<material>.<coefficient> or tools.<n>.<field>)")
+
+
 @functools.lru_cache(maxsize=8)
 def _scan(data: bytes):
     # an optimiser re-simulates one program many times, each time as a new Program object

@@ -193,8 +193,13 @@ def _rms_by_signal(tg, trace, signals) -> dict:
 def _base_value(twin, name: str) -> float:
     from ..twin.machine import param_names
 
+    if name.startswith(("cutting.", "tools.")):
+        from ..cutting.library import cutting_param
+
+        return cutting_param(twin.cutting, name)
     if name not in param_names(twin.machine):
-        raise MtwinError(f"--param {name}: not a machine parameter (e.g. axes.x.servo.kpp)")
+        raise MtwinError(f"--param {name}: not a parameter of the twin (e.g. axes.x.servo.kpp, cutting.al6061.ktc, "
+                         f"tools.1.diameter)")
     obj = twin.machine
     for part in name.split(".")[:-1]:
         obj = getattr(obj, part)

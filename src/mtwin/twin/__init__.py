@@ -67,13 +67,21 @@ class Twin:
         return Twin(m, self.interpreter, self.path, self.cutting, self.effects)
 
     def with_params(self, values: dict) -> "Twin":
-        """A copy with machine parameters changed by dotted name, e.g.
-        ``{"axes.x.servo.kpp": 35.0, "controller.bell_time": 0.016}`` (for calibration).
+        """A copy with parameters changed by dotted name: the machine's
+        (``"axes.x.servo.kpp"``, ``"controller.bell_time"``), the cutting material's and table
+        tools' (``"cutting.al6061.ktc"``, ``"tools.1.diameter"``) and the effects'
+        (``"effects.tool-wear.rate"``) — the handle calibration uses.
         The engagement cache is shared: the path does not depend on drive parameters unless
         the planner changes it, and the cache key covers that."""
         from .machine import with_params
 
-        machine_values = {k: v for k, v in values.items() if not k.startswith("effects.")}
+        from ..cutting.library import with_cutting_params
+
+        def is_cutting(k):
+            return k.startswith(("cutting.", "tools."))
+
+        machine_values = {k: v for k, v in values.items() if not k.startswith("effects.") and not is_cutting(k)}
+        cutting = with_cutting_params(self.cutting, {k: v for k, v in values.items() if is_cutting(k)})
         effects = list(self.effects)
         for key, value in values.items():
             if not key.startswith("effects."):
@@ -88,7 +96,7 @@ class Twin:
                                   f"(has {', '.join(e.name for e in effects) or 'none'})")
             effects[idx[-1]] = effects[idx[-1]].with_values(**{param: value})
             effects[idx[-1]].resolved()
-        tw = Twin(with_params(self.machine, machine_values), self.interpreter, self.path, self.cutting, effects)
+        tw = Twin(with_params(self.machine, machine_values), self.interpreter, self.path, cutting, effects)
         tw.engagement_cache = self.engagement_cache
         return tw
 
