@@ -147,3 +147,30 @@ def test_a_hidden_effect_on_some_lines_is_named_among_the_worst_regions():
     c = compare(tw.simulate(prog), meas, "line")
     power = [r for r in c.worst_regions if r["signal"] == "spindle_power"][:3]
     assert any(r["first_line"] <= 14 <= r["last_line"] for r in power), power
+
+
+def test_a_summary_measurement_is_compared_row_by_row(tmp_path):
+    tw = mtwin.Twin()
+    prog = tw.load(CONTOUR)
+    trace = tw.simulate(prog)
+    # rows made from the twin's own trace compare to zero; a row 20 % high is found
+    rows = []
+    for first, last in ((12, 19), (24, 27)):
+        sel = (trace.line >= first) & (trace.line <= last)
+        p = trace.signal("spindle_power")[sel]
+        fy = trace.signal("fy")[sel]
+        rows.append((first, last, float(p.mean()), float(np.sqrt(np.mean(fy * fy)))))
+    f = tmp_path / "s.csv"
+    f.write_text("first_line,last_line,spindle_power_mean,fy_rms\n"
+                 + "".join(f"{a},{b},{c!r},{d!r}\n" for a, b, c, d in rows))
+    c = compare(trace, read_measurement(str(f)))
+    assert c.signals["spindle_power_mean"]["max_error"] < 1e-6 * rows[0][2]
+    assert c.signals["fy_rms"]["max_error"] < 1e-6 * rows[0][3]
+    a, b, p, fy = rows[1]
+    f.write_text("first_line,last_line,spindle_power_mean\n"
+                 f"{rows[0][0]},{rows[0][1]},{rows[0][2]!r}\n{a},{b},{p * 1.2!r}\n")
+    r = run_cli("compare", CONTOUR, str(f), "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    d = json.loads(r.stdout)
+    assert d["worst_regions"][0]["first_line"] == a and d["worst_regions"][0]["last_line"] == b
+    assert d["worst_regions"][0]["rms"] == pytest.approx(0.2 * p, rel=1e-6)

@@ -661,8 +661,11 @@ def compare(
 
         box = parse_box(stock, "--stock")
     prog = _load(part, settings)
-    cutting = any(s in ("spindle_speed", "spindle_power", "spindle_torque", "fx", "fy", "fz", "ae", "ap", "mrr",
-                        "h_max") for s in meas.signals)
+    from .loop.measurement import _summary_base
+
+    wanted = set(meas.signals) | {_summary_base(c) for _, _, st in meas.rows for c in st}
+    cutting = bool(wanted & {"spindle_speed", "spindle_power", "spindle_torque", "fx", "fy", "fz", "ae", "ap", "mrr",
+                             "h_max"})
     trace = tw.simulate(prog, stock=box, cutting=cutting)
     res = run_compare(trace, meas, align, xcorr_signal)
     for n in res.notes:
@@ -673,9 +676,14 @@ def compare(
     from rich.table import Table
 
     c = res.cycle_time
-    rel = f"{c['relative_error']:+.2%}" if c["relative_error"] is not None else "-"
-    err.print(f"{prog.path} against {measurement}: aligned by {res.alignment}, time offset {res.time_offset:+.3f} s; "
-              f"cycle time measured {c['measured']:.3f} s, simulated {c['simulated']:.3f} s ({rel})", soft_wrap=True)
+    if c["measured"] is None:  # a summary measurement has no clock
+        err.print(f"{prog.path} against {measurement}: {len(meas.rows)} summary rows by line range; "
+                  f"simulated cycle time {c['simulated']:.3f} s", soft_wrap=True)
+    else:
+        rel = f"{c['relative_error']:+.2%}" if c["relative_error"] is not None else "-"
+        err.print(f"{prog.path} against {measurement}: aligned by {res.alignment}, time offset "
+                  f"{res.time_offset:+.3f} s; cycle time measured {c['measured']:.3f} s, simulated "
+                  f"{c['simulated']:.3f} s ({rel})", soft_wrap=True)
     t = Table(title="signals (measured − simulated)", title_justify="left")
     for col in ("signal", "RMS", "NRMSE", "max", "bias", "corr.", "samples"):
         t.add_column(col, justify="right" if col != "signal" else "left", no_wrap=col == "signal")

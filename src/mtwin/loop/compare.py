@@ -49,8 +49,7 @@ class Comparison:
 def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, regions: int = 10) -> Comparison:
     """Compare a full-rate simulated ``trace`` with a time-series measurement ``meas``."""
     if meas.is_summary:
-        raise MtwinError(f"{meas.path}: a summary measurement (first_line/last_line rows) is compared row by row; "
-                         "this needs a time series")
+        return compare_summary(trace, meas, regions)
     common = [s for s in meas.signals if _has(trace, s)]
     if not common:
         raise MtwinError(f"{meas.path}: no signal in common with the simulation "
@@ -103,6 +102,53 @@ def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, r
     worst = _worst_regions(measured, simulated, line, regions)
     offset = float(np.median(t_sim_i - tm_i))
     return Comparison(align, offset, cycle, stats, worst, tm_i, t_sim_i, measured, simulated, line, notes)
+
+
+_STAT = {
+    "mean": np.mean, "rms": lambda v: np.sqrt(np.mean(v * v)), "std": np.std, "max": np.max, "min": np.min,
+    "p2p": np.ptp,
+}
+
+
+def compare_summary(trace, meas, regions: int = 10) -> Comparison:
+    """A summary measurement, row by row: each row's statistic of a signal over its line
+    range, against the same statistic of the simulated trace over the samples of those lines."""
+    from .measurement import _summary_base
+
+    line = np.asarray(trace.line)
+    columns = sorted({c for _, _, st in meas.rows for c in st})
+    notes = []
+    measured = {c: [] for c in columns}
+    simulated = {c: [] for c in columns}
+    where = {c: [] for c in columns}
+    for first, last, stats in meas.rows:
+        sel = (line >= first) & (line <= last)
+        if not sel.any():
+            notes.append(f"lines {first}–{last}: the simulation runs none of them; row left out")
+            continue
+        for c, v in stats.items():
+            base = _summary_base(c)
+            if np.isnan(v) or not _has(trace, base):
+                continue
+            stat = c[len(base) + 1:]
+            measured[c].append(v)
+            simulated[c].append(float(_STAT[stat](trace.signal(base)[sel])))
+            where[c].append((first, last))
+    stats_out, worst = {}, []
+    for c in columns:
+        if not measured[c]:
+            continue
+        m, s = np.array(measured[c]), np.array(simulated[c])
+        stats_out[c] = _metrics(m, s)
+        scale = float(np.sqrt(np.mean(m * m))) or 1.0
+        for (first, last), a, b in zip(where[c], m, s):
+            worst.append({"signal": c, "first_line": first, "last_line": last, "rms": float(abs(a - b)),
+                          "samples": 1, "share": float(abs(a - b) / scale)})
+    worst.sort(key=lambda d: -d["share"])
+    cycle = {"measured": None, "simulated": float(trace.summary.cycle_time), "relative_error": None}
+    return Comparison("line", 0.0, cycle, stats_out, worst[:regions], measured={k: np.array(v) for k, v in measured.items()},
+                      simulated={k: np.array(v) for k, v in simulated.items()}, notes=notes + ["summary measurement: "
+                      "one statistic per row and line range"])
 
 
 def _has(trace, s: str) -> bool:

@@ -49,6 +49,9 @@ class Target:
 def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -> Target:
     """Align ``meas`` with the twin's simulation of ``program`` and estimate each signal's
     noise; ``signals`` limits the signals used (default: every one in both)."""
+    if meas.is_summary:
+        raise MtwinError(f"{meas.path}: diagnose and calibrate need a time series (a summary measurement is "
+                         f"compared row by row with mtwin compare)")
     cutting = any(s in _CUTTING for s in meas.signals)
     base = twin.simulate(program, stock=stock, cutting=cutting)
     c = compare(base, meas, align)
