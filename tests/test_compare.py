@@ -174,3 +174,15 @@ def test_a_summary_measurement_is_compared_row_by_row(tmp_path):
     d = json.loads(r.stdout)
     assert d["worst_regions"][0]["first_line"] == a and d["worst_regions"][0]["last_line"] == b
     assert d["worst_regions"][0]["rms"] == pytest.approx(0.2 * p, rel=1e-6)
+
+
+def test_the_compare_report_is_one_self_contained_html_file(tmp_path, trace_csv):
+    out = tmp_path / "compare.html"
+    r = run_cli("compare", CONTOUR, str(trace_csv), "--report", str(out))
+    assert r.returncode == 0, r.stderr.decode()
+    text = out.read_text()
+    assert text.startswith("<!DOCTYPE html>") and text.count("<svg") >= 4
+    assert "<script" not in text and "src=" not in text and "<link" not in text  # nothing fetched
+    assert "spindle_power" in text and "Where it fails" in text
+    r = run_cli("compare", CONTOUR, str(trace_csv), "--report", str(tmp_path / "r.pdf"))
+    assert r.returncode == 2 and not (tmp_path / "r.pdf").exists()

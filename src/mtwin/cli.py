@@ -634,6 +634,7 @@ def compare(
     maps: Optional[list[str]] = typer.Option(None, "--map", metavar="SRC=DST[*SCALE]",
                                              help="Read column SRC as signal DST (times SCALE)."),
     json_out: bool = typer.Option(False, "--json", help="The comparison as JSON on stdout."),
+    report: Optional[str] = typer.Option(None, "--report", help="Write a self-contained HTML report (.html)."),
     effect: Optional[list[str]] = EffectOpt,
     effect_file: Optional[list[str]] = EffectFileOpt,
     stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
@@ -644,6 +645,8 @@ def compare(
 ):
     """How far the twin is from a measurement of PART, signal by signal, and the program lines
     where it is farthest."""
+    if report is not None and not report.endswith((".html", ".htm")) and report != "-":
+        raise MtwinError(f"--report {report}: the report is an .html file")
     from .config import interpreter_settings, load_cutting, load_effects, load_machine
     from .loop.compare import compare as run_compare
     from .loop.measurement import read_measurement
@@ -670,6 +673,13 @@ def compare(
     res = run_compare(trace, meas, align, xcorr_signal)
     for n in res.notes:
         err.print(f"note: {n}", soft_wrap=True)
+    if report:
+        from .loop.journal import read_journal
+        from .report.compare_html import compare_html
+
+        write_output(compare_html(res, prog.path, measurement, read_journal(twin) if twin else None), report,
+                     [part, measurement])
+        err.print(f"wrote {report}", soft_wrap=True)
     if json_out:
         sys.stdout.write(json.dumps(res.as_dict(), indent=2) + "\n")
         return

@@ -1,0 +1,124 @@
+"""The compare report: one self-contained HTML file (inline SVG, no network) for a person.
+
+Per signal: measured and simulated against time, the residual beneath, the worst regions
+shaded with their program lines; the metrics and the worst regions as tables; and, when the
+twin file has a model journal, the error across its calibrations.
+"""
+from __future__ import annotations
+
+import html
+import io
+
+import numpy as np
+
+MAX_POINTS = 4000  # per curve: plenty for a screen, keeps the file small
+
+
+def _svg(fig) -> str:
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg")
+    text = buf.getvalue()
+    return text[text.index("<svg"):]
+
+
+def _thin(*arrays):
+    n = len(arrays[0])
+    if n <= MAX_POINTS:
+        return arrays
+    idx = np.linspace(0, n - 1, MAX_POINTS).astype(np.int64)
+    return tuple(a[idx] for a in arrays)
+
+
+def compare_html(comparison, program: str, measurement: str, journal: list | None = None, max_signals: int = 8) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    c = comparison
+    parts = [f"<h1>mtwin compare</h1><p><b>{html.escape(program)}</b> against <b>{html.escape(measurement)}</b>: "
+             f"aligned by {html.escape(c.alignment)}, time offset {c.time_offset:+.3f} s.</p>"]
+    ct = c.cycle_time
+    if ct.get("measured") is not None:
+        rel = f"{ct['relative_error']:+.2%}" if ct.get("relative_error") is not None else "–"
+        parts.append(f"<p>Cycle time: measured {ct['measured']:.3f} s, simulated {ct['simulated']:.3f} s ({rel}).</p>")
+    rows = "".join(
+        f"<tr><td>{html.escape(s)}</td>" + "".join(
+            f"<td>{'–' if m[k] is None else format(m[k], f)}</td>"
+            for k, f in (("rms", ".4g"), ("nrmse", ".2%"), ("max_error", ".4g"), ("bias", "+.4g"),
+                         ("correlation", ".3f"))) + f"<td>{m['samples']:,}</td></tr>"
+        for s, m in c.signals.items())
+    parts.append("<h2>Signals (measured − simulated)</h2><table><tr><th>signal</th><th>RMS</th><th>NRMSE</th>"
+                 f"<th>max</th><th>bias</th><th>correlation</th><th>samples</th></tr>{rows}</table>")
+    if c.worst_regions:
+        rows = "".join(f"<tr><td>{html.escape(r['signal'])}</td><td>{r['first_line']}"
+                       + (f"–{r['last_line']}" if r["last_line"] != r["first_line"] else "")
+                       + f"</td><td>{r['rms']:.4g}</td><td>{r['share']:.1%}</td></tr>" for r in c.worst_regions)
+        parts.append("<h2>Where it fails</h2><table><tr><th>signal</th><th>lines</th><th>RMS</th>"
+                     f"<th>share of the squared error</th></tr>{rows}</table>")
+    if c.t is not None and c.line is not None:
+        parts.append("<h2>Measured and simulated</h2>")
+        for s in list(c.measured)[:max_signals]:
+            parts.append(_signal_figure(plt, c, s))
+    if journal:
+        parts.append(_journal_figure(plt, journal))
+    style = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
+             "text-align:right}td:first-child,th:first-child{text-align:left}svg{max-width:100%;height:auto}")
+    doc = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>mtwin compare</title>"
+           f"<style>{style}</style></head><body>{''.join(parts)}</body></html>")
+    return doc.encode("utf-8")
+
+
+def _signal_figure(plt, c, s) -> str:
+    t, m, sim, line = c.t, c.measured[s], c.simulated[s], c.line
+    fig, (ax, ar) = plt.subplots(2, 1, figsize=(10, 4.2), dpi=100, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    tt, mm, ss = _thin(t, m, sim)
+    ax.plot(tt, mm, lw=0.7, color="#444", label="measured")
+    ax.plot(tt, ss, lw=0.9, color="#1f5fa8", label="simulated")
+    ar.plot(tt, mm - ss, lw=0.6, color="#b03a2e")
+    ax.set_ylabel(s)
+    ar.set_ylabel("residual")
+    ar.set_xlabel("time [s] (measured clock)")
+    for a in (ax, ar):
+        a.grid(True, alpha=0.3)
+    for r in (r for r in c.worst_regions if r["signal"] == s):
+        inside = (line >= r["first_line"]) & (line <= r["last_line"])
+        if not inside.any():
+            continue
+        # shade every contiguous stretch of those lines, label the first
+        idx = np.flatnonzero(inside)
+        breaks = np.flatnonzero(np.diff(idx) > 1)
+        starts = np.concatenate(([idx[0]], idx[breaks + 1]))
+        ends = np.concatenate((idx[breaks], [idx[-1]]))
+        label = f"line {r['first_line']}" + (f"–{r['last_line']}" if r["last_line"] != r["first_line"] else "")
+        for k, (a_, b_) in enumerate(zip(starts, ends)):
+            for a in (ax, ar):
+                a.axvspan(t[a_], t[b_], color="#f0b400", alpha=0.25, lw=0)
+            if k == 0:
+                ax.annotate(label, xy=(t[a_], 1.0), xycoords=("data", "axes fraction"), fontsize=7,
+                            va="bottom", rotation=0)
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    out = _svg(fig)
+    plt.close(fig)
+    return out
+
+
+def _journal_figure(plt, journal) -> str:
+    signals = sorted({s for e in journal for s in e.get("rms_after", {})})
+    fig, ax = plt.subplots(figsize=(7, 3), dpi=100)
+    it = [0] + [int(e.get("iteration", k + 1)) for k, e in enumerate(journal)]
+    for s in signals:
+        first = journal[0].get("rms_before", {}).get(s)
+        ys = [first] + [e.get("rms_after", {}).get(s) for e in journal]
+        ax.plot(it, ys, marker="o", label=s)
+    ax.set_xlabel("calibration (0: before the first)")
+    ax.set_ylabel("RMS error")
+    ax.set_yscale("log")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    out = _svg(fig)
+    plt.close(fig)
+    return "<h2>Model journal: the error across calibrations</h2>" + out
