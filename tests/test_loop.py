@@ -168,3 +168,21 @@ def test_a_base_cutting_coefficient_is_calibrated_by_its_dotted_name(pocket, tmp
     f.write_text("[tools.1]\ndiameter = 6.0\n")
     t2 = mtwin.Twin.from_toml(str(f)).with_params({"tools.1.diameter": 8.0})
     assert t2.cutting.tools[1].diameter == 8.0
+
+
+def test_the_tutorial_s_bundled_measurement_gives_the_tutorial_s_numbers(tmp_path):
+    meas = str(SAMPLES / "measurements" / "pocket_hidden.csv")
+    d = json.loads(run_cli("diagnose", POCKET, meas, "--signals", "spindle_power", "--json").stdout)
+    assert d["signals"]["spindle_power"]["candidates"][0]["effect"] == "spindle-no-load"
+    one = tmp_path / "one.toml"
+    two = tmp_path / "two.toml"
+    assert run_cli("calibrate", POCKET, meas, "--fit", "spindle-no-load", "--signals", "spindle_power",
+                   "-o", str(one)).returncode == 0
+    r = run_cli("calibrate", POCKET, meas, "--twin", str(one), "--fit", "tool-wear", "--refit", "--signals",
+                "spindle_power", "-o", str(two), "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    res = json.loads(r.stdout)
+    assert res["params"]["effects.spindle-no-load.p0"] == pytest.approx(180, rel=0.05)
+    assert res["params"]["effects.tool-wear.rate"] == pytest.approx(0.35, rel=0.05)
+    assert res["rms_after"]["spindle_power"] <= 1.1 * res["noise"]["spindle_power"]
+    assert [e.name for e in mtwin.Twin.from_toml(str(two)).effects] == ["spindle-no-load", "tool-wear"]

@@ -785,6 +785,7 @@ def calibrate(
     param: Optional[list[str]] = typer.Option(None, "--param", help="A base parameter to fit too, e.g. "
                                               "axes.x.friction.viscous (repeatable)."),
     validate: Optional[str] = typer.Option(None, "--validate", help="A second measurement: the error on it after the fit."),
+    refit: bool = typer.Option(False, "--refit", help="Fit the twin's own effects again too, together with the new ones."),
     signals: Optional[str] = SignalsOpt,
     align: str = AlignOpt,
     maps: Optional[list[str]] = MapOpt,
@@ -805,11 +806,17 @@ def calibrate(
     from .loop.fit import fit, target
     from .loop.journal import calibrated_text, journal_entry, read_journal
 
-    if not fit_effect and not param:
-        raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects) or --param NAME")
+    if not fit_effect and not param and not refit:
+        raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects), --param NAME or --refit")
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
                                        block_delete)
     new = [parse_effect_spec(e) for e in fit_effect or ()]
+    if refit:
+        # the twin's effects start from their current values and are fitted with the new ones
+        from .twin import Twin as _T
+
+        new = list(tw.effects) + [e for e in new if e.name not in {x.name for x in tw.effects}]
+        tw = _T(tw.machine, tw.interpreter, tw.path, tw.cutting, ())
     sig = [s.strip() for s in signals.split(",")] if signals else None
     tg = target(tw, prog, meas, align, sig, box)
     res = fit(tg, new, sig, tuple(param or ()))
