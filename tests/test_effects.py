@@ -297,3 +297,30 @@ def test_synth_writes_a_noisy_measurement_of_the_hidden_effect(tmp_path):
     assert again.read_text() == text
     r = run_cli("synth", str(SAMPLES / "pocket.nc"), "--rate", "-1", "-o", str(tmp_path / "x.csv"))
     assert r.returncode == 2 and not (tmp_path / "x.csv").exists()
+
+
+def test_size_effect_follows_kienzle_at_the_programmed_chip_thickness(twin, slot):
+    base = twin.simulate(slot)
+    tr = twin.with_effects("size-effect:x=0.25,h_ref=0.05").simulate(slot)
+    x = base.signal("x")
+    steady = (base.signal("mrr") > 0) & (x > 20) & (x < 140)
+    # a full-width slot: the maximum chip is the feed per tooth, 900 / (2 · 8000) mm
+    fz = 900.0 / (2 * 8000.0)
+    ratio = tr.signal("spindle_power")[steady] / base.signal("spindle_power")[steady]
+    np.testing.assert_allclose(ratio, (fz / 0.05) ** -0.25, rtol=0.01)
+    # against the same law applied at the actual chip thickness of every sample (the direct
+    # computation): equal where the feed is the programmed one
+    h = base.signal("h_max")[steady]
+    direct = base.signal("spindle_power")[steady] * (h / 0.05) ** -0.25
+    assert np.median(np.abs(tr.signal("spindle_power")[steady] / direct - 1)) < 0.002
+
+
+def test_inertia_moves_more_mass_with_the_same_gains(twin, move):
+    base = twin.simulate(move, cutting=False)
+    tr = twin.with_effects("inertia:mx=600").simulate(move, cutting=False)
+    # accelerating 600 kg more takes m·a more force while the axis speeds up (3000 mm/s² max)
+    n = 1000  # the first second: the move out along +X speeds up, no wait has shifted the clocks yet
+    acc = np.abs(np.gradient(base.signal("x_vel")[:n], base.t[:n])) > 1000
+    fpt = twin.machine.x.force_per_torque
+    extra = np.median(np.abs(tr.signal("x_torque")[:n][acc] - base.signal("x_torque")[:n][acc]))
+    assert extra > 0.3 * 600 * 1.0 / fpt  # at least 600 kg x 1 m/s² worth of torque

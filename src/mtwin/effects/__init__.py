@@ -13,17 +13,17 @@ import sys
 
 from ..errors import ConfigError
 from .base import Effect, StepInfo
-from .drives import CoulombFriction, Gravity, StribeckFriction, ViscousFriction
+from .drives import CoulombFriction, Gravity, Inertia, StribeckFriction, ViscousFriction
 from .observation import Backlash, Runout, ServoDelay, SpindleNoLoad, ThermalDrift
-from .process import ToolWear
+from .process import SizeEffect, ToolWear
 
 __all__ = ["Effect", "StepInfo", "available", "get", "load_file", "register", "parse_effect_spec"]
 
 ENTRY_POINT_GROUP = "mtwin.effects"
 
 BUILTIN: tuple[type[Effect], ...] = (
-    SpindleNoLoad, ToolWear, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity, Backlash,
-    ServoDelay, ThermalDrift,
+    SpindleNoLoad, ToolWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
+    Backlash, ServoDelay, ThermalDrift, Inertia,
 )
 
 # effects registered in this process (files, tests, register()): name -> class

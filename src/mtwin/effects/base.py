@@ -78,28 +78,38 @@ class StepInfo:
     (rows of the engagement), the length of path its tool has spent in the material before
     it (mm; each tool counts its own), the chip area (mm²), the tool's row and the line."""
 
-    def __init__(self, cut_length: np.ndarray, area: np.ndarray, tool: np.ndarray, line: np.ndarray):
+    def __init__(self, cut_length: np.ndarray, area: np.ndarray, tool: np.ndarray, line: np.ndarray,
+                 h_max: np.ndarray | None = None):
         self.cut_length = cut_length
         self.area = area
         self.tool = tool
         self.line = line
+        # maximum chip thickness at the programmed feed per tooth (mm)
+        self.h_max = h_max if h_max is not None else np.zeros_like(area)
 
     @classmethod
-    def from_engagement(cls, eng, plan) -> "StepInfo":
+    def from_engagement(cls, eng, plan, program=None) -> "StepInfo":
         seg = plan.seg
         n = len(eng.q)
         ds = np.zeros(n)
         line = np.zeros(n, np.int64)
         tool = np.zeros(n, np.int64)
+        fz = np.zeros(n)
         for i in np.flatnonzero(eng.count > 0):
             a, c = int(eng.first[i]), int(eng.count[i])
             ds[a:a + c] = seg["length"][i] / c
             line[a:a + c] = seg["line"][i]
             tool[a:a + c] = eng.tool_index[i]
+            if program is not None:
+                rpm = abs(float(program.records["spindle"][seg["rec"][i]]))
+                flutes = float(eng.tools[eng.tool_index[i], 2])
+                if rpm > 0 and flutes > 0:
+                    fz[a:a + c] = seg["feed"][i] / (flutes * rpm / 60.0)  # mm per tooth
         area = np.asarray(eng.q[:, 0], dtype=np.float64)
         d = np.where(area > 0, ds, 0.0)
         length = np.zeros(n)
         for t in np.unique(tool):
             m = tool == t
             length[m] = np.cumsum(d[m]) - 0.5 * d[m]  # at the middle of each step
-        return cls(length, area, tool, line)
+        h_max = fz * np.asarray(eng.q[:, 3], dtype=np.float64)
+        return cls(length, area, tool, line, h_max)

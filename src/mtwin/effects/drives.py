@@ -66,3 +66,16 @@ class Gravity(Effect):
 
     def servo(self, sv, p):
         sv[2, RK.SV_FG] += p["mass"] * G
+
+
+class Inertia(Effect):
+    name = "inertia"
+    description = "the drive moves more (or less) mass than its gains were set for: a heavy part or fixture"
+    stage = "loop"
+    params = tuple(Param(f"m{a}", "kg", 0.0, -100.0, 2000.0, f"mass added to {a.upper()} (the gains stay)")
+                   for a in AXES)
+    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+
+    def servo(self, sv, p):
+        for k, a in enumerate(AXES):
+            sv[k, RK.SV_MP] = max(1.0, sv[k, RK.SV_MP] + p["m" + a])

@@ -21,8 +21,11 @@ from ._plankernel import ramp_eval
 FILTER_NONE, FILTER_LINEAR, FILTER_BELL, FILTER_EXP = 0, 1, 2, 3
 
 # servo parameter columns, per axis
-SV_KPP, SV_WV, SV_WI, SV_FF, SV_MASS, SV_FPT, SV_FMAX, SV_FCP, SV_FCN, SV_FSP, SV_FSN, SV_VS, SV_B, SV_FG = range(14)
-N_SV = 14
+# SV_MASS is the mass the controller's gains are set for, SV_MP the mass the drive really moves
+# (they differ when the load does: the inertia effect)
+SV_KPP, SV_WV, SV_WI, SV_FF, SV_MASS, SV_FPT, SV_FMAX, SV_FCP, SV_FCN, SV_FSP, SV_FSN, SV_VS, SV_B, SV_FG, \
+    SV_MP = range(15)
+N_SV = 15
 _V_STICK = 1e-9  # mm/s: below this an axis is at rest for the friction model
 
 
@@ -414,7 +417,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 num = 0.0
                 den = 1.0
                 for k in range(3):
-                    w = dt * 1e3 / sv[k, SV_MASS]
+                    w = dt * 1e3 / sv[k, SV_MP]
                     ff = _friction(v[k], sv, k)
                     pk = v[k] + w * (fdrv[k] - sv[k, SV_FG] + fb[k] - ff - (fd[kstep, k] if kstep < nfd else 0.0))
                     num += cdir[k] * pk
@@ -479,7 +482,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             cut_out[o, 6] = hmax
         # ---- servo loop and feed-drive plant, per axis
         for k in range(3):
-            m = sv[k, SV_MASS]
+            m = sv[k, SV_MP]
             e = xc[k] - x[k]
             f = fdrv[k]
             fapp = f - sv[k, SV_FG]

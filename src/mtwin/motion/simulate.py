@@ -28,6 +28,7 @@ def servo_table(machine) -> np.ndarray:
         sv[k, RK.SV_WI] = s.velocity_integral * s.s_vi
         sv[k, RK.SV_FF] = s.feedforward
         sv[k, RK.SV_MASS] = ax.equivalent_mass
+        sv[k, RK.SV_MP] = ax.equivalent_mass
         sv[k, RK.SV_FPT] = ax.force_per_torque
         sv[k, RK.SV_FMAX] = ax.max_torque * ax.force_per_torque
         sv[k, RK.SV_FCP], sv[k, RK.SV_FCN] = f.coulomb_pos, f.coulomb_neg
@@ -104,12 +105,12 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
-    kscale = _cutting_scale(eng, plan, loop_effects)
+    kscale = _cutting_scale(eng, plan, loop_effects, program)
     return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, kscale, hand, spin_cmd,
                  m.spindle.acceleration, np.array(cut.spindle_loss), curve, prof, *eng.slices, eng.helix)
 
 
-def _cutting_scale(eng, plan, loop_effects) -> np.ndarray:
+def _cutting_scale(eng, plan, loop_effects, program=None) -> np.ndarray:
     """The product of the in-loop effects' factors on the cutting coefficients, per engagement
     step (empty: none changes them)."""
     from ..effects import Effect, StepInfo
@@ -117,7 +118,7 @@ def _cutting_scale(eng, plan, loop_effects) -> np.ndarray:
     users = [(e, p) for e, p in loop_effects if type(e).cutting_scale is not Effect.cutting_scale]
     if not users or not len(eng.q):
         return np.zeros(0)
-    steps = StepInfo.from_engagement(eng, plan)
+    steps = StepInfo.from_engagement(eng, plan, program)
     scale = np.ones(len(eng.q))
     for e, p in users:
         f = e.cutting_scale(steps, p)
