@@ -15,7 +15,9 @@ import math
 import numpy as np
 
 from .._jit import njit
-from ..cutting._engagekernel import tooth_forces
+from ..cutting._engagekernel import (Q_AE, Q_AP, Q_AREA, Q_DX, Q_DY, Q_WMAX, ST_TC, ST_TE, SX_AC, SX_AE,
+                                       SX_RC, SX_RE, SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC,
+                                       SY_TE, SZ_AC, SZ_AE, SZ_RC, SZ_RE, tooth_forces)
 from ._plankernel import ramp_eval
 
 FILTER_NONE, FILTER_LINEAR, FILTER_BELL, FILTER_EXP = 0, 1, 2, 3
@@ -123,6 +125,9 @@ C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
 # below 1 rpm the spindle counts as stopped: a chip per tooth of feed / (teeth x speed) would
 # grow without bound as a spindle runs down
 _N_STOPPED = 1.0 / 60.0  # rev/s
+
+# cutting coefficients, in the order of cutting.library.Material (N/mm², N/mm)
+K_TC, K_RC, K_AC, K_TE, K_RE, K_AE = range(6)
 
 # cstats entries
 CS_LOAD, CS_LOAD_LINE, CS_POWER, CS_POWER_LINE, CS_ENERGY, CS_CUT_TIME, CS_TORQUE, CS_TORQUE_LINE, \
@@ -320,13 +325,13 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             nrps = abs(spin[0]) / 60.0
             fl = tools[seg_tool[i], 2]
             S = eng_sums[m_]
-            if eng_q[m_, 0] > 0.0 or S[17] > 0.0:
+            if eng_q[m_, Q_AREA] > 0.0 or S[ST_TE] > 0.0:
                 cutting = True
                 # The forces are linear in the feed per tooth: F = fz*fa + fb (tool frame
                 # turned to the machine axes), torque = fz*ta + tb, h_max = fz*ha.
                 if nrps < _N_STOPPED:
-                    if cstats[8] == 0.0:  # cutting with the spindle stopped: no chip, no force
-                        cstats[8] = line[i]  # (the first line where it happens)
+                    if cstats[CS_SPINDLE_STOPPED_LINE] == 0.0:  # cutting with the spindle stopped: no chip, no force
+                        cstats[CS_SPINDLE_STOPPED_LINE] = line[i]  # (the first line where it happens)
                     for k in range(3):
                         fa[k] = 0.0
                         fb[k] = 0.0
@@ -348,15 +353,15 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                         ax_, ay_, az_, ta = tout[0] - bx, tout[1] - by, tout[2] - bz, tout[3] * 1e-3 - tb
                         ha = tout[4]
                     else:
-                        ax_ = kc[0] * S[0] + kc[1] * S[1] + kc[2] * S[2]
-                        bx = kc[3] * S[9] + kc[4] * S[10] + kc[5] * S[11]
-                        ay_ = kc[0] * S[3] + kc[1] * S[4] + kc[2] * S[5]
-                        by = kc[3] * S[12] + kc[4] * S[13] + kc[5] * S[14]
-                        az_ = kc[1] * S[6] + kc[2] * S[7]
-                        bz = kc[4] * S[15] + kc[5] * S[16]
-                        ta = kc[0] * S[8] * 1e-3  # N*m per mm of feed per tooth
-                        tb = kc[3] * S[17] * 1e-3
-                        ha = eng_q[m_, 3]
+                        ax_ = kc[K_TC] * S[SX_TC] + kc[K_RC] * S[SX_RC] + kc[K_AC] * S[SX_AC]
+                        bx = kc[K_TE] * S[SX_TE] + kc[K_RE] * S[SX_RE] + kc[K_AE] * S[SX_AE]
+                        ay_ = kc[K_TC] * S[SY_TC] + kc[K_RC] * S[SY_RC] + kc[K_AC] * S[SY_AC]
+                        by = kc[K_TE] * S[SY_TE] + kc[K_RE] * S[SY_RE] + kc[K_AE] * S[SY_AE]
+                        az_ = kc[K_RC] * S[SZ_RC] + kc[K_AC] * S[SZ_AC]
+                        bz = kc[K_RE] * S[SZ_RE] + kc[K_AE] * S[SZ_AE]
+                        ta = kc[K_TC] * S[ST_TC] * 1e-3  # N*m per mm of feed per tooth
+                        tb = kc[K_TE] * S[ST_TE] * 1e-3
+                        ha = eng_q[m_, Q_WMAX]
                     if kscale.size > 0:
                         # effects that change the cutting coefficients along the path (tool wear)
                         ks = kscale[m_]
@@ -368,8 +373,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                         bz *= ks
                         ta *= ks
                         tb *= ks
-                    dxv = eng_q[m_, 4]
-                    dyv = eng_q[m_, 5]
+                    dxv = eng_q[m_, Q_DX]
+                    dyv = eng_q[m_, Q_DY]
                     yxv = -dyv * hand[i]
                     yyv = dxv * hand[i]
                     fa[0] = ax_ * dxv + ay_ * yxv
@@ -378,8 +383,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     fb[0] = bx * dxv + by * yxv
                     fb[1] = bx * dyv + by * yyv
                     fb[2] = bz
-                ae = eng_q[m_, 1]
-                ap = eng_q[m_, 2]
+                ae = eng_q[m_, Q_AE]
+                ap = eng_q[m_, Q_AP]
         # ---- drive forces of the servo loop, per axis (they do not depend on the process)
         for k in range(3):
             m = sv[k, SV_MASS]
@@ -442,34 +447,34 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 segp[5] = 3  # reported by the caller
             torque_sp = fz_ * ta + tb
             p_cut = torque_sp * 2.0 * math.pi * nrps
-            mrr = va * eng_q[m_, 0]
+            mrr = va * eng_q[m_, Q_AREA]
             hmax = fz_ * ha
         n_abs = abs(spin[0])
         p_sp = p_cut + (loss[0] + loss[1] * n_abs + loss[2] * n_abs * n_abs if n_abs > 0.0 else 0.0)
         load = math.sqrt(ftool[0] * ftool[0] + ftool[1] * ftool[1])
-        if load > cstats[0] + 1e-9:
-            cstats[0] = load
-            cstats[1] = line[i]
-        if p_sp > cstats[2]:
-            cstats[2] = p_sp
-            cstats[3] = line[i]
+        if load > cstats[CS_LOAD] + 1e-9:
+            cstats[CS_LOAD] = load
+            cstats[CS_LOAD_LINE] = line[i]
+        if p_sp > cstats[CS_POWER]:
+            cstats[CS_POWER] = p_sp
+            cstats[CS_POWER_LINE] = line[i]
         if p_cut > 0.0:
-            cstats[4] += p_cut * dt
-            cstats[5] += dt
-            cstats[12] += load * dt
-        if torque_sp > cstats[6]:
-            cstats[6] = torque_sp
-            cstats[7] = line[i]
-        if mrr > cstats[9]:
-            cstats[9] = mrr
+            cstats[CS_ENERGY] += p_cut * dt
+            cstats[CS_CUT_TIME] += dt
+            cstats[CS_LOAD_TIME] += load * dt
+        if torque_sp > cstats[CS_TORQUE]:
+            cstats[CS_TORQUE] = torque_sp
+            cstats[CS_TORQUE_LINE] = line[i]
+        if mrr > cstats[CS_MRR]:
+            cstats[CS_MRR] = mrr
         if torque_sp > 0.0:
             # spindle curve: constant torque up to the base speed, constant power above it
             t_lim = spin_curve[0] / (2.0 * math.pi * max(n_abs, spin_curve[1]) / 60.0)
             ratio = torque_sp / t_lim
-            if ratio > cstats[11]:
-                cstats[11] = ratio
-                if ratio > 1.0 and cstats[10] == 0.0:
-                    cstats[10] = line[i]
+            if ratio > cstats[CS_SPINDLE_LOAD]:
+                cstats[CS_SPINDLE_LOAD] = ratio
+                if ratio > 1.0 and cstats[CS_OVERLOAD_LINE] == 0.0:
+                    cstats[CS_OVERLOAD_LINE] = line[i]
         if store and has_cut:
             for k in range(3):
                 force_out[o, k] = ftool[k]
