@@ -186,3 +186,21 @@ def test_the_compare_report_is_one_self_contained_html_file(tmp_path, trace_csv)
     assert "spindle_power" in text and "Where it fails" in text
     r = run_cli("compare", CONTOUR, str(trace_csv), "--report", str(tmp_path / "r.pdf"))
     assert r.returncode == 2 and not (tmp_path / "r.pdf").exists()
+
+
+def test_per_tooth_cycle_force_errors(tmp_path):
+    # a dynamometer-rate recording of the twin itself: zero; with 10 % runout hidden: the
+    # peak error per tooth cycle is at most the runout, its mean below it
+    tooth = tmp_path / "tooth.csv"
+    assert run_cli("simulate", CONTOUR, "--tooth-resolution", "-o", str(tooth)).returncode == 0
+    d = json.loads(run_cli("compare", CONTOUR, str(tooth), "--tooth-resolution", "--json").stdout)
+    for f in ("fx", "fy"):
+        m = d["signals"][f]
+        assert m["cycles"] > 1000 and m["peak_error_mean"] < 1e-6 and m["amplitude_error_mean"] < 1e-6
+    ro = tmp_path / "runout.csv"
+    assert run_cli("synth", CONTOUR, "--rate", "1000", "--signals", "fx,fy,spindle_speed", "--effect",
+                   "runout:e=0.1", "-o", str(ro)).returncode == 0
+    d = json.loads(run_cli("compare", CONTOUR, str(ro), "--json").stdout)
+    m = d["signals"]["fy"]
+    assert 0.05 < m["peak_error_mean"] < 0.1 and m["peak_error_max"] == pytest.approx(0.1, abs=1e-4)
+    assert m["amplitude_error_mean"] is None  # revolution averages have no swing to compare

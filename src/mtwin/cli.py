@@ -635,6 +635,8 @@ def compare(
                                              help="Read column SRC as signal DST (times SCALE)."),
     json_out: bool = typer.Option(False, "--json", help="The comparison as JSON on stdout."),
     report: Optional[str] = typer.Option(None, "--report", help="Write a self-contained HTML report (.html)."),
+    tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
+                                          help="Simulate tooth-passing forces (for a dynamometer's measurement)."),
     effect: Optional[list[str]] = EffectOpt,
     effect_file: Optional[list[str]] = EffectFileOpt,
     stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
@@ -669,7 +671,7 @@ def compare(
     wanted = set(meas.signals) | {_summary_base(c) for _, _, st in meas.rows for c in st}
     cutting = bool(wanted & {"spindle_speed", "spindle_power", "spindle_torque", "fx", "fy", "fz", "ae", "ap", "mrr",
                              "h_max"})
-    trace = tw.simulate(prog, stock=box, cutting=cutting)
+    trace = tw.simulate(prog, stock=box, cutting=cutting, tooth_resolution=tooth_resolution)
     res = run_compare(trace, meas, align, xcorr_signal)
     for n in res.notes:
         err.print(f"note: {n}", soft_wrap=True)

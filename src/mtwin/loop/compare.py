@@ -88,11 +88,15 @@ def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, r
     tm_i, t_sim_i = tm[inside], t_sim[inside]
     line = _at(ts, np.asarray(trace.line, dtype=np.float64), t_sim_i, step=True).astype(np.int64)
     stats, measured, simulated = {}, {}, {}
+    cycles = _tooth_cycles(trace, t_sim_i)
     for s in common:
         mv = meas.signals[s][inside]
         sv = _at(ts, trace.signal(s), t_sim_i)
         measured[s], simulated[s] = mv, sv
         stats[s] = _metrics(mv, sv)
+        if s in ("fx", "fy", "fz") and cycles is not None:
+            tooth = getattr(trace.engagement, "prof", np.zeros(0)).size > 0
+            stats[s].update(_cycle_errors(mv, sv, cycles, tooth))
     cyc_m = float(tm[-1] - tm[0]) if len(tm) > 1 else 0.0
     cyc_s = float(trace.summary.cycle_time)
     cycle = {"measured": cyc_m, "simulated": cyc_s,
@@ -246,6 +250,52 @@ def _xcorr_offset(ts, sv, tm, mv) -> float:
     vals = np.concatenate((c[:len(a)], c[nfft - (len(b) - 1):]))
     k = int(lags[int(np.argmax(vals))])
     return float(grid_s[0] - grid_m[0] + k * dt)
+
+
+MIN_CYCLE_SAMPLES = 4  # a tooth cycle with fewer samples has no peak or amplitude worth the name
+
+
+def _tooth_cycles(trace, t_sim) -> np.ndarray | None:
+    """The tooth cycle (0, 1, 2 … counted from the start) each sample falls in, from the
+    simulated spindle speed and the tool's flutes (one tool in the program), or None."""
+    eng = getattr(trace, "engagement", None)
+    if eng is None or trace.cut is None or len(eng.tools) != 1:
+        return None
+    flutes = float(eng.tools[0, 2])
+    ts = np.asarray(trace.t, dtype=np.float64)
+    n = np.abs(trace.signal("spindle_speed"))
+    teeth = np.concatenate(([0.0], np.cumsum(0.5 * (n[1:] + n[:-1]) / 60.0 * flutes * np.diff(ts))))
+    return np.floor(np.interp(t_sim, ts, teeth)).astype(np.int64)
+
+
+def _cycle_errors(mv, sv, cycles, tooth: bool = True) -> dict:
+    """Per tooth cycle with enough samples and load: the peak error |Ps − Pm|/Ps and the
+    amplitude (peak to peak) error likewise, averaged and at their worst (the impeller
+    reference's per-cycle force errors)."""
+    ok = ~np.isnan(mv)
+    c = cycles[ok]
+    m, s = mv[ok], sv[ok]
+    if not len(c):
+        return {"cycles": 0}
+    starts = np.flatnonzero(np.diff(c, prepend=c[0] - 1))
+    counts = np.diff(np.append(starts, len(c)))
+    keep = counts >= MIN_CYCLE_SAMPLES
+    if keep.sum() < 10:
+        return {"cycles": int(keep.sum()), "note": "tooth cycles not resolved by the sampling"}
+    ps = np.maximum.reduceat(np.abs(s), starts)[keep]
+    pm = np.maximum.reduceat(np.abs(m), starts)[keep]
+    as_ = (np.maximum.reduceat(s, starts) - np.minimum.reduceat(s, starts))[keep]
+    am = (np.maximum.reduceat(m, starts) - np.minimum.reduceat(m, starts))[keep]
+    loaded = ps > 1e-6 * max(float(ps.max()), 1e-300)
+    pe = np.abs(ps - pm)[loaded] / ps[loaded]
+    # an amplitude error needs the simulated swing of the tooth passing: revolution-averaged
+    # forces have none (compare --tooth-resolution simulates it)
+    swing = loaded & (as_ > 0.01 * ps) & tooth
+    ae = np.abs(as_ - am)[swing] / as_[swing]
+    return {"cycles": int(loaded.sum()), "peak_error_mean": float(pe.mean()) if len(pe) else None,
+            "peak_error_max": float(pe.max()) if len(pe) else None,
+            "amplitude_error_mean": float(ae.mean()) if len(ae) else None,
+            "amplitude_error_max": float(ae.max()) if len(ae) else None}
 
 
 def _metrics(mv, sv) -> dict:
