@@ -204,3 +204,20 @@ def test_per_tooth_cycle_force_errors(tmp_path):
     m = d["signals"]["fy"]
     assert 0.05 < m["peak_error_mean"] < 0.1 and m["peak_error_max"] == pytest.approx(0.1, abs=1e-4)
     assert m["amplitude_error_mean"] is None  # revolution averages have no swing to compare
+
+
+def test_a_parquet_trace_reads_back_as_the_csv_one(tmp_path):
+    pytest.importorskip("pyarrow")
+    out = tmp_path / "trace.parquet"
+    assert run_cli("simulate", CONTOUR, "-o", str(out), "--every", "20").returncode == 0
+    m = read_measurement(str(out))
+    assert len(m.t) > 1000 and "spindle_power" in m.signals and m.line is not None
+    d = json.loads(run_cli("compare", CONTOUR, str(out), "--json").stdout)
+    assert max(v["nrmse"] or 0 for v in d["signals"].values()) < 1e-7
+
+
+def test_a_file_with_only_unknown_columns_names_them(tmp_path):
+    f = tmp_path / "u.csv"
+    f.write_text("t,zz_torque\n0,1\n0.1,2\n")
+    r = run_cli("compare", CONTOUR, str(f))
+    assert r.returncode == 2 and "zz_torque" in r.stderr.decode() and "--map" in r.stderr.decode()

@@ -160,7 +160,7 @@ def test_trace_parquet_when_pyarrow_is_installed(tmp_path):
     r = mtwin("simulate", str(SAMPLES / "contour.nc"), "-o", str(out), "--every", "50")
     assert r.returncode == 0, r.stderr.decode()
     table = pq.read_table(out)
-    assert table.column_names == MEASUREMENT_COLUMNS
+    assert table.column_names == MEASUREMENT_COLUMNS + ["record"]
     assert table.num_rows > 100
 
 

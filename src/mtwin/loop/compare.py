@@ -52,8 +52,9 @@ def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, r
         return compare_summary(trace, meas, regions)
     common = [s for s in meas.signals if _has(trace, s)]
     if not common:
+        ignored = f"; columns not in the measurement format, ignored: {', '.join(meas.ignored)}" if meas.ignored else ""
         raise MtwinError(f"{meas.path}: no signal in common with the simulation "
-                         f"(measured: {', '.join(meas.signals) or 'none'})")
+                         f"(measured: {', '.join(meas.signals) or 'none'}{ignored}; --map SRC=DST names a column)")
     notes = [f"column {c!r} is not in the measurement format: kept, ignored" for c in meas.ignored]
     if align == "auto":
         if meas.line is not None and (meas.line >= 0).any():
