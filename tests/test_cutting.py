@@ -312,3 +312,22 @@ def test_a_cut_the_drives_cannot_hold_is_reported_not_simulated():
                      path="x.nc")
     with pytest.raises(MtwinError, match=r"x.nc:5:1: the cutting force .* more than its radius off"):
         twin.simulate(prog, every=10)
+
+
+def test_a_mid_program_spindle_change_reuses_the_engagement():
+    # a new S halfway adds a spindle run-up pause to the plan; the engagement (motion only)
+    # is the same and is reused, with the result a fresh twin computes
+    import mtwin
+    from conftest import SAMPLES
+
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / "pocket.nc"))
+    tw.simulate(prog)
+    s = prog.records["spindle"].copy()
+    s[len(s) // 2:] = 7000.0
+    b = tw.simulate(prog, spindles=s)
+    assert tw.engagement_cache.computations == 1
+    fresh = mtwin.Twin().simulate(prog, spindles=s)
+    assert b.summary.cycle_time == fresh.summary.cycle_time
+    assert b.summary.cutting.cutting_energy == fresh.summary.cutting.cutting_energy
+    np.testing.assert_array_equal(b.signal("spindle_power"), fresh.signal("spindle_power"))

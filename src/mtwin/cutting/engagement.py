@@ -55,10 +55,29 @@ class Engagement:
     slices: tuple  # (starts, kind, kappa, r, z_lo, z_hi, d_rho) of every tool's edge slices
     helix: np.ndarray  # (ntools,) tan of the helix angle
     warnings: list
+    motion: np.ndarray | None = None  # indices of the plan's motion segments the arrays were made for
 
     @property
     def steps(self) -> int:
         return len(self.sums)
+
+    def for_plan(self, plan) -> "Engagement":
+        """This engagement for a plan with the same motion segments but other pauses (a spindle
+        speed change adds a run-up pause): the per-segment arrays re-indexed."""
+        motion = np.flatnonzero(plan.seg["kind"] != PAUSE)
+        if self.motion is None or (len(motion) == len(self.motion) and len(plan.seg) == len(self.first)
+                                   and np.array_equal(motion, self.motion)):
+            return self
+        n = len(plan.seg)
+        first = np.zeros(n, np.int64)
+        count = np.zeros(n, np.int64)
+        tool_index = np.zeros(n, np.int64)
+        first[motion] = self.first[self.motion]
+        count[motion] = self.count[self.motion]
+        tool_index[motion] = self.tool_index[self.motion]
+        from dataclasses import replace
+
+        return replace(self, first=first, count=count, tool_index=tool_index, motion=motion)
 
 
 _STOCK_COMMENT = re.compile(rb"\(\s*MTWIN\s+STOCK\s+([^)]*)\)", re.IGNORECASE)
@@ -165,7 +184,12 @@ def _check_inside(plan, b, source: str, path: str) -> None:
 
 
 def _key(plan, program, tools, tool_index, box, res, step) -> str:
+    # the motion segments only: pauses (a spindle speed change's run-up) do not change what
+    # is cut, and Engagement.for_plan re-indexes around them
     seg = plan.tip_seg
+    motion = seg["kind"] != PAUSE
+    seg = seg[motion]
+    tool_index = tool_index[motion]
     h = hashlib.blake2b(digest_size=20)
     for name in ("kind", "rapid", "p0", "p1", "c", "e1", "e2", "h", "r0", "r1", "theta", "length"):
         h.update(np.ascontiguousarray(seg[name]).tobytes())
@@ -210,7 +234,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     if cache is not None:
         hit = cache.get(key)
         if hit is not None:
-            return hit
+            return hit.for_plan(plan)
         cache.computations += 1
     stock = new_stock(box, res, source)
     t0 = time.perf_counter()
@@ -262,7 +286,8 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
                                      "no material in the twin)"))
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
-                     (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings)
+                     (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings,
+                     np.flatnonzero(seg["kind"] != PAUSE))
     if cache is not None:
         cache.put(key, eng)
     return eng
