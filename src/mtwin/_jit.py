@@ -188,7 +188,13 @@ class Kernel:
             return False
         if cres is None:
             return False
-        d.add_overload(cres)
+        # as numba's own Dispatcher.compile does after a cache hit, so that a kernel compiled
+        # later can call this one
+        from numba.core.compiler_lock import global_compiler_lock
+
+        with global_compiler_lock:
+            d.targetctx.insert_user_function(cres.entry_point, cres.fndesc, [cres.library])
+            d.add_overload(cres)
         return True
 
     def _compiled(self, args):

@@ -567,10 +567,12 @@ def config_show(twin: Optional[str] = TwinOpt):
 @_reports_errors
 def config_check(path: str = typer.Argument(..., help="Twin file to validate.")):
     """Validate a twin file: exit 0 if it is valid, 2 with a message naming the key if not."""
-    from .config import load_machine, load_twin_file
+    from .config import load_cutting, load_effects, load_machine, load_twin_file
 
     load_twin_file(path)
     m = load_machine(path)
+    load_cutting(path)
+    load_effects(path)
     err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
 
 
@@ -668,9 +670,8 @@ def compare(
     prog = _load(part, settings)
     from .loop.measurement import _summary_base
 
-    wanted = set(meas.signals) | {_summary_base(c) for _, _, st in meas.rows for c in st}
-    cutting = bool(wanted & {"spindle_speed", "spindle_power", "spindle_torque", "fx", "fy", "fz", "ae", "ap", "mrr",
-                             "h_max"})
+    # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
+    cutting = not prog.turning_line()
     trace = tw.simulate(prog, stock=box, cutting=cutting, tooth_resolution=tooth_resolution)
     res = run_compare(trace, meas, align, xcorr_signal)
     for n in res.notes:
@@ -813,6 +814,15 @@ def calibrate(
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
                                        block_delete)
     new = [parse_effect_spec(e) for e in fit_effect or ()]
+    own = {e.name for e in tw.effects}
+    if any(e.name in own for e in new) and not refit:
+        # fitting an effect the twin already has: fit it from its current values (stacking a
+        # second copy on top would write only the increment)
+        keep = [e for e in tw.effects if e.name not in {x.name for x in new}]
+        new = [next((e for e in tw.effects if e.name == x.name), x) if not x.values else x for x in new]
+        from .twin import Twin as _T0
+
+        tw = _T0(tw.machine, tw.interpreter, tw.path, tw.cutting, tuple(keep))
     if refit:
         # the twin's effects start from their current values and are fitted with the new ones
         from .twin import Twin as _T

@@ -12,13 +12,11 @@ import contextlib
 import os
 import subprocess
 import sys
-import time
 from typing import Callable
 
 #: set to "0" to keep a first run from compiling the kernels in a background process
 BACKGROUND_ENV = "MTWIN_BACKGROUND_COMPILE"
 _LOCK = "warming.lock"
-_STALE_S = 900.0  # a warm-up takes ~70 s; a lock this old belongs to a process that died
 
 
 def _lock_path() -> str:
@@ -30,12 +28,11 @@ def _lock_path() -> str:
 def _alive(path: str) -> bool:
     """A warm-up holds the lock at ``path`` now."""
     try:
-        st = os.stat(path)
         with open(path) as fh:
             pid = int(fh.read().strip() or 0)
     except (OSError, ValueError):
         return False
-    if time.time() - st.st_mtime > _STALE_S:
+    if pid <= 0:
         return False
     try:
         os.kill(pid, 0)
@@ -86,8 +83,12 @@ def background_lock():
     try:
         yield
     finally:
-        with contextlib.suppress(OSError):
-            os.remove(path)
+        # only our own lock: a process that judged ours stale may hold the file now
+        with contextlib.suppress(OSError, ValueError):
+            with open(path) as fh:
+                mine = int(fh.read().strip() or 0) == os.getpid()
+            if mine:
+                os.remove(path)
 
 # lines, arcs, a helix, a canned cycle, a tool change, two feeds: every record kind the
 # planner and the cutting model meet in a milling program
@@ -169,3 +170,10 @@ def warm(step: Callable[[str], None] = lambda what: None) -> None:
         twin.simulate(fanuc)
         step("cutting model, tooth resolution")
         twin.simulate(fanuc, tooth_resolution=True)
+        step("measurement alignment")
+        from .loop.compare import compare
+        from .loop.measurement import Measurement
+
+        tr = twin.simulate(fanuc)
+        meas = Measurement("warm-up.csv", tr.t[::10], {a: tr.signal(a)[::10] for a in ("x", "y", "z")})
+        compare(tr, meas, "position")

@@ -70,7 +70,13 @@ def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, r
     if align == "line":
         if meas.line is None:
             raise MtwinError(f"{meas.path}: --align line needs a 'line' column")
-        t_sim = _align_line(ts, np.asarray(trace.line), tm, meas.line)
+        known = meas.line >= 0
+        t_sim = np.full(len(tm), -np.inf)
+        t_sim[known] = _align_line(ts, np.asarray(trace.line), tm[known], meas.line[known])
+        ok = known & np.isfinite(t_sim)
+        if (~known).any() and ok.sum() > 1:
+            # a sample whose line cell is empty sits between its neighbours in time
+            t_sim[~known] = np.interp(tm[~known], tm[ok], t_sim[ok], left=-np.inf, right=-np.inf)
     elif align == "position":
         if not all(a in meas.signals for a in ("x", "y", "z")):
             raise MtwinError(f"{meas.path}: --align position needs x, y and z columns")
@@ -234,10 +240,16 @@ def _align_position(ts, trace, tm, pm) -> np.ndarray:
 def _xcorr_offset(ts, sv, tm, mv) -> float:
     """Time offset (s, simulated minus measured) maximising the cross-correlation, on a
     common uniform grid at the measurement's median sampling interval."""
-    dt = float(np.median(np.diff(tm))) if len(tm) > 1 else float(ts[1] - ts[0])
+    good = ~np.isnan(mv)
+    if good.sum() < 3:
+        raise MtwinError("--align xcorr: the chosen signal has fewer than 3 measured values (--xcorr-signal names another)")
+    steps = np.diff(np.unique(tm))
+    dt = float(np.median(steps)) if len(steps) else 0.0
+    if not dt > 0:
+        raise MtwinError("--align xcorr: the measurement's times do not advance")
+    dt = max(dt, float(ts[1] - ts[0]) if len(ts) > 1 else dt)
     grid_s = np.arange(ts[0], ts[-1] + 1e-12, dt)
     a = np.interp(grid_s, ts, np.nan_to_num(np.asarray(sv, dtype=np.float64)))
-    good = ~np.isnan(mv)
     grid_m = np.arange(tm[0], tm[-1] + 1e-12, dt)
     b = np.interp(grid_m, tm[good], mv[good])
     a = a - a.mean()

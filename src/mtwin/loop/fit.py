@@ -40,6 +40,7 @@ class Target:
     noise: dict  # signal -> noise level (same unit)
     alignment: str
     base: object = None  # the base simulation (full rate)
+    stock: tuple | None = None  # the stock box every simulation of the fit uses
 
     def simulated(self, trace, signals) -> dict:
         ts = np.asarray(trace.t, dtype=np.float64)
@@ -52,12 +53,15 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
     if meas.is_summary:
         raise MtwinError(f"{meas.path}: diagnose and calibrate need a time series (a summary measurement is "
                          f"compared row by row with mtwin compare)")
-    cutting = any(s in _CUTTING for s in meas.signals)
+    # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
+    cutting = not (hasattr(program, "turning_line") and program.turning_line())
     base = twin.simulate(program, stock=stock, cutting=cutting)
     c = compare(base, meas, align)
+    missing = [s for s in (signals or ()) if s not in c.measured]
+    if missing:
+        raise MtwinError(f"--signals {', '.join(missing)}: not in both the measurement and the simulation "
+                         f"(in both: {', '.join(c.measured)})")
     use = [s for s in (signals or c.measured) if s in c.measured]
-    if not use:
-        raise MtwinError(f"none of the signals {', '.join(signals)} is in both the measurement and the simulation")
     measured = {s: c.measured[s] for s in use}
     noise = {}
     for s in use:
@@ -66,10 +70,8 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
         sigma = float(np.std(d) / math.sqrt(2.0)) if len(d) > 2 else 0.0
         span = float(np.nanmax(np.abs(c.measured[s]))) if len(r) else 0.0
         noise[s] = max(sigma, 1e-9 * max(span, 1.0))
-    return Target(twin, program, meas, c.t_sim, measured, noise, c.alignment, base)
+    return Target(twin, program, meas, c.t_sim, measured, noise, c.alignment, base, stock)
 
-
-_CUTTING = {"spindle_speed", "spindle_torque", "spindle_power", "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"}
 
 
 def _trace_with(tg: Target, twin, effects) -> object:
@@ -80,7 +82,7 @@ def _trace_with(tg: Target, twin, effects) -> object:
         for e in effects:
             e.observe(tr, e.resolved())
         return tr
-    return twin.with_effects(*effects).simulate(tg.program, stock=None, cutting=tg.base.cut is not None)
+    return twin.with_effects(*effects).simulate(tg.program, stock=tg.stock, cutting=tg.base.cut is not None)
 
 
 def residuals(tg: Target, trace, signals) -> np.ndarray:
@@ -114,7 +116,7 @@ def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None =
     and the named ``base_params`` of the twin to the target's signals."""
     from scipy.optimize import least_squares
 
-    signals = list(signals or tg.measured)
+    signals = [s for s in (signals or tg.measured) if s in tg.measured]
     free = []  # (key, lower, upper, start)
     for e in effects:
         p = e.resolved()
@@ -178,7 +180,9 @@ def _uncertainty(res, nsig):
         dof = max(1, len(res.fun) - len(res.x))
         s2 = float(np.sum(res.fun ** 2)) / dof
         cov = np.linalg.pinv(J.T @ J) * s2
-        return [float(math.sqrt(max(v, 0.0))) for v in np.diag(cov)]
+        seen = np.linalg.norm(J, axis=0) > 1e-12 * max(float(np.abs(J).max()), 1e-300)
+        # a parameter the fitted signals do not see has no uncertainty to report (pinv would say 0)
+        return [float(math.sqrt(max(v, 0.0))) if ok else None for v, ok in zip(np.diag(cov), seen)]
     except Exception:  # noqa: BLE001 - an uncertainty we cannot compute is reported as unknown
         return [None] * len(res.x)
 
@@ -203,10 +207,13 @@ def _base_value(twin, name: str) -> float:
     if name not in param_names(twin.machine):
         raise MtwinError(f"--param {name}: not a parameter of the twin (e.g. axes.x.servo.kpp, cutting.al6061.ktc, "
                          f"tools.1.diameter)")
+    parts = name.split(".")
     obj = twin.machine
-    for part in name.split(".")[:-1]:
+    if parts[0] == "axes":  # axes.x.… is the machine's x axis
+        obj, parts = getattr(obj, parts[1]), parts[2:]
+    for part in parts[:-1]:
         obj = getattr(obj, part)
-    return float(getattr(obj, name.split(".")[-1]))
+    return float(getattr(obj, parts[-1]))
 
 
 # ------------------------------------------------------------------------------ diagnose

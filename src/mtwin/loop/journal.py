@@ -15,22 +15,37 @@ import re
 from ..errors import ConfigError
 
 
+def _toml_string(v: str) -> str:
+    out = []
+    for ch in v:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")  # TOML basic strings allow no control characters
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
 def _toml_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, (int, float)):
-        if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        if isinstance(v, float) and math.isnan(v):
             return "nan"
+        if isinstance(v, float) and math.isinf(v):
+            return "inf" if v > 0 else "-inf"
         return repr(float(v)) if isinstance(v, float) else str(v)
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return _toml_string(v)
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     raise TypeError(v)
 
 
 def _inline(d: dict) -> str:
-    return "{ " + ", ".join(f'"{k}" = {_toml_value(v if v is not None else float("nan"))}' for k, v in d.items()) + " }"
+    return "{ " + ", ".join(f'{_toml_string(str(k))} = {_toml_value(v if v is not None else float("nan"))}'
+                            for k, v in d.items()) + " }"
 
 
 def _strip_effects_and_journal(text: str) -> str:

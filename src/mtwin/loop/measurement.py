@@ -98,12 +98,17 @@ def read_measurement(path: str, maps=()) -> Measurement:
     # column names: maps, then units in brackets
     cols: list[tuple[str, float]] = []
     for j, h in enumerate(header):
+        h = str(h).lstrip("\ufeff")
+        if h.strip() in mapping:  # a mapped column may be named anything
+            target, scale = mapping[h.strip()]
+            cols.append((target, scale))
+            continue
         m = _HEADER_UNIT.match(h)
-        if not m:
-            raise MeasurementError(f"column {j + 1} header {h!r} is not a signal name",
-                                   SourceLocation(name, first_row - 1, 1))
+        if not m:  # not a signal name: a column the twin does not know, kept out
+            cols.append((f"<column {j + 1}: {h.strip()}>", 1.0))
+            continue
         base, unit = m.group(1), m.group(2)
-        target, scale = mapping.get(h.strip(), mapping.get(base, (base.lower(), 1.0)))
+        target, scale = mapping.get(base, (base.lower(), 1.0))
         if unit is not None:
             scale *= _unit_scale(unit, target, name, first_row - 1, j)
         cols.append((target, scale))
@@ -168,9 +173,9 @@ def _read_csv(path: str):
         if path == "-":
             import sys
 
-            text = sys.stdin.read()
+            text = sys.stdin.read().lstrip("\ufeff")
         else:
-            with open(path, encoding="utf-8", newline="") as fh:
+            with open(path, encoding="utf-8-sig", newline="") as fh:  # a spreadsheet's BOM too
                 text = fh.read()
     except OSError as exc:
         raise MtwinError(f"cannot read {path}: {exc.strerror or exc}") from None

@@ -34,8 +34,11 @@ def synthesize(twin, program, *, rate: float = 100.0, noise: float = 0.0, signal
         raise MtwinError(f"unknown signal(s) {', '.join(bad)} (known: {', '.join(SIGNALS)})")
     dt = twin.machine.controller.servo_period
     every = max(1, int(round(1.0 / (rate * dt))))
+    if abs(every * dt * rate - 1.0) > 1e-6:
+        raise MtwinError(f"--rate {rate:g} Hz is not the servo rate ({1 / dt:g} Hz) divided by a whole number "
+                         f"(e.g. {1 / (every * dt):g} Hz)")
     trace = twin.simulate(program, every=every, stock=stock,
-                          cutting=any(s in _CUTTING for s in signals))
+                          cutting=not (hasattr(program, "turning_line") and program.turning_line()))
     rng = np.random.default_rng(seed)
     t = np.asarray(trace.t, dtype=np.float64)
     # a logger samples on its own clock: the trace's extra last sample is off that grid
@@ -51,5 +54,3 @@ def synthesize(twin, program, *, rate: float = 100.0, noise: float = 0.0, signal
         cols[s] = v
     return cols
 
-
-_CUTTING = {"spindle_speed", "spindle_torque", "spindle_power", "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"}

@@ -61,13 +61,13 @@ def _program_cutting(twin, program):
     """The twin's cutting part with the tools this program declares (cached on the program)."""
     from ..cutting.library import for_program
 
-    key = id(twin.cutting)
     hit = getattr(program, "_cutting_for", None)
-    if hit is not None and hit[0] == key:
+    # the Cutting object itself, held: an id() of a freed one can come back for another
+    if hit is not None and hit[0] is twin.cutting:
         return hit[1]
     cut = for_program(twin.cutting, program)
     try:
-        object.__setattr__(program, "_cutting_for", (key, cut))
+        object.__setattr__(program, "_cutting_for", (twin.cutting, cut))
     except (AttributeError, TypeError):
         pass
     return cut
