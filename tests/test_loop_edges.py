@@ -94,3 +94,15 @@ def test_diagnose_names_missing_signals_and_xcorr_needs_values(tmp_path):
     f.write_text("t,x,spindle_power\n0,1,\n0.01,1,\n0.02,1,\n")
     r = run_cli("compare", CONTOUR, str(f), "--align", "xcorr", "--xcorr-signal", "spindle_power")
     assert r.returncode == 2 and "fewer than 3" in r.stderr.decode()
+
+
+def test_position_alignment_finds_a_logger_that_started_late():
+    tw = mtwin.Twin()
+    prog = tw.load(CONTOUR)
+    trace = tw.simulate(prog)
+    late = slice(5000, None, 10)  # the logger started 5 s into the program
+    meas = Measurement("late.csv", trace.t[late] - trace.t[5000],
+                       {a: trace.signal(a)[late] for a in ("x", "y", "z")})
+    c = compare(trace, meas, "position")
+    assert c.time_offset == pytest.approx(5.0, abs=0.011)
+    assert c.signals["x"]["max_error"] < 1e-6

@@ -857,6 +857,9 @@ def calibrate(
     for k, v in res.params.items():
         u = res.uncertainty.get(k)
         err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else ""), soft_wrap=True)
+    if param:
+        err.print(f"[yellow]note: the fitted base parameters ({', '.join(param)}) are in the journal of {output}; "
+                  f"the twin file's sections keep their old values — copy them there[/yellow]", soft_wrap=True)
     for s in res.rms_before:
         err.print(f"{s}: RMS {res.rms_before[s]:.4g} → {res.rms_after[s]:.4g} (noise {res.noise[s]:.4g})", soft_wrap=True)
     if validation:

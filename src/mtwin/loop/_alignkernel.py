@@ -22,7 +22,8 @@ def nearest_forward(ps, pm, tm, dt, idx):
         else:
             gap = int(round((tm[i] - tm[i - 1]) / dt))
             pred = idx[i - 1] + gap
-        hi = min(ns - 1, max(pred, j) + max(4 * gap, int(0.5 / dt)))
+        # the first sample may have been logged anywhere in the program: the whole path
+        hi = ns - 1 if i == 0 else min(ns - 1, max(pred, j) + max(4 * gap, int(0.5 / dt)))
         best = j
         bestc = 1e300
         for k in range(j, hi + 1):

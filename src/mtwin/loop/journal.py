@@ -54,7 +54,7 @@ def _strip_effects_and_journal(text: str) -> str:
     for line in text.splitlines():
         s = line.strip()
         if s.startswith("["):
-            skip = bool(re.match(r"^\[\s*effects\.", s) or re.match(r"^\[\[\s*journal\s*\]\]", s))
+            skip = bool(re.match(r"^\[\s*effects\s*[.\]]", s) or re.match(r"^\[\[\s*journal\s*\]\]", s))
         if not skip:
             out.append(line)
     while out and not out[-1].strip():

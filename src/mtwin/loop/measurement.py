@@ -203,9 +203,20 @@ def _read_parquet(path: str):
         raise MtwinError(f"{path}: reading .parquet needs pyarrow (pip install pyarrow)") from None
     if not os.path.isfile(path):
         raise MtwinError(f"cannot read {path}: no such file")
+    import pyarrow as pa
+
     table = pq.read_table(path)
     header = list(table.column_names)
-    cols = [table.column(c).to_pylist() for c in header]
+    cols = []
+    for c in header:
+        col = table.column(c)
+        if pa.types.is_timestamp(col.type) or pa.types.is_duration(col.type):
+            # a clock column: seconds from the first sample
+            ns = np.asarray(col.cast(pa.int64()).to_numpy(zero_copy_only=False), dtype=np.float64)
+            unit = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[col.type.unit]
+            cols.append(list((ns - ns[0]) * unit) if len(ns) else [])
+        else:
+            cols.append(col.to_pylist())
     rows = [list(r) for r in zip(*cols)]
     return header, rows, {}, 2
 

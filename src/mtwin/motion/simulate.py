@@ -180,6 +180,11 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         # observation effects act on every servo period, so the summary taken again from the
         # trace has the true peaks; the trace is thinned to the asked rate afterwards
         every = 1
+        need = (n_plan + 1) * bytes_per_sample
+        if need > 4e9:
+            raise MtwinError(f"a program of {total / 3600:.1f} h with effects on observation ("
+                             f"{', '.join(e.name for e, _ in observed)}) needs the full-rate trace: "
+                             f"{need / 1e9:.1f} GB; simulate a shorter program or section")
     if len(seg):
         args = (seg["kind"].astype(np.int64), np.ascontiguousarray(seg["p0"]), np.ascontiguousarray(seg["p1"]),
                 np.ascontiguousarray(seg["u0"]), np.ascontiguousarray(seg["c"]), np.ascontiguousarray(seg["e1"]),
