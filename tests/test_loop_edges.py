@@ -106,3 +106,26 @@ def test_position_alignment_finds_a_logger_that_started_late():
     c = compare(trace, meas, "position")
     assert c.time_offset == pytest.approx(12.0, abs=0.011)
     assert c.signals["x"]["max_error"] < 1e-6
+
+
+def test_fitted_base_parameters_are_written_into_the_twin_file(tmp_path):
+    tw = mtwin.Twin()
+    prog = tw.load(CONTOUR)
+    true = tw.with_params({"axes.x.friction.viscous": 3000.0, "cutting.al6061.ktc": 1500.0})
+    cols = synthesize(true, prog, rate=100, noise=0.01, seed=4, signals=["x_torque", "spindle_power"])
+    meas = tmp_path / "m.csv"
+    from mtwin.motion.trace import write_columns
+
+    write_columns(meas, cols)
+    src = tmp_path / "src.toml"
+    src.write_text("[machine]\nname = 'shop VMC'\n\n[effects.spindle-no-load]\np0 = 0.0\n")
+    out = tmp_path / "out.toml"
+    r = run_cli("calibrate", CONTOUR, str(meas), "--twin", str(src), "--param", "axes.x.friction.viscous",
+                "--param", "cutting.al6061.ktc", "-o", str(out))
+    assert r.returncode == 0, r.stderr.decode()
+    assert run_cli("config", "check", str(out)).returncode == 0
+    t2 = mtwin.Twin.from_toml(str(out))
+    assert t2.machine.name == "shop VMC" and [e.name for e in t2.effects] == ["spindle-no-load"]
+    assert t2.machine.x.friction.viscous == pytest.approx(3000.0, rel=0.1)
+    assert t2.cutting.material.ktc == pytest.approx(1500.0, rel=0.02)
+    assert t2.cutting.material.krc == tw.cutting.material.krc  # the others kept

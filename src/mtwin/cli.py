@@ -849,7 +849,9 @@ def calibrate(
         validation = {"measurement": validate, **_rms_by_signal(tg2, tg2.base, list(tg2.measured))}
     previous = read_journal(twin) if twin else []
     source = _P(twin).read_text(encoding="utf-8") if twin else ""
-    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, measurement, res, validation), previous)
+    base = {k: v for k, v in res.params.items() if not k.startswith("effects.")}
+    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, measurement, res, validation), previous,
+                           base, tw)
     write_output(text.encode(), output, [part, measurement])
     if json_out:
         sys.stdout.write(json.dumps({**res.as_dict(), "validation": validation, "twin_file": output}, indent=2) + "\n")
@@ -858,8 +860,8 @@ def calibrate(
         u = res.uncertainty.get(k)
         err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else ""), soft_wrap=True)
     if param:
-        err.print(f"[yellow]note: the fitted base parameters ({', '.join(param)}) are in the journal of {output}; "
-                  f"the twin file's sections keep their old values — copy them there[/yellow]", soft_wrap=True)
+        err.print(f"note: the fitted base parameters are written into {output}'s sections (the file is written "
+                  f"back from its parsed form: its comments are not kept)", soft_wrap=True)
     for s in res.rms_before:
         err.print(f"{s}: RMS {res.rms_before[s]:.4g} → {res.rms_after[s]:.4g} (noise {res.noise[s]:.4g})", soft_wrap=True)
     if validation:

@@ -72,8 +72,60 @@ def read_journal(path: str) -> list[dict]:
     return j
 
 
-def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]) -> str:
-    """The twin file's new text: its own sections, the effects, the journal with ``entry``."""
+def _dump_tables(d: dict, prefix: str = "") -> list[str]:
+    """A parsed TOML document (no effects, no journal) written back: scalars and lists first,
+    then each sub-table as [a.b]."""
+    out, scalars, tables = [], [], []
+    for k, v in d.items():
+        (tables if isinstance(v, dict) else scalars).append((k, v))
+    if prefix and scalars:
+        out.append(f"[{prefix}]")
+    for k, v in scalars:
+        out.append(f"{_key(k)} = {_toml_value(v)}")
+    if scalars:
+        out.append("")
+    for k, v in tables:
+        out += _dump_tables(v, f"{prefix}.{_key(k)}" if prefix else _key(k))
+    return out
+
+
+def _key(k: str) -> str:
+    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else _toml_string(k)
+
+
+def with_base_values(source_text: str, values: dict, twin) -> str:
+    """The twin file's text with fitted base parameters written into its sections: machine
+    parameters by their dotted names, ``cutting.<material>.<coef>`` as a ``[materials.<name>]``
+    table holding all six coefficients, ``tools.<n>.<field>`` into ``[tools.<n>]``.  The file is
+    written back from its parsed form (its comments are not kept)."""
+    from ..config import tomllib
+
+    doc = tomllib.loads(source_text) if source_text.strip() else {}
+    doc.pop("effects", None)
+    doc.pop("journal", None)
+    for name, v in values.items():
+        parts = name.split(".")
+        if parts[0] == "cutting":
+            mat = twin.cutting.material
+            table = doc.setdefault("materials", {}).setdefault(parts[1], {})
+            for f in ("ktc", "krc", "kac", "kte", "kre", "kae"):
+                table.setdefault(f, float(getattr(mat, f)))
+            table[parts[2]] = float(v)
+            doc.setdefault("cutting", {})["material"] = parts[1]
+            continue
+        node = doc
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        node[parts[-1]] = float(v)
+    return "\n".join(_dump_tables(doc)).rstrip() + "\n"
+
+
+def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict], base: dict | None = None,
+                    twin=None) -> str:
+    """The twin file's new text: its own sections (with fitted ``base`` parameter values), the
+    effects, the journal with ``entry``."""
+    if base:
+        source_text = with_base_values(source_text, base, twin)
     parts = [_strip_effects_and_journal(source_text)] if source_text.strip() else []
     for e in effects:
         values = e.resolved()
