@@ -22,3 +22,32 @@ def realdata_files():
 def require_realdata():
     if not REALDATA.is_dir():
         pytest.skip(f"{REALDATA} not present")
+
+
+@pytest.fixture
+def effect_package(tmp_path, monkeypatch):
+    """Install a module of effects the way pip would: ``install(module, source, {name: class})``
+    writes the module and a dist-info with ``mtwin.effects`` entry points on sys.path; the
+    registry forgets it afterwards."""
+    import sys
+
+    from mtwin import effects as FX
+
+    installed = []
+
+    def install(module: str, source: str, entries: dict) -> None:
+        site = tmp_path / "site"
+        dist = site / f"{module}-1.0.dist-info"
+        dist.mkdir(parents=True)
+        (site / f"{module}.py").write_text(source)
+        (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module.replace('_', '-')}\nVersion: 1.0\n")
+        (dist / "entry_points.txt").write_text(
+            "[mtwin.effects]\n" + "".join(f"{n} = {module}:{c}\n" for n, c in entries.items()))
+        monkeypatch.syspath_prepend(str(site))
+        monkeypatch.setattr(FX, "_entry_points_loaded", None)
+        installed.append(module)
+
+    yield install
+    FX._entry_points_loaded = None
+    for m in installed:
+        sys.modules.pop(m, None)

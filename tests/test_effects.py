@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import textwrap
 
 import numpy as np
@@ -214,22 +213,11 @@ def test_a_user_effect_from_a_file_is_listed_and_used_like_a_built_in(tmp_path, 
     assert r.returncode == 2 and "defines no subclass" in r.stderr.decode()
 
 
-def test_an_installed_package_s_entry_point_registers_its_effect(tmp_path, monkeypatch):
+def test_an_installed_package_s_entry_point_registers_its_effect(effect_package):
     # a package as pip would install it: its module and a dist-info with the entry point
-    site = tmp_path / "site"
-    (site / "pump_fx-0.1.dist-info").mkdir(parents=True)
-    (site / "pump_fx.py").write_text(USER_EFFECT)
-    (site / "pump_fx-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: pump-fx\nVersion: 0.1\n")
-    (site / "pump_fx-0.1.dist-info" / "entry_points.txt").write_text(
-        "[mtwin.effects]\ncoolant-pump = pump_fx:CoolantPump\n")
-    monkeypatch.syspath_prepend(str(site))
-    monkeypatch.setattr(FX, "_entry_points_loaded", None)
-    try:
-        assert "coolant-pump" in FX.available()
-        assert FX.get("coolant-pump")(power=10.0).resolved() == {"power": 10.0}
-    finally:
-        FX._entry_points_loaded = None
-        sys.modules.pop("pump_fx", None)
+    effect_package("pump_fx", USER_EFFECT, {"coolant-pump": "CoolantPump"})
+    assert "coolant-pump" in FX.available()
+    assert FX.get("coolant-pump")(power=10.0).resolved() == {"power": 10.0}
 
 
 def test_effects_in_the_twin_file_and_by_dotted_name(tmp_path, pocket, base_pocket):

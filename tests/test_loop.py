@@ -5,8 +5,6 @@ is "unexplained" until it is registered; the CLI writes a twin file with a journ
 from __future__ import annotations
 
 import json
-import math
-import sys
 
 import numpy as np
 import pytest
@@ -84,7 +82,7 @@ class SupplyRipple(Effect):
 '''
 
 
-def test_an_effect_outside_the_catalogue_is_unexplained_until_it_is_registered(pocket, tmp_path, monkeypatch):
+def test_an_effect_outside_the_catalogue_is_unexplained_until_it_is_registered(pocket, effect_package):
     tw, prog = pocket
     # the effect exists only in this test: the measurement is made with it, unregistered
     namespace: dict = {}
@@ -95,23 +93,12 @@ def test_an_effect_outside_the_catalogue_is_unexplained_until_it_is_registered(p
     before = diagnose(tg)["spindle_power"]
     assert before["verdict"] == "unexplained", before
     # registered the way a package does it: a module and an entry point in a dist-info
-    site = tmp_path / "site"
-    (site / "ripple_fx-1.0.dist-info").mkdir(parents=True)
-    (site / "ripple_fx.py").write_text(OUTSIDE)
-    (site / "ripple_fx-1.0.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: ripple-fx\nVersion: 1.0\n")
-    (site / "ripple_fx-1.0.dist-info" / "entry_points.txt").write_text(
-        "[mtwin.effects]\nsupply-ripple = ripple_fx:SupplyRipple\n")
-    monkeypatch.syspath_prepend(str(site))
-    monkeypatch.setattr(FX, "_entry_points_loaded", None)
-    try:
-        after = diagnose(tg)["spindle_power"]
-        assert after["verdict"] == "explained" and after["candidates"][0]["effect"] == "supply-ripple", after
-        res = fit(tg, [FX.get("supply-ripple")(period=8.0)], ["spindle_power"])
-        assert res.params["effects.supply-ripple.amplitude"] == pytest.approx(60.0, rel=0.1)
-        assert res.rms_after["spindle_power"] <= 0.5 * res.rms_before["spindle_power"]
-    finally:
-        FX._entry_points_loaded = None
-        sys.modules.pop("ripple_fx", None)
+    effect_package("ripple_fx", OUTSIDE, {"supply-ripple": "SupplyRipple"})
+    after = diagnose(tg)["spindle_power"]
+    assert after["verdict"] == "explained" and after["candidates"][0]["effect"] == "supply-ripple", after
+    res = fit(tg, [FX.get("supply-ripple")(period=8.0)], ["spindle_power"])
+    assert res.params["effects.supply-ripple.amplitude"] == pytest.approx(60.0, rel=0.1)
+    assert res.rms_after["spindle_power"] <= 0.5 * res.rms_before["spindle_power"]
 
 
 def test_calibrate_writes_the_twin_file_and_the_journal_shows_the_error_fall(tmp_path):

@@ -1,7 +1,6 @@
 """Edge cases of the loop found by a review: each failed before its fix."""
 from __future__ import annotations
 
-import json
 
 import numpy as np
 import pytest

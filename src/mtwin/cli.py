@@ -358,6 +358,34 @@ def _load_effect_files(files) -> None:
             load_file(f)
 
 
+def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock, planner=None):
+    """The twin of the common options (the twin file, --planner, --effect-file, --effect), its
+    interpreter settings and the --stock box."""
+    from .config import interpreter_settings, load_cutting, load_effects, load_machine
+    from .twin import Twin
+
+    machine = load_machine(twin)
+    if planner is not None:
+        from dataclasses import replace
+
+        from .twin.machine import STYLES
+
+        if planner not in STYLES:
+            raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {planner!r}")
+        machine = replace(machine, controller=replace(machine.controller, style=planner))
+    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
+    _load_effect_files(effect_file)
+    tw = Twin(machine, settings, twin, load_cutting(twin), load_effects(twin))
+    if effect:
+        tw = tw.with_effects(*effect)
+    box = None
+    if stock is not None:
+        from .cutting.library import parse_box
+
+        box = parse_box(stock, "--stock")
+    return tw, settings, box
+
+
 PlannerOpt = typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | linuxcnc | grbl.")
 
 
@@ -388,32 +416,8 @@ def simulate(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Run a program through the twin: cycle time, following errors, motor torques, trace."""
-    from .config import interpreter_settings, load_machine
-    from .twin import Twin
-
-    machine = load_machine(twin)
-    if planner is not None:
-        from dataclasses import replace
-
-        from .twin.machine import STYLES
-
-        if planner not in STYLES:
-            raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {planner!r}")
-        machine = replace(machine, controller=replace(machine.controller, style=planner))
-    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
-    from .config import load_cutting
-
-    _load_effect_files(effect_file)
-    from .config import load_effects
-
-    tw = Twin(machine, settings, twin, load_cutting(twin), load_effects(twin))
-    if effect:
-        tw = tw.with_effects(*effect)
-    box = None
-    if stock is not None:
-        from .cutting.library import parse_box
-
-        box = parse_box(stock, "--stock")
+    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock, planner)
+    machine = tw.machine
     dt = machine.controller.servo_period
     if every is not None and decimate is not None:
         raise MtwinError("give --every or --decimate, not both")
@@ -448,9 +452,7 @@ def simulate(
         trace = simulate_plan(tw, prog, plan, every=every, cutting=not no_cutting, stock=box, tooth=tooth_resolution)
     s = trace.summary
     for w in s.warnings:
-        from rich.markup import escape
-
-        err.print(f"[yellow]{escape(w)}[/yellow]", soft_wrap=True)
+        _warn(w)
     if output:
         from . import __version__
 
@@ -597,21 +599,10 @@ def synth(
 ):
     """Write what a machine would record running PART on the twin with extra effects (hidden
     from a plain twin) and sensor noise — for learning and testing compare/diagnose/calibrate."""
-    from .config import interpreter_settings, load_cutting, load_effects, load_machine
     from .loop.synth import synthesize
     from .motion.trace import write_columns
-    from .twin import Twin
 
-    _load_effect_files(effect_file)
-    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
-    tw = Twin(load_machine(twin), settings, twin, load_cutting(twin), load_effects(twin))
-    if effect:
-        tw = tw.with_effects(*effect)
-    box = None
-    if stock is not None:
-        from .cutting.library import parse_box
-
-        box = parse_box(stock, "--stock")
+    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock)
     prog = _load(part, settings)
     cols = synthesize(tw, prog, rate=rate, noise=noise, seed=seed, line=not no_line, stock=box,
                       signals=[s.strip() for s in signals.split(",")] if signals else None)
@@ -651,25 +642,10 @@ def compare(
     where it is farthest."""
     if report is not None and not report.endswith((".html", ".htm")) and report != "-":
         raise MtwinError(f"--report {report}: the report is an .html file")
-    from .config import interpreter_settings, load_cutting, load_effects, load_machine
     from .loop.compare import compare as run_compare
-    from .loop.measurement import read_measurement
-    from .twin import Twin
 
-    _load_effect_files(effect_file)
-    meas = read_measurement(measurement, maps)
-    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
-    tw = Twin(load_machine(twin), settings, twin, load_cutting(twin), load_effects(twin))
-    if effect:
-        tw = tw.with_effects(*effect)
-    box = None
-    if stock is not None:
-        from .cutting.library import parse_box
-
-        box = parse_box(stock, "--stock")
-    prog = _load(part, settings)
-    from .loop.measurement import _summary_base
-
+    tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
+                                       block_delete)
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     cutting = not prog.turning_line()
     trace = tw.simulate(prog, stock=box, cutting=cutting, tooth_resolution=tooth_resolution)
@@ -717,21 +693,10 @@ def compare(
 
 def _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient, block_delete):
     """The twin (with its effects and --effect), the program, the measurement, the stock."""
-    from .config import interpreter_settings, load_cutting, load_effects, load_machine
     from .loop.measurement import read_measurement
-    from .twin import Twin
 
-    _load_effect_files(effect_file)
     meas = read_measurement(measurement, maps)
-    settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
-    tw = Twin(load_machine(twin), settings, twin, load_cutting(twin), load_effects(twin))
-    if effect:
-        tw = tw.with_effects(*effect)
-    box = None
-    if stock is not None:
-        from .cutting.library import parse_box
-
-        box = parse_box(stock, "--stock")
+    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock)
     return tw, _load(part, settings), meas, box
 
 

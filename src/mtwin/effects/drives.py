@@ -11,15 +11,21 @@ from .base import Effect
 G = 9.80665  # m/s²
 
 _TORQUES = tuple(f"{a}_torque" for a in AXES) + tuple(f"{a}_current" for a in AXES)
+# what a change in an axis' drive shows in: its motor torque and current, its following error
+_DRIVE_SIGNALS = _TORQUES + tuple(f"{a}_err" for a in AXES)
+
+
+def _per_axis(prefix: str, unit: str, lower: float, upper: float, doc: str) -> tuple[Param, ...]:
+    """One parameter per axis (``fx``, ``fy``, ``fz``), zero by default: the twin as it is."""
+    return tuple(Param(f"{prefix}{a}", unit, 0.0, lower, upper, f"{doc} {a.upper()}") for a in AXES)
 
 
 class CoulombFriction(Effect):
     name = "coulomb-friction"
     description = "more (or less) Coulomb friction in an axis' guideways and screw than the twin file has"
     stage = "loop"
-    params = tuple(Param(f"f{a}", "N", 0.0, -300.0, 2000.0, f"Coulomb friction added to {a.upper()}, both directions")
-                   for a in AXES)
-    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+    params = _per_axis("f", "N", -300.0, 2000.0, "Coulomb friction (both directions) added to")
+    signals = _DRIVE_SIGNALS
 
     def servo(self, sv, p):
         for k, a in enumerate(AXES):
@@ -33,9 +39,8 @@ class ViscousFriction(Effect):
     name = "viscous-friction"
     description = "more (or less) viscous friction B·v in an axis than the twin file has"
     stage = "loop"
-    params = tuple(Param(f"b{a}", "N*s/m", 0.0, -1000.0, 20000.0, f"viscous coefficient added to {a.upper()}")
-                   for a in AXES)
-    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+    params = _per_axis("b", "N*s/m", -1000.0, 20000.0, "viscous coefficient added to")
+    signals = _DRIVE_SIGNALS
 
     def servo(self, sv, p):
         for k, a in enumerate(AXES):
@@ -46,9 +51,9 @@ class StribeckFriction(Effect):
     name = "stribeck-friction"
     description = "breakaway (static) friction above Coulomb, decaying over the Stribeck velocity"
     stage = "loop"
-    params = tuple(Param(f"s{a}", "N", 0.0, 0.0, 2000.0, f"breakaway friction added to {a.upper()}") for a in AXES) + (
+    params = _per_axis("s", "N", 0.0, 2000.0, "breakaway friction added to") + (
         Param("vs_scale", "", 1.0, 0.1, 10.0, "factor on every axis' Stribeck velocity"),)
-    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+    signals = _DRIVE_SIGNALS
 
     def servo(self, sv, p):
         for k, a in enumerate(AXES):
@@ -72,9 +77,8 @@ class Inertia(Effect):
     name = "inertia"
     description = "the drive moves more (or less) mass than its gains were set for: a heavy part or fixture"
     stage = "loop"
-    params = tuple(Param(f"m{a}", "kg", 0.0, -100.0, 2000.0, f"mass added to {a.upper()} (the gains stay)")
-                   for a in AXES)
-    signals = _TORQUES + tuple(f"{a}_err" for a in AXES)
+    params = _per_axis("m", "kg", -100.0, 2000.0, "mass (the gains stay as they are) added to")
+    signals = _DRIVE_SIGNALS
 
     def servo(self, sv, p):
         for k, a in enumerate(AXES):

@@ -198,7 +198,7 @@ def _rms_by_signal(tg, trace, signals) -> dict:
 
 
 def _base_value(twin, name: str) -> float:
-    from ..twin.machine import param_names
+    from ..twin.machine import get_param, param_names
 
     if name.startswith(("cutting.", "tools.")):
         from ..cutting.library import cutting_param
@@ -207,13 +207,7 @@ def _base_value(twin, name: str) -> float:
     if name not in param_names(twin.machine):
         raise MtwinError(f"--param {name}: not a parameter of the twin (e.g. axes.x.servo.kpp, cutting.al6061.ktc, "
                          f"tools.1.diameter)")
-    parts = name.split(".")
-    obj = twin.machine
-    if parts[0] == "axes":  # axes.x.… is the machine's x axis
-        obj, parts = getattr(obj, parts[1]), parts[2:]
-    for part in parts[:-1]:
-        obj = getattr(obj, part)
-    return float(getattr(obj, parts[-1]))
+    return float(get_param(twin.machine, name))
 
 
 # ------------------------------------------------------------------------------ diagnose

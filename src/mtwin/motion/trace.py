@@ -188,26 +188,9 @@ class Trace:
     def columns(self) -> dict[str, np.ndarray]:
         """The trace as measurement-format columns (name -> array)."""
         cols: dict[str, np.ndarray] = {"t": self.t, "line": self.line}
-        for k, a in enumerate(AXES):
-            cols[a] = self.act[:, k]
-        for k, a in enumerate(AXES):
-            cols[f"{a}_cmd"] = self.cmd[:, k]
-        for k, a in enumerate(AXES):
-            cols[f"{a}_err"] = self.err[:, k]
-        for k, a in enumerate(AXES):
-            cols[f"{a}_vel"] = self.vel[:, k]
-        cols["feed"] = self.feed
-        for k, a in enumerate(AXES):
-            cols[f"{a}_torque"] = self.torque[:, k]
-        for k, a in enumerate(AXES):
-            cols[f"{a}_current"] = self.torque[:, k] / self.torque_constant[k]
-        if self.cut is not None:
-            for k, name in enumerate(("spindle_speed", "spindle_torque", "spindle_power")):
-                cols[name] = self.cut[:, k]
-            for k, a in enumerate(AXES):
-                cols[f"f{a}"] = self.force[:, k]
-            for k, name in enumerate(("ae", "ap", "mrr", "h_max"), start=3):
-                cols[name] = self.cut[:, k]
+        for name in SIGNALS:
+            if self.cut is not None or _source(name)[0] not in ("cut", "force"):
+                cols[name] = self.columns_of(name)
         if self.record is not None:
             # not a measurement column (readers keep and ignore it): which record of the
             # program made the sample, for subprograms, loops and canned cycles
