@@ -331,3 +331,23 @@ def test_a_mid_program_spindle_change_reuses_the_engagement():
     assert b.summary.cycle_time == fresh.summary.cycle_time
     assert b.summary.cutting.cutting_energy == fresh.summary.cutting.cutting_energy
     np.testing.assert_array_equal(b.signal("spindle_power"), fresh.signal("spindle_power"))
+
+
+def test_new_feeds_reuse_the_engagement_under_the_linuxcnc_planner():
+    # the LinuxCNC planner's blend trims grow with the feed (same segments, other end points):
+    # the engagement is keyed on the structure and the programmed geometry, so three feed
+    # variants share one computation, and the result stays close to a fresh computation
+    import mtwin
+    from conftest import SAMPLES
+
+    tw = mtwin.Twin.from_toml(str(SAMPLES / "machines" / "linuxcnc-sim.toml"))
+    prog = tw.load(str(SAMPLES / "pocket.nc"))
+    f = prog.records["feed"]
+    plans = [tw.plan(prog, feeds=f * k) for k in (1.0, 1.2, 0.8)]
+    assert any(not np.array_equal(plans[0].seg["p1"], p.seg["p1"]) for p in plans[1:])  # the trims do move
+    for k in (1.0, 1.2, 0.8):
+        tr = tw.simulate(prog, every=50, feeds=f * k)
+    assert tw.engagement_cache.computations == 1
+    fresh = mtwin.Twin.from_toml(tw.path).simulate(prog, every=50, feeds=f * 0.8)
+    assert tr.summary.cutting.peak_load == pytest.approx(fresh.summary.cutting.peak_load, rel=0.02)
+    assert tr.summary.cutting.cutting_energy == pytest.approx(fresh.summary.cutting.cutting_energy, rel=0.02)

@@ -118,18 +118,11 @@ def _tool_rows(plan, program, cutting: Cutting):
 def default_stock(plan, tools) -> tuple[float, ...]:
     """XY: bounding box of the feed moves grown by the largest tool radius; top at Z0 (the usual
     CAM convention); bottom 1 mm below the deepest feed move (or at Z-1)."""
-    seg = plan.tip_seg
-    feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
-    if not feed.any():
+    box = getattr(plan, "feed_box", None)
+    if box is None:
         return (-1.0, -1.0, -1.0, 1.0, 1.0, 0.0)
-    pts = np.concatenate([seg["p0"][feed], seg["p1"][feed]])
-    arcs = feed & (seg["kind"] == ARC)
-    if arcs.any():
-        r = np.maximum(seg["r0"][arcs], seg["r1"][arcs])[:, None]
-        pts = np.concatenate([pts, seg["c"][arcs] - r, seg["c"][arcs] + r])
+    lo, hi = box[0], box[1]
     rmax = max(t.radius for t in tools)
-    lo = pts.min(axis=0)
-    hi = pts.max(axis=0)
     return (float(lo[0] - rmax), float(lo[1] - rmax), float(min(lo[2], 0.0) - 1.0),
             float(hi[0] + rmax), float(hi[1] + rmax), 0.0)
 
@@ -184,17 +177,33 @@ def _check_inside(plan, b, source: str, path: str) -> None:
 
 
 def _key(plan, program, tools, tool_index, box, res, step) -> str:
-    # the motion segments only: pauses (a spindle speed change's run-up) do not change what
-    # is cut, and Engagement.for_plan re-indexes around them
+    """What the engagement depends on, and nothing that a new F or S changes.
+
+    The motion segments only: pauses (a spindle speed change's run-up) do not change what is
+    cut, and :meth:`Engagement.for_plan` re-indexes around them.  Segments by their
+    *structure* (kind, record, blend arc or not) and the records' programmed geometry, not by
+    the planner's trimmed end points: under the LinuxCNC planner a blend's size depends on the
+    feed (up to 0.9 mm of trim on pocket.nc between F and 1.2 F), which must not make every
+    optimiser candidate compute its own engagement.  The kernel maps a segment's steps by the
+    fraction of its length, so a plan with the same structure and other trims reads the cached
+    steps at the same fraction of each segment — an error bounded by the trim change, itself
+    within the G64 tolerance.  A feed that makes a blend swallow a whole line changes the
+    structure, and that plan gets its own engagement."""
     seg = plan.tip_seg
     motion = seg["kind"] != PAUSE
     seg = seg[motion]
     tool_index = tool_index[motion]
+    rec = program.records[seg["rec"]] if len(seg) else program.records[:0]
     h = hashlib.blake2b(digest_size=20)
-    for name in ("kind", "rapid", "p0", "p1", "c", "e1", "e2", "h", "r0", "r1", "theta", "length"):
+    for name in ("kind", "rapid", "rec", "blend"):
         h.update(np.ascontiguousarray(seg[name]).tobytes())
+    for name in ("kind", "plane", "turns", "sx", "sy", "sz", "x", "y", "z", "cx", "cy", "cz", "ox", "oy", "oz",
+                 "rot", "comp", "comp_r"):
+        h.update(np.ascontiguousarray(rec[name]).tobytes())
+    if plan.tip_shift is not None and len(seg):
+        h.update(np.ascontiguousarray(plan.tip_shift[seg["rec"]]).tobytes())
     h.update(tool_index.tobytes())
-    h.update(np.asarray(program.records["spindle_dir"][seg["rec"]] < 0).tobytes() if len(seg) else b"")
+    h.update(np.asarray(rec["spindle_dir"] < 0).tobytes())
     h.update(repr((tuple((t.type, t.diameter, t.corner_radius, t.flutes, t.flute_length) for t in tools),
                    tuple(box), res, step)).encode())
     return h.hexdigest()

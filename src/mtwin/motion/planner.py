@@ -44,6 +44,9 @@ class Plan:
     warnings: list[str] = field(default_factory=list)
     # (records, 3) mm: axes' path minus each record's tool tip (tool offset changes); None: 0
     tip_shift: np.ndarray | None = None
+    # (2, 3) mm: lowest and highest point of the feed moves' tool tip before corner blending
+    # (the default stock's extent must not move with the feed-dependent blend trims); None: none
+    feed_box: np.ndarray | None = None
 
     @property
     def tip_seg(self) -> np.ndarray:
@@ -417,6 +420,7 @@ def plan_program(program, machine) -> Plan:
     if not len(seg):
         return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), start,
                     warnings, shift)
+    feed_box = _feed_box(seg, shift)
     style = STYLE_CODES[c.style]
     if seg["kind"].size:
         canned = (rec["flags"][seg["rec"]] & R.FL_CANNED) != 0
@@ -447,4 +451,21 @@ def plan_program(program, machine) -> Plan:
     prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
-    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift)
+    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift, feed_box)
+
+
+def _feed_box(seg: np.ndarray, shift) -> np.ndarray | None:
+    """Extent of the feed moves' tool tip (arcs by their full circle's box)."""
+    feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+    if not feed.any():
+        return None
+    s = seg[feed]
+    d = shift[np.clip(s["rec"], 0, len(shift) - 1)] if shift is not None and len(shift) else 0.0
+    pts = [s["p0"] - d, s["p1"] - d]
+    arcs = s["kind"] == ARC
+    if arcs.any():
+        r = np.maximum(s["r0"][arcs], s["r1"][arcs])[:, None]
+        c = s["c"][arcs] - (d[arcs] if np.ndim(d) else 0.0)
+        pts += [c - r, c + r]
+    pts = np.concatenate(pts)
+    return np.stack([pts.min(axis=0), pts.max(axis=0)])
