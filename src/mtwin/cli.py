@@ -578,6 +578,146 @@ def config_check(path: str = typer.Argument(..., help="Twin file to validate."))
     err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
 
 
+def _range(text: Optional[str], name: str):
+    if text is None:
+        return None
+    try:
+        a, b = (float(x) for x in text.replace(":", ",").split(","))
+    except ValueError:
+        raise MtwinError(f"{name} {text!r}: expected LOW,HIGH (two numbers)") from None
+    import math
+
+    if not (math.isfinite(a) and math.isfinite(b) and 0 < a < b):
+        raise MtwinError(f"{name} {text!r}: need 0 < LOW < HIGH")
+    return (a, b)
+
+
+@app.command(short_help="Optimise F and S under load, power and machine limits; write the program.")
+@_reports_errors
+def optimize(
+    part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),
+    output: str = typer.Option(..., "-o", "--output", help="Optimised program ('-' for stdout)."),
+    objective: str = typer.Option("time", "--objective", help="time | cost | smooth | air."),
+    method: str = typer.Option("bisect", "--method", help="bisect (per-segment bisection) | ga (genetic algorithm)."),
+    force_limit: Optional[float] = typer.Option(None, "--force-limit",
+                                                help="Cutting-load limit, N (default: cost.force_per_diameter x "
+                                                     "tool diameter, 60 N for a 6 mm tool)."),
+    feed_range: Optional[str] = typer.Option(None, "--feed-range", help="LOW,HIGH mm/min (default: 10 % of the "
+                                             "lowest F up to the machine's maximum cutting feed)."),
+    spindle_range: Optional[str] = typer.Option(None, "--spindle-range",
+                                                help="LOW,HIGH rpm: also choose S (per tool); without it S stays."),
+    spindle_per: str = typer.Option("tool", "--spindle-per", help="tool | segment (needs --allow-s-changes)."),
+    allow_s_changes: bool = typer.Option(False, "--allow-s-changes", help="Allow S words in mid-tool."),
+    target_power: Optional[float] = typer.Option(None, "--target-power",
+                                                 help="smooth: target mean cutting power per segment, W "
+                                                      "(default: the 75th percentile of the segments')."),
+    tolerance: float = typer.Option(0.05, "--tolerance", help="smooth: relative tolerance K on the target power."),
+    segmentation: str = typer.Option("cluster", "--segmentation",
+                                     help="cluster (sequential clustering) | changepoint (binary segmentation)."),
+    min_segment: float = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of path."),
+    seed: int = typer.Option(0, "--seed", help="GA random seed (same seed, same result)."),
+    population: int = typer.Option(60, "--population", help="GA population size."),
+    generations: int = typer.Option(200, "--generations", help="GA generation limit."),
+    report: Optional[str] = typer.Option(None, "--report", help="Write a self-contained HTML report."),
+    json_out: bool = typer.Option(False, "--json", help="Result as JSON on stdout."),
+    in_place: bool = typer.Option(False, "--in-place", help="Allow -o to be the input file."),
+    stock: Optional[str] = typer.Option(None, "--stock",
+                                        help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm (work coordinates)."),
+    planner: Optional[str] = PlannerOpt,
+    twin: Optional[str] = TwinOpt,
+    dialect: Optional[str] = DialectOpt,
+    lenient: bool = LenientOpt,
+    block_delete: Optional[bool] = BlockDeleteOpt,
+):
+    """Segment the predicted power curve, choose F (and S) per segment for the objective under
+    the load, power, torque and feed limits, write the program through the byte-preserving
+    writer, prove it cuts the same path and check the limits on its re-simulation."""
+    from .optimize.run import OptimizeOptions, optimize as run_optimize
+    from .optimize.search import METHODS, OBJECTIVES, GAOptions
+
+    if objective not in OBJECTIVES:
+        raise MtwinError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    if method not in METHODS:
+        raise MtwinError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    if segmentation not in ("cluster", "changepoint"):
+        raise MtwinError(f"--segmentation must be cluster or changepoint, got {segmentation!r}")
+    if spindle_per not in ("tool", "segment"):
+        raise MtwinError(f"--spindle-per must be tool or segment, got {spindle_per!r}")
+    if force_limit is not None and not force_limit > 0:
+        raise MtwinError(f"--force-limit must be positive, got {force_limit:g}")
+    if target_power is not None and not target_power > 0:
+        raise MtwinError(f"--target-power must be positive, got {target_power:g}")
+    if not (0 < tolerance < 1):
+        raise MtwinError(f"--tolerance must be between 0 and 1, got {tolerance:g}")
+    if not min_segment >= 0:
+        raise MtwinError(f"--min-segment must be >= 0, got {min_segment:g}")
+    if population < 4 or generations < 1:
+        raise MtwinError("--population must be at least 4 and --generations at least 1")
+    if report is not None and not report.endswith((".html", ".htm")):
+        raise MtwinError(f"--report {report}: use an .html file name")
+    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, None, None, stock, planner)
+    prog = _load(part, settings)
+    opts = OptimizeOptions(objective, method, force_limit, _range(feed_range, "--feed-range"),
+                           _range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
+                           tolerance=tolerance, segmentation=segmentation, min_segment=min_segment,
+                           ga=GAOptions(population=population, generations=generations, seed=seed))
+    if method == "ga" and not json_out:
+        from rich.progress import BarColumn, Progress, TextColumn
+
+        with Progress(TextColumn("GA"), BarColumn(), TextColumn("gen {task.completed}/{task.total}"),
+                      TextColumn("{task.fields[best]}"), console=err, transient=True) as bar:
+            task = bar.add_task("ga", total=generations, best="")
+            res = run_optimize(tw, prog, opts, stock=box,
+                               progress=lambda g, n, b: bar.update(task, completed=g, best=f"fitness {b:.4f}"))
+    else:
+        res = run_optimize(tw, prog, opts, stock=box)
+    for w in res.warnings:
+        _warn(w)
+    if report:
+        from .report.optimize_html import optimize_html
+
+        write_output(optimize_html(res, prog.path), report, [part])
+    write_output(res.output, output, [part], in_place)
+    _print_optimize(res, prog, json_out)
+
+
+def _print_optimize(res, prog, json_out: bool) -> None:
+    b, a = res.before, res.after
+
+    def pct(x, y):
+        return f"{(y / x - 1) * 100:+.1f} %" if x else "—"
+
+    if json_out:
+        doc = {"program": prog.path, "objective": res.objective, "method": res.method, "before": b.as_dict(),
+               "after": a.as_dict(), "estimate": res.estimate,
+               "estimate_error": {"cycle_time": res.estimate["cycle_time"] - a.cycle_time},
+               "changed_lines": len(res.changed_lines), "verified": res.verified, "rounds": res.rounds,
+               "evaluations": res.evaluations, "generations": res.generations, "seconds": res.seconds,
+               "force_limit": res.force_limit, "segments": res.segments,
+               "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in res.tradeoff],
+               "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in res.changed_lines]}
+        sys.stdout.write(json.dumps(doc, indent=1) + "\n")
+        return
+    from rich.table import Table
+
+    t = Table(title=f"{prog.path}: {res.objective} by {res.method}", title_justify="left")
+    for col in ("", "before", "after", "change"):
+        t.add_column(col, justify="right" if col else "left")
+    t.add_row("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time))
+    t.add_row("cost", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost))
+    t.add_row("peak load", f"{b.peak_load:.1f} N", f"{a.peak_load:.1f} N", pct(b.peak_load, a.peak_load))
+    t.add_row("peak spindle power", f"{b.peak_power / 1000:.2f} kW", f"{a.peak_power / 1000:.2f} kW",
+              pct(b.peak_power, a.peak_power))
+    cv = (lambda v: "—" if v is None else f"{v:.3f}")
+    t.add_row("power CV (segment means)", cv(b.power_cv), cv(a.power_cv), "")
+    err.print(t)
+    lim = ", ".join(f"T{k}: {v:.0f} N" for k, v in res.force_limit.items())
+    err.print(f"{len(res.segments)} segments, {len(res.changed_lines)} changed line group(s); load limit {lim}; "
+              f"verified: same path; limits held on the re-simulated program ({res.rounds} round(s)); estimate "
+              f"{res.estimate['cycle_time']:.2f} s vs re-simulated {a.cycle_time:.2f} s; {res.evaluations} "
+              f"evaluations in {res.seconds:.1f} s", soft_wrap=True)
+
+
 @app.command(short_help="A synthetic measurement: the twin, extra effects, noise.")
 @_reports_errors
 def synth(

@@ -32,7 +32,7 @@ else:  # pragma: no cover
 from .errors import ConfigError
 
 _SECTIONS = {"interpreter", "work_offsets", "tool_lengths", "cutter_comp", "machine", "controller", "axes", "spindle",
-             "timing",
+             "timing", "cost",
              "tools", "materials", "cutting", "effects", "journal"}
 _INTERP_KEYS = {"dialect", "block_delete", "home_g28", "home_g30", "subroutine_path"}
 

@@ -113,6 +113,24 @@ class Timing:
     tool_change: float = P(4.0, "s", "tool change, chip to chip [S: 1.5-4 s]", "nonneg")
 
 
+@dataclass(frozen=True)
+class Cost:
+    """Production-cost rates for ``mtwin optimize --objective cost`` (Gilbert's cost per part,
+    docs/physics.md section 5) and the optimiser's default load limit."""
+
+    machine_rate: float = P(50.0, "1/h", "machine depreciation and overhead per hour, currency units [E: C_o 60-150 $/h "
+                            "with labour]", "nonneg")
+    labour_rate: float = P(30.0, "1/h", "operator per hour, currency units [E]", "nonneg")
+    tool_price: float = P(40.0, "1", "price of a tool (or a set of edges), currency units [E: carbide end mill 30-150 $]",
+                          "nonneg")
+    tool_replace_time: float = P(120.0, "s", "time to replace a worn tool and set its offset [E: 1-5 min]", "nonneg")
+    taylor_n: float = P(0.35, "1", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4, carbide in steel 0.25]")
+    taylor_c: float = P(1200.0, "m/min", "Taylor constant C (cutting speed for one minute of life) [E: aluminium "
+                        "1100-1500, carbide in mild steel 300]")
+    force_per_diameter: float = P(10.0, "N/mm", "default cutting-load limit per mm of tool diameter, when no "
+                                  "--force-limit is given [E: the reference's 60 N for a 6 mm end mill]")
+
+
 _AXIS_DEFAULTS = {
     "x": Axis(),
     "y": Axis(mass=500.0, min_travel=-250.0, max_travel=250.0),
@@ -129,6 +147,7 @@ class Machine:
     z: Axis = field(default_factory=lambda: _AXIS_DEFAULTS["z"])
     spindle: Spindle = field(default_factory=Spindle)
     timing: Timing = field(default_factory=Timing)
+    cost: Cost = field(default_factory=Cost)
     # The embedded default machine is nobody's machine: a move beyond its travel is a warning.
     # A twin file describes a real machine, whose limits are hard, as on its control.
     hard_travel_limits: bool = False
@@ -144,7 +163,7 @@ class Machine:
         return (self.x, self.y, self.z)
 
 
-MACHINE_SECTIONS = ("machine", "controller", "axes", "spindle", "timing")
+MACHINE_SECTIONS = ("machine", "controller", "axes", "spindle", "timing", "cost")
 
 
 def _parse_into(obj, table: dict, prefix: str, where: str):
@@ -177,7 +196,7 @@ def machine_from_dict(raw: dict, where: str = "twin file") -> Machine:
             raise ConfigError(f"{where}: [machine] takes only 'name'")
         if "name" in body:
             changes["name"] = str(body["name"])
-    for sec in ("controller", "spindle", "timing"):
+    for sec in ("controller", "spindle", "timing", "cost"):
         if sec in raw:
             changes[sec] = _parse_into(getattr(m, sec), raw[sec], sec, where)
     axes = raw.get("axes", {})
@@ -279,7 +298,8 @@ def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
     for name, ax in zip(AXES, m.axes):
         out += _table_lines(ax, f"axes.{name}") + [""]
     out += _table_lines(m.spindle, "spindle") + [""]
-    out += _table_lines(m.timing, "timing")
+    out += _table_lines(m.timing, "timing") + [""]
+    out += _table_lines(m.cost, "cost")
     out += ["", "# Cutting: tools, material and stock (docs/cutting.md). Without [tools.*] every tool is a",
             "# 6 mm two-flute carbide flat end mill; without [cutting] material, al6061 (reference Kt, Ke).",
             "# [cutting]",
@@ -306,7 +326,7 @@ def param_names(m: Machine | None = None) -> list[str]:
             elif isinstance(v, (int, float)) and not isinstance(v, bool):
                 out.append(prefix + f.name)
 
-    for sec in ("controller", "spindle", "timing"):
+    for sec in ("controller", "spindle", "timing", "cost"):
         walk(getattr(m, sec), sec + ".")
     for a in AXES:
         walk(getattr(m, a), f"axes.{a}.")

@@ -1,0 +1,195 @@
+"""The optimiser's fast model: cutting load, torque and power along the path as functions of
+the feed per tooth, and move times as functions of the feed — from one full simulation.
+
+The engagement sums make every path step's revolution-averaged force affine in the feed per
+tooth f_z (``F = f_z·a + b``, the same arithmetic as the servo kernel's), so a candidate's
+load at a step is ``|f_z·a + b|`` and its spindle torque ``f_z·t_a + t_b`` — no stock, no servo
+loop.  The feed the estimate puts into f_z is the commanded one: the drives never run faster
+than it along a move (up to the servo's overshoot, which the confirmation on the full twin
+catches), so the estimated load is an upper bound of the real one.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cutting import _engagekernel as EK
+from ..gcode import records as R
+from ..motion.path import PAUSE
+
+
+@dataclass
+class PathModel:
+    """Per engagement step (path order): where it is and how the load follows the feed."""
+
+    rec: np.ndarray  # (m,) motion record of the step
+    pos: np.ndarray  # (m,) position along the record, fraction 0..1 (step centre)
+    length: np.ndarray  # (m,) mm of path the step stands for
+    fa: np.ndarray  # (m, 2) horizontal force per mm of feed per tooth, N/mm (machine X, Y)
+    fb: np.ndarray  # (m, 2) horizontal edge force, N
+    ta: np.ndarray  # (m,) spindle torque per mm of feed per tooth, N·m/mm
+    tb: np.ndarray  # (m,) edge torque, N·m
+    flutes: np.ndarray  # (m,) flutes of the cutting tool
+    cutting: np.ndarray  # (m,) bool: the step meets material
+    tool: np.ndarray  # (m,) tool number
+    diameter: np.ndarray  # (m,) tool diameter, mm
+
+    @property
+    def steps(self) -> int:
+        return len(self.rec)
+
+    def load(self, fz: np.ndarray) -> np.ndarray:
+        """Horizontal cutting load (N) of every step at feeds per tooth ``fz`` (mm)."""
+        x = fz * self.fa[:, 0] + self.fb[:, 0]
+        y = fz * self.fa[:, 1] + self.fb[:, 1]
+        return np.hypot(x, y) * self.cutting
+
+    def torque(self, fz: np.ndarray) -> np.ndarray:
+        return (fz * self.ta + self.tb) * self.cutting
+
+
+def path_model(twin, program, plan, eng, kscale=None) -> PathModel:
+    """The fast model of a program from its plan and (cached) engagement."""
+    from ..motion.simulate import _program_cutting
+
+    seg = plan.seg
+    count = eng.count
+    nstep = int(count.sum())
+    has = np.flatnonzero(count > 0)
+    within = _within(count[has])
+    at = np.repeat(eng.first[has], count[has]) + within  # step index: first[i] + j
+    step_seg = np.empty(nstep, np.int64)
+    step_seg[at] = np.repeat(has, count[has])
+    j = np.empty(nstep, np.int64)
+    j[at] = within
+    # position of each step along its segment, then along its record (a record may be
+    # several segments under the LinuxCNC planner: blend arcs, trimmed lines)
+    seg_len = seg["length"]
+    cnt = np.maximum(count[step_seg], 1)
+    s_in = (j + 0.5) / cnt * seg_len[step_seg]
+    rec_of = seg["rec"]
+    motion = seg["kind"] != PAUSE
+    nrec = len(program.records)
+    rec_len = np.bincount(rec_of[motion], weights=seg_len[motion], minlength=nrec)
+    before = np.zeros(len(seg))
+    if len(seg):
+        # path length of the same record's earlier segments
+        cum = np.cumsum(np.where(motion, seg_len, 0.0))
+        start_of_rec = np.full(nrec, np.inf)
+        np.minimum.at(start_of_rec, rec_of[motion], (cum - seg_len)[motion])
+        before = (cum - seg_len) - start_of_rec[rec_of]
+        before = np.where(motion, before, 0.0)
+    step_rec = rec_of[step_seg]
+    pos = np.clip((before[step_seg] + s_in) / np.maximum(rec_len[step_rec], 1e-12), 0.0, 1.0)
+    length = seg_len[step_seg] / cnt
+
+    S = eng.sums.astype(np.float64)
+    q = eng.q.astype(np.float64)
+    mat = _program_cutting(twin, program).material
+    k = (mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae)
+    ax = k[0] * S[:, EK.SX_TC] + k[1] * S[:, EK.SX_RC] + k[2] * S[:, EK.SX_AC]
+    bx = k[3] * S[:, EK.SX_TE] + k[4] * S[:, EK.SX_RE] + k[5] * S[:, EK.SX_AE]
+    ay = k[0] * S[:, EK.SY_TC] + k[1] * S[:, EK.SY_RC] + k[2] * S[:, EK.SY_AC]
+    by = k[3] * S[:, EK.SY_TE] + k[4] * S[:, EK.SY_RE] + k[5] * S[:, EK.SY_AE]
+    ta = k[0] * S[:, EK.ST_TC] * 1e-3
+    tb = k[3] * S[:, EK.ST_TE] * 1e-3
+    if kscale is not None and len(kscale):
+        for v in (ax, bx, ay, by, ta, tb):
+            v *= kscale
+    hand = np.where(program.records["spindle_dir"][step_rec] < 0, -1.0, 1.0)
+    dx, dy = q[:, EK.Q_DX], q[:, EK.Q_DY]
+    yx, yy = -dy * hand, dx * hand
+    fa = np.stack([ax * dx + ay * yx, ax * dy + ay * yy], axis=1)
+    fb = np.stack([bx * dx + by * yx, bx * dy + by * yy], axis=1)
+    cutting = (q[:, EK.Q_AREA] > 0.0) | (S[:, EK.ST_TE] > 0.0)
+    trow = eng.tool_index[step_seg]
+    flutes = eng.tools[trow, 2]
+    diameter = 2.0 * eng.tools[trow, 0]
+    return PathModel(step_rec, pos, length, fa, fb, ta, tb, flutes, cutting,
+                     program.records["tool"][step_rec].astype(np.int64), diameter)
+
+
+def _within(count: np.ndarray) -> np.ndarray:
+    """0, 1, …, count[i]-1 for every i, concatenated."""
+    n = int(count.sum())
+    if not n:
+        return np.zeros(0, np.int64)
+    starts = np.repeat(np.cumsum(count) - count, count)
+    return np.arange(n) - starts
+
+
+@dataclass
+class MoveTimes:
+    """Per feed record: a time model t(F) = L / min(F, v_cap) + o · min(F, v_cap) / min(F0, v_cap).
+
+    ``v_cap`` is the planner's speed limit along the record that is not the feed (arc limits,
+    axis speeds, short blocks), read off a plan at the highest feed the optimiser may write;
+    ``o`` is the acceleration overhead of the move in the program's own plan (its time minus
+    L / v), scaled with the speed (a trapezoid's overhead is v / a)."""
+
+    length: np.ndarray  # (records,) mm
+    v_cap: np.ndarray  # (records,) mm/s
+    f0: np.ndarray  # (records,) mm/s, the program's feed
+    overhead: np.ndarray  # (records,) s
+
+    def time(self, rec: np.ndarray, feed_mm_min: np.ndarray, frac: np.ndarray | float = 1.0) -> np.ndarray:
+        v = np.minimum(feed_mm_min / 60.0, self.v_cap[rec])
+        v0 = np.minimum(self.f0[rec], self.v_cap[rec])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = self.length[rec] / v + self.overhead[rec] * v / np.maximum(v0, 1e-12)
+        return np.where(self.length[rec] > 0, t * frac, 0.0)
+
+
+def move_times(program, plan, plan_fast) -> MoveTimes:
+    """Time models of the feed records from the program's plan and a plan at the top feed."""
+    nrec = len(program.records)
+
+    def per_record(p):
+        seg = p.seg
+        m = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+        L = np.bincount(seg["rec"][m], weights=seg["length"][m], minlength=nrec)
+        with np.errstate(divide="ignore"):
+            inv = np.bincount(seg["rec"][m], weights=seg["length"][m] / np.maximum(seg["vmax"][m], 1e-9),
+                              minlength=nrec)
+        dur = np.bincount(seg["rec"][m], weights=p.dur[m], minlength=nrec)
+        return L, inv, dur
+
+    L, inv0, dur0 = per_record(plan)
+    Lf, invf, _ = per_record(plan_fast)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_cap = np.where(invf > 0, Lf / invf, np.inf)
+    f0 = program.records["feed"] / 60.0
+    v0 = np.minimum(f0, v_cap)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        overhead = np.where(L > 0, np.maximum(dur0 - L / np.maximum(v0, 1e-12), 0.0), 0.0)
+    return MoveTimes(L, v_cap, f0, overhead)
+
+
+def feed_records(program) -> np.ndarray:
+    """Which records' feed the optimiser may set: feed moves with a feed of their own (not a
+    spindle-synchronised thread or tap, not a probe, not inverse-time or per-revolution feed)."""
+    rec = program.records
+    k = rec["kind"]
+    ok = (k == R.LINEAR) | (k == R.ARC_CW) | (k == R.ARC_CCW)
+    ok &= rec["feed"] > 0
+    ok &= (rec["flags"] & (R.FL_SYNC | R.FL_PROBE)) == 0
+    ok &= rec["feed_mode"] == R.FEED_PER_MIN
+    # plunges (mostly downward) keep the programmed feed: the CAM chose it for a tool entering
+    # the material with its end face (centre cutting, chip evacuation), which the load model
+    # does not judge
+    dz = rec["z"] - rec["sz"]
+    L = R.move_lengths(rec)
+    ok &= ~((dz < 0) & (-dz > 0.5 * np.maximum(L, 1e-12)))
+    return ok
+
+
+def taylor_life(v_m_min: np.ndarray, n: float, c: float) -> np.ndarray:
+    """Tool life (min) from Taylor's equation V·T^n = C."""
+    with np.errstate(divide="ignore"):
+        return np.where(v_m_min > 0, (c / np.maximum(v_m_min, 1e-12)) ** (1.0 / n), np.inf)
+
+
+def cutting_speed(diameter_mm, rpm):
+    return math.pi * np.asarray(diameter_mm) * np.asarray(rpm) / 1000.0

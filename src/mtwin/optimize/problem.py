@@ -1,0 +1,238 @@
+"""The optimisation problem on the fast model: per-segment tables, objectives, constraints.
+
+A candidate is a feed per variable (segments sharing a line share one) and a spindle speed
+per spindle variable (per tool, or per segment).  Its evaluation touches only per-segment
+tables, never the path steps, so a population of hundreds is evaluated in microseconds per
+candidate:
+
+* the peak load and peak spindle torque of a segment as functions of the feed per tooth —
+  maxima over its steps of convex functions (``|f_z·a + b|`` and ``f_z·t_a + t_b``), tabulated
+  on a grid and interpolated linearly in f_z, so the interpolation lies on or above the true
+  maximum (a chord of a convex function): an upper bound, never an optimistic estimate;
+* the mean cutting torque of a segment, exactly affine in f_z (length-weighted);
+* the segment time as a function of the feed, tabulated on a grid and interpolated in 1/F
+  (exact for the L/F part).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+GRID = 48
+
+
+@dataclass
+class Limits:
+    force: np.ndarray  # (tools,) N, by seg_tool index -> see Problem.force_of_seg
+    power: float  # W, spindle rated power
+    base_speed: float  # rpm, end of the constant-torque range
+    feed: tuple[float, float]  # mm/min
+    spindle: tuple[float, float] | None  # rpm; None: S stays as programmed
+    margin: float = 0.01  # the estimate is held this far under the limits
+
+
+@dataclass
+class CostRates:
+    machine_rate: float  # per hour
+    labour_rate: float  # per hour
+    tool_price: float  # per tool (edge set)
+    tool_replace_time: float  # s, to replace a worn tool
+    taylor_n: float
+    taylor_c: float  # m/min for one minute of life
+    currency: str = "$"
+
+    @property
+    def rate(self) -> float:
+        return self.machine_rate + self.labour_rate
+
+
+@dataclass
+class Problem:
+    nvar: int
+    seg_var: np.ndarray  # (S,)
+    seg_spin: np.ndarray  # (S,) spindle variable of each segment
+    nspin: int
+    seg_air: np.ndarray  # (S,)
+    seg_flutes: np.ndarray  # (S,)
+    seg_diam: np.ndarray  # (S,)
+    seg_force: np.ndarray  # (S,) load limit, N
+    seg_tool: np.ndarray  # (S,)
+    seg_len: np.ndarray  # (S,) mm
+    fz_grid: np.ndarray  # (G,)
+    load_tab: np.ndarray  # (S, G)
+    torque_tab: np.ndarray  # (S, G)
+    mta: np.ndarray  # (S,) mean torque per mm of f_z
+    mtb: np.ndarray  # (S,)
+    f_grid: np.ndarray  # (G,) mm/min
+    time_tab: np.ndarray  # (S, G) s
+    t_base: np.ndarray  # (S,) s at the program's feeds
+    f0_var: np.ndarray  # (nvar,) the program's feed (first piece)
+    n0_spin: np.ndarray  # (nspin,) the program's speed
+    cycle_before: float
+    limits: Limits
+    rates: CostRates
+    loss: np.ndarray  # spindle no-load loss polynomial, W: c0 + c1 n + c2 n^2
+    evaluations: int = field(default=0)
+
+    # ---- the model -------------------------------------------------------------------
+    def _interp(self, tab: np.ndarray, fz: np.ndarray) -> np.ndarray:
+        g = self.fz_grid
+        fz = np.clip(fz, g[0], g[-1])
+        i = np.clip(np.searchsorted(g, fz, side="right") - 1, 0, len(g) - 2)
+        a = (fz - g[i]) / (g[i + 1] - g[i])
+        rows = np.arange(tab.shape[0])
+        rows = np.broadcast_to(rows, fz.shape)
+        return tab[rows, i] * (1.0 - a) + tab[rows, i + 1] * a
+
+    def seg_time(self, F: np.ndarray) -> np.ndarray:
+        u = 1.0 / self.f_grid  # decreasing
+        x = np.clip(1.0 / F, u[-1], u[0])
+        ur = u[::-1]
+        i = np.clip(np.searchsorted(ur, x, side="right") - 1, 0, len(ur) - 2)
+        a = (x - ur[i]) / (ur[i + 1] - ur[i])
+        tab = self.time_tab[:, ::-1]
+        rows = np.broadcast_to(np.arange(tab.shape[0]), F.shape)
+        return tab[rows, i] * (1.0 - a) + tab[rows, i + 1] * a
+
+    def evaluate(self, feeds: np.ndarray, spins: np.ndarray) -> dict:
+        """Figures of candidates: ``feeds`` (P, nvar) mm/min, ``spins`` (P, nspin) rpm."""
+        feeds = np.atleast_2d(feeds)
+        spins = np.atleast_2d(spins)
+        self.evaluations += feeds.shape[0]
+        F = feeds[:, self.seg_var]
+        n = spins[:, self.seg_spin]
+        fz = F / (self.seg_flutes * np.maximum(n, 1e-9))
+        load = self._interp(self.load_tab, fz)
+        torque = self._interp(self.torque_tab, fz)
+        omega = 2.0 * math.pi * n / 60.0
+        loss = self.loss[0] + self.loss[1] * n + self.loss[2] * n * n
+        power = torque * omega + loss
+        mean_power = (self.mta * fz + self.mtb) * omega
+        t_lim = self.limits.power / (2.0 * math.pi * np.maximum(n, self.limits.base_speed) / 60.0)
+        ts = self.seg_time(F)
+        time = self.cycle_before + (ts - self.t_base).sum(axis=1)
+        cut = ~self.seg_air
+        m = 1.0 - self.limits.margin
+        v_load = np.where(cut, np.maximum(load / (self.seg_force * m) - 1.0, 0.0), 0.0)
+        v_power = np.where(cut, np.maximum(power / (self.limits.power * m) - 1.0, 0.0), 0.0)
+        v_torque = np.where(cut, np.maximum(torque / (t_lim * m) - 1.0, 0.0), 0.0)
+        # cost (Gilbert): rate x time + per tool (cut time / life) x (price + rate x change time)
+        r = self.rates
+        v_cut = math.pi * self.seg_diam * n / 1000.0  # m/min
+        with np.errstate(divide="ignore"):
+            life = (r.taylor_c / np.maximum(v_cut, 1e-9)) ** (1.0 / r.taylor_n)  # min
+        wear = np.where(cut, (ts / 60.0) / life, 0.0).sum(axis=1)  # tool lives used
+        cost = r.rate * time / 3600.0 + wear * (r.tool_price + r.rate * r.tool_replace_time / 3600.0)
+        return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
+                "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque,
+                "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "tool_lives": wear}
+
+    def max_feasible_feed(self, spins: np.ndarray, limit_scale: float = 1.0) -> np.ndarray:
+        """Per variable, the highest feed in the range that keeps every cutting segment of it
+        within the limits at these spindle speeds (bisection on the tables, 40 halvings);
+        NaN where even the lowest feed is over a limit."""
+        lo_f, hi_f = self.limits.feed
+        lo = np.full(self.nvar, math.log(lo_f))
+        hi = np.full(self.nvar, math.log(hi_f))
+        spins = np.atleast_2d(spins)
+
+        def ok(logf):
+            f = np.exp(logf)[None, :]
+            ev = self._constraint_only(f, spins, limit_scale)
+            bad = np.zeros(self.nvar, bool)
+            np.logical_or.at(bad, self.seg_var, ev[0] > 0)
+            return ~bad
+
+        top = ok(hi)
+        bottom = ok(lo)
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            good = ok(mid)
+            lo = np.where(good, mid, lo)
+            hi = np.where(good, hi, mid)
+        out = np.where(top, math.exp(math.log(hi_f)), np.exp(lo))
+        return np.where(bottom, out, np.nan)
+
+    def _constraint_only(self, feeds, spins, limit_scale=1.0):
+        F = feeds[:, self.seg_var]
+        n = spins[:, self.seg_spin]
+        fz = F / (self.seg_flutes * np.maximum(n, 1e-9))
+        load = self._interp(self.load_tab, fz)
+        torque = self._interp(self.torque_tab, fz)
+        omega = 2.0 * math.pi * n / 60.0
+        loss = self.loss[0] + self.loss[1] * n + self.loss[2] * n * n
+        power = torque * omega + loss
+        t_lim = self.limits.power / (2.0 * math.pi * np.maximum(n, self.limits.base_speed) / 60.0)
+        m = (1.0 - self.limits.margin) * limit_scale
+        cut = ~self.seg_air
+        v = np.maximum.reduce([load / (self.seg_force * m) - 1.0, power / (self.limits.power * m) - 1.0,
+                               torque / (t_lim * m) - 1.0])
+        return np.where(cut, v, -1.0)
+
+
+def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limits, rates: CostRates,
+                  spindle_per: str, cycle_before: float, loss, max_speed: float, force_of_tool) -> Problem:
+    """Tables of the segments from the path model (``power0``: step power at the program's F/S)."""
+    rec = program.records
+    S = segs.count
+    ok = segs.step_seg >= 0
+    st = segs.step_seg[ok]
+    o = np.argsort(st, kind="stable")
+    st = st[o]
+    idx = np.flatnonzero(ok)[o]
+    bounds = np.searchsorted(st, np.arange(S))
+    present = np.bincount(st, minlength=S) > 0
+    flutes_seg = np.full(S, 2.0)
+    diam_seg = np.full(S, 6.0)
+    if len(idx):
+        first_step = idx[np.minimum(bounds, len(idx) - 1)]
+        flutes_seg = np.where(present, model.flutes[first_step], 2.0)
+        diam_seg = np.where(present, model.diameter[first_step], 6.0)
+    lo_f, hi_f = limits.feed
+    n_lo, n_hi = limits.spindle if limits.spindle else (float(np.min(rec["spindle"][rec["spindle"] > 0], initial=max_speed)),
+                                                        max_speed)
+    n_lo = min(n_lo, float(np.min(np.minimum(rec["spindle"][segs.piece_rec], max_speed), initial=n_lo)))
+    n_lo = max(n_lo, 1.0)
+    fz_lo = lo_f / (flutes_seg.max() * max(n_hi, n_lo)) * 0.5
+    fz_hi = hi_f / (flutes_seg.min() * n_lo) * 2.0
+    fz_grid = np.concatenate([[0.0], np.geomspace(fz_lo, fz_hi, GRID - 1)])
+    load_tab = np.zeros((S, GRID))
+    torque_tab = np.zeros((S, GRID))
+    if len(idx):
+        b = np.minimum(bounds, len(idx) - 1)
+        for g, fz in enumerate(fz_grid):
+            L = np.hypot(fz * model.fa[idx, 0] + model.fb[idx, 0], fz * model.fa[idx, 1] + model.fb[idx, 1])
+            L *= model.cutting[idx]
+            T = (fz * model.ta[idx] + model.tb[idx]) * model.cutting[idx]
+            load_tab[:, g] = np.where(present, np.maximum.reduceat(L, b), 0.0)
+            torque_tab[:, g] = np.where(present, np.maximum.reduceat(T, b), 0.0)
+    w = model.length[idx] * model.cutting[idx]
+    seg_len = np.bincount(st, weights=model.length[idx], minlength=S)
+    mta = np.bincount(st, weights=w * model.ta[idx], minlength=S) / np.maximum(seg_len, 1e-12)
+    mtb = np.bincount(st, weights=w * model.tb[idx], minlength=S) / np.maximum(seg_len, 1e-12)
+    # time tables
+    f_grid = np.geomspace(lo_f * 0.999, max(hi_f, lo_f * 1.001) * 1.001, GRID)
+    frac = segs.piece_t1 - segs.piece_t0
+    time_tab = np.zeros((S, GRID))
+    for g, f in enumerate(f_grid):
+        t = times.time(segs.piece_rec, np.full(len(segs.piece_rec), f), frac)
+        time_tab[:, g] = np.bincount(segs.piece_seg, weights=t, minlength=S)
+    t_base = np.bincount(segs.piece_seg, weights=times.time(segs.piece_rec, rec["feed"][segs.piece_rec], frac),
+                         minlength=S)
+    nvar = segs.variables
+    f0_var = np.zeros(nvar)
+    f0_var[segs.seg_var[segs.piece_seg[::-1]]] = rec["feed"][segs.piece_rec[::-1]]
+    if spindle_per == "segment":
+        seg_spin = np.arange(S)
+    else:
+        tools = np.unique(segs.seg_tool)
+        seg_spin = np.searchsorted(tools, segs.seg_tool)
+    nspin = int(seg_spin.max()) + 1 if S else 0
+    n0 = np.zeros(max(nspin, 1))
+    n0[seg_spin[segs.piece_seg[::-1]]] = np.minimum(rec["spindle"][segs.piece_rec[::-1]], max_speed)
+    seg_force = np.array([force_of_tool(int(t), float(d)) for t, d in zip(segs.seg_tool, diam_seg)])
+    return Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
+                   seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, t_base, f0_var, n0[:nspin],
+                   cycle_before, limits, rates, np.asarray(loss, float))

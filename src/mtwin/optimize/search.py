@@ -1,0 +1,185 @@
+"""Search methods on a :class:`~mtwin.optimize.problem.Problem`: bisection and a genetic algorithm.
+
+The GA is written here (about 100 lines of numpy) rather than taken from pymoo or DEAP: a
+whole population is evaluated in one vectorised call on the problem's tables, which a
+library's per-individual callbacks would turn into a Python loop, and the operators the
+reference names (elitism, generation gap, a fitness limit, constraint violations as a
+weighted penalty) are each a line.  scipy's differential evolution has neither a generation
+gap nor elitism in that sense.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .problem import Problem
+
+OBJECTIVES = ("time", "cost", "smooth", "air")
+METHODS = ("bisect", "ga")
+
+
+@dataclass
+class GAOptions:
+    population: int = 60
+    generations: int = 200
+    crossover: float = 0.9  # probability a child is a crossover of two parents
+    mutation: float = 0.0  # per-gene probability; 0: 1/genes
+    elitism: int = 2  # best individuals carried over unchanged
+    generation_gap: float = 0.9  # fraction of the population replaced each generation
+    fitness_limit: float = -np.inf  # stop when the best fitness reaches it
+    stall: int = 30  # stop after this many generations without improvement
+    penalty: float = 10.0  # weight of the relative constraint violation
+    seed: int = 0
+
+
+@dataclass
+class SearchResult:
+    feeds: np.ndarray  # (nvar,) mm/min
+    spins: np.ndarray  # (nspin,) rpm
+    evaluations: int
+    generations: int = 0
+    history: list | None = None  # best fitness per generation
+
+
+def fixed_spins(p: Problem) -> np.ndarray:
+    """The program's speeds, moved into the spindle range when one is given."""
+    n = p.n0_spin.copy()
+    if p.limits.spindle:
+        n = np.clip(n, *p.limits.spindle)
+    return n
+
+
+def bisect(p: Problem, objective: str, target_power: float | None = None, tolerance: float = 0.05) -> SearchResult:
+    """Per-segment bisection on the feed, as in the power-smoothing reference.
+
+    ``time`` (and ``cost``, for which it is the feed-only answer): the highest feed within the
+    range and the limits; ``smooth``: the feed whose segment mean power is the target within
+    ``tolerance`` (relative), capped by the limits; the spindle speeds stay (in range)."""
+    spins = fixed_spins(p)
+    fmax = p.max_feasible_feed(spins)
+    lo_f, hi_f = p.limits.feed
+    if objective in ("time", "cost"):
+        feeds = np.where(np.isnan(fmax), lo_f, fmax)
+        return SearchResult(feeds, spins, p.evaluations)
+    if objective == "smooth":
+        feeds = p.f0_var.copy()
+        cut_var = np.zeros(p.nvar, bool)
+        np.logical_or.at(cut_var, p.seg_var, ~p.seg_air)
+        lo = np.full(p.nvar, math.log(lo_f))
+        hi = np.log(np.where(np.isnan(fmax), lo_f, fmax))
+        hi = np.maximum(hi, lo)
+        w = p.seg_len * ~p.seg_air
+        wsum = np.bincount(p.seg_var, weights=w, minlength=p.nvar)
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            ev = p.evaluate(np.exp(mid)[None, :], spins[None, :])
+            mp = np.bincount(p.seg_var, weights=w * ev["mean_power"][0], minlength=p.nvar) / np.maximum(wsum, 1e-12)
+            done = np.abs(mp / target_power - 1.0) <= tolerance * 0.25
+            low = mp < target_power
+            lo = np.where(low & ~done, mid, lo)
+            hi = np.where(~low & ~done, mid, hi)
+            lo = np.where(done, mid, lo)
+            hi = np.where(done, mid, hi)
+        feeds = np.where(cut_var, np.exp(0.5 * (lo + hi)), feeds)
+        return SearchResult(feeds, spins, p.evaluations)
+    raise ValueError(objective)
+
+
+def fitness(p: Problem, ev: dict, objective: str, target_power: float | None, base: dict, penalty: float):
+    if objective == "time":
+        f = ev["time"] / base["time"]
+    elif objective == "cost":
+        f = ev["cost"] / base["cost"]
+    else:  # smooth: length-weighted squared relative deviation of the segment mean powers
+        w = p.seg_len * ~p.seg_air
+        d = (ev["mean_power"] / target_power - 1.0) ** 2
+        f = (d * w).sum(axis=1) / max(w.sum(), 1e-12)
+    return f + penalty * ev["violation"].sum(axis=1) / max(1, int((~p.seg_air).sum())) ** 0.5
+
+
+def genetic(p: Problem, objective: str, opts: GAOptions, seeds: list, target_power: float | None = None,
+            progress=None) -> SearchResult:
+    """Real-coded GA over log-feeds (and log-speeds when a spindle range is given).
+
+    Tournament selection, blend crossover (BLX-0.3), Gaussian mutation, ``elitism`` best kept,
+    ``generation_gap`` of the population replaced per generation, stops at the fitness limit,
+    after ``stall`` generations without improvement or at ``generations``.  ``seeds``:
+    (feeds, spins) individuals put into the first population (the program itself, the
+    bisection answer), so the GA starts from feasible points."""
+    rng = np.random.default_rng(opts.seed)
+    lo_f, hi_f = p.limits.feed
+    opt_spin = p.limits.spindle is not None
+    lo = [math.log(lo_f)] * p.nvar
+    hi = [math.log(hi_f)] * p.nvar
+    if opt_spin:
+        lo += [math.log(p.limits.spindle[0])] * p.nspin
+        hi += [math.log(p.limits.spindle[1])] * p.nspin
+    lo = np.array(lo)
+    hi = np.array(hi)
+    ng = len(lo)
+    spins_fixed = fixed_spins(p)
+
+    def split(X):
+        F = np.exp(X[:, :p.nvar])
+        N = np.exp(X[:, p.nvar:]) if opt_spin else np.broadcast_to(spins_fixed, (len(X), p.nspin))
+        return F, N
+
+    def score(X):
+        F, N = split(X)
+        ev = p.evaluate(F, N)
+        return fitness(p, ev, objective, target_power, base, opts.penalty)
+
+    F0 = np.clip(p.f0_var, lo_f, hi_f)
+    base = {k: v for k, v in p.evaluate(F0[None, :], spins_fixed[None, :]).items()}
+    base = {"time": float(base["time"][0]), "cost": float(base["cost"][0])}
+    P = opts.population
+    X = lo + (hi - lo) * rng.random((P, ng))
+    for k, (f, n) in enumerate(seeds[:P]):
+        row = np.log(np.clip(f, lo_f, hi_f))
+        if opt_spin:
+            row = np.concatenate([row, np.log(np.clip(n, *p.limits.spindle))])
+        X[k] = row
+    fit = score(X)
+    best_hist = [float(fit.min())]
+    pm = opts.mutation or 1.0 / ng
+    n_new = max(1, min(P - opts.elitism, int(round(opts.generation_gap * P))))
+    stall = 0
+    gen = 0
+    for gen in range(1, opts.generations + 1):
+        # tournament selection (size 2) of 2 * n_new parents
+        a = rng.integers(0, P, (2, 2 * n_new))
+        parents = np.where(fit[a[0]] <= fit[a[1]], a[0], a[1])
+        pa, pb = X[parents[:n_new]], X[parents[n_new:]]
+        # blend crossover BLX-alpha
+        alpha = 0.3
+        lo_c = np.minimum(pa, pb)
+        hi_c = np.maximum(pa, pb)
+        span = hi_c - lo_c
+        child = lo_c - alpha * span + (1 + 2 * alpha) * span * rng.random(pa.shape)
+        keep = rng.random(n_new) >= opts.crossover
+        child[keep] = pa[keep]
+        # Gaussian mutation, 10 % of the range
+        mut = rng.random(child.shape) < pm
+        child = child + mut * rng.normal(0.0, 0.1, child.shape) * (hi - lo)
+        child = np.clip(child, lo, hi)
+        cf = score(child)
+        # generation gap: the children replace the worst n_new (elites survive by construction)
+        order = np.argsort(fit)
+        survivors = order[:P - n_new]
+        X = np.concatenate([X[survivors], child])
+        fit = np.concatenate([fit[survivors], cf])
+        b = float(fit.min())
+        if b < best_hist[-1] - 1e-9 * abs(best_hist[-1]):
+            stall = 0
+        else:
+            stall += 1
+        best_hist.append(min(b, best_hist[-1]))
+        if progress is not None:
+            progress(gen, opts.generations, best_hist[-1])
+        if best_hist[-1] <= opts.fitness_limit or stall >= opts.stall:
+            break
+    k = int(np.argmin(fit))
+    F, N = split(X[k:k + 1])
+    return SearchResult(F[0].copy(), np.array(N[0], float), p.evaluations, gen, best_hist)
