@@ -149,3 +149,22 @@ def test_cli_optimize_json_and_bad_input(tmp_path):
     assert bad.returncode == 2 and "--objective" in bad.stderr
     inf = run_cli("optimize", str(SAMPLES / "contour.nc"), "-o", str(tmp_path / "x.nc"), "--force-limit", "5")
     assert inf.returncode == 2 and "lowest feed" in inf.stderr and not (tmp_path / "x.nc").exists()
+
+
+@pytest.mark.parametrize("k", range(4))
+def test_property_randomly_perturbed_programs(k):
+    # random feeds and speeds on the bundled samples: the optimiser's output parses, cuts the
+    # same path and holds the limit on its own re-simulation
+    rng = np.random.default_rng(100 + k)
+    name = ("contour.nc", "ga_reference.nc", "pocket.nc", "ga_reference.nc")[k]
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / name))
+    f = np.round(prog.records["feed"] * rng.uniform(0.6, 1.4, len(prog.records)))
+    text = mtwin.rewrite(prog, feeds=np.where(prog.records["kind"] == 1, f, np.nan))
+    prog = tw.load(text, path=name)
+    limit = float(rng.uniform(60, 120))
+    r = optimize(tw, prog, OptimizeOptions(objective=("time", "smooth")[k % 2], force_limit=limit,
+                                           feed_range=(50.0, 3000.0)))
+    new = tw.load(r.output, path="out.nc")
+    assert compare(prog, new) is None
+    assert mtwin.Twin().simulate(new).summary.cutting.peak_load <= limit
