@@ -41,14 +41,6 @@ def sequential_clusters(p, w, min_len, k_radius, tol, out_start):
     return ns
 
 
-@njit(python_limit=300_000, python_fast=30_000)
-def merge_short_tail(starts, ns, cum_w, min_len):
-    """A last segment shorter than ``min_len`` joins the one before; returns the new count."""
-    if ns > 1 and cum_w[cum_w.shape[0] - 1] - cum_w[starts[ns - 1]] < min_len:
-        return ns - 1
-    return ns
-
-
 def binary_segmentation(p: np.ndarray, w: np.ndarray, min_len: float, penalty: float) -> np.ndarray:
     """Change points by binary segmentation with a length-weighted squared-error cost: split
     the segment whose best split lowers the cost most, while the gain exceeds ``penalty`` and
