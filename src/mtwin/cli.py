@@ -618,6 +618,7 @@ def optimize(
     seed: int = typer.Option(0, "--seed", help="GA random seed (same seed, same result)."),
     population: int = typer.Option(60, "--population", help="GA population size."),
     generations: int = typer.Option(200, "--generations", help="GA generation limit."),
+    report: Optional[str] = typer.Option(None, "--report", help="Write a self-contained HTML report (.html)."),
     json_out: bool = typer.Option(False, "--json", help="Result as JSON on stdout."),
     in_place: bool = typer.Option(False, "--in-place", help="Allow -o to be the input file."),
     stock: Optional[str] = typer.Option(None, "--stock",
@@ -652,6 +653,8 @@ def optimize(
         raise MtwinError(f"--min-segment must be >= 0, got {min_segment:g}")
     if population < 4 or generations < 1:
         raise MtwinError("--population must be at least 4 and --generations at least 1")
+    if report is not None and not report.endswith((".html", ".htm")):
+        raise MtwinError(f"--report {report}: use an .html file name")
     tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, None, None, stock, planner)
     prog = _load(part, settings)
     opts = OptimizeOptions(objective, method, force_limit, _range(feed_range, "--feed-range"),
@@ -670,6 +673,10 @@ def optimize(
         res = run_optimize(tw, prog, opts, stock=box)
     for w in res.warnings:
         _warn(w)
+    if report:
+        from .report.optimize_html import optimize_html
+
+        write_output(optimize_html(res, prog.path), report, [part])
     write_output(res.output, output, [part], in_place)
     _print_optimize(res, prog, json_out)
 

@@ -79,7 +79,8 @@ class OptimizeResult:
     tradeoff: list  # (force limit N, estimated cycle time s)
     trace_before: object = None
     trace_after: object = None
-    seg_t: tuple | None = None  # (start, end) times of the segments in the after trace
+    seg_before: np.ndarray | None = None  # segment of every sample of trace_before (-1: none)
+    seg_after: np.ndarray | None = None  # the same for trace_after
     warnings: list = field(default_factory=list)
     generations: int = 0
     history: list | None = None
@@ -262,7 +263,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                                       "peak_load": float(est["load"][0][~prob.seg_air].max(initial=0.0)),
                                       "peak_power": float(est["power"][0][~prob.seg_air].max(initial=0.0))},
                           changed, seg_info, True, round_, prob.evaluations, time.perf_counter() - t_start,
-                          force_limits, tradeoff, before, after, None, [], generations, history)
+                          force_limits, tradeoff, before, after, _segment_of_samples(before, program, program, segs),
+                          seg_after, [], generations, history)
 
 
 def _ratios(trace, prog, original, segs, prob, limits, seg_of=None) -> np.ndarray:
@@ -317,7 +319,7 @@ def _round_feeds(f: np.ndarray, f0: np.ndarray, program) -> np.ndarray:
     down; a feed within half a step of the program's is the program's (nothing to write)."""
     inch = bool(len(program.records) and (program.records["flags"][0] & R.FL_INCH))
     step = 2.54 if inch else 1.0
-    out = np.floor(f / step + 1e-9) * step
+    out = np.floor(f / step + 1e-6) * step
     return np.where(np.abs(f - f0) < 0.5 * step, f0, out)
 
 
@@ -341,11 +343,15 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool):
         fs = f_piece[idx]
         t1 = segs.piece_t1[idx]
         # merge neighbouring pieces with the same feed
+        # merge neighbouring pieces whose feeds differ by under 1 % (the lower feed for both):
+        # a split is worth its extra line only for a real change
         ts, fl = [], [fs[0]]
         for k in range(1, len(fs)):
-            if fs[k] != fl[-1]:
+            if abs(fs[k] - fl[-1]) > 0.01 * max(fs[k], fl[-1]):
                 ts.append(float(segs.piece_t0[idx][k]))
                 fl.append(fs[k])
+            else:
+                fl[-1] = min(fl[-1], fs[k])
         del t1
         if ts:
             splits[r] = Split(ts, [float(x) for x in fl])

@@ -1,0 +1,182 @@
+"""The optimisation report: one self-contained HTML file (inline SVG, no network).
+
+Before and after, each from its own full simulation: spindle cutting power and cutting load
+against time with the segments coloured and the load limit drawn, the path feed, the
+trade-off of cycle time against the load limit, what limited each segment, and the table of
+changed lines (before → after).
+"""
+from __future__ import annotations
+
+import html
+
+import numpy as np
+
+from .compare_html import _svg, _thin
+
+MAX_SPANS = 400  # coloured segment bands per plot; more are merged (the file stays small)
+MAX_CHANGES = 1000  # rows of the changed-lines table
+_PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#76b7b2", "#edc948", "#b07aa1", "#ff9da7",
+            "#9c755f")
+
+
+def optimize_html(res, program: str) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    b, a = res.before, res.after
+    e = html.escape
+
+    def pct(x, y):
+        return f"{(y / x - 1) * 100:+.1f} %" if x else "–"
+
+    def cv(v):
+        return "–" if v is None else f"{v:.3f}"
+
+    rows = [("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time)),
+            ("cost", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost)),
+            ("peak cutting load", f"{b.peak_load:.1f} N", f"{a.peak_load:.1f} N", pct(b.peak_load, a.peak_load)),
+            ("peak spindle power", f"{b.peak_power / 1000:.3f} kW", f"{a.peak_power / 1000:.3f} kW",
+             pct(b.peak_power, a.peak_power)),
+            ("power CV of the segment means", cv(b.power_cv), cv(a.power_cv), "")]
+    limits = ", ".join(f"T{k}: {v:.0f} N" for k, v in res.force_limit.items())
+    parts = [f"<h1>mtwin optimize</h1><p><b>{e(program)}</b>: objective <b>{e(res.objective)}</b> by "
+             f"<b>{e(res.method)}</b>; load limit {e(limits)}. Both columns are full simulations of the twin "
+             f"(the optimised program re-simulated after it was written and proved to cut the same path; "
+             f"{res.rounds} round(s)). The fast model estimated {res.estimate['cycle_time']:.2f} s for it.</p>",
+             "<table><tr><th></th><th>before</th><th>after</th><th>change</th></tr>"
+             + "".join(f"<tr><td>{e(r[0])}</td><td>{r[1]}</td><td>{r[2]}</td><td>{r[3]}</td></tr>" for r in rows)
+             + "</table>"]
+    parts.append("<h2>Power and load over time</h2>")
+    parts.append(_curves(plt, res))
+    parts.append("<h2>Path feed over time</h2>")
+    parts.append(_feed(plt, res))
+    if res.tradeoff:
+        parts.append("<h2>Cycle time against the load limit</h2><p>From the same segments (fast model): what "
+                     "each extra 10 N of permitted load buys.</p>")
+        parts.append(_tradeoff(plt, res))
+    parts.append(_segments_table(res))
+    parts.append(_changes_table(res))
+    style = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
+             "text-align:right;vertical-align:top}td:first-child,th:first-child{text-align:left}"
+             "td.code{text-align:left;font-family:monospace;white-space:pre}svg{max-width:100%;height:auto}")
+    doc = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>mtwin optimize</title>"
+           f"<style>{style}</style></head><body>{''.join(parts)}</body></html>")
+    return doc.encode("utf-8")
+
+
+def _spans(seg: np.ndarray):
+    """(start, end, segment) runs of the per-sample segment index (-1 runs left out)."""
+    if not len(seg):
+        return []
+    edges = np.flatnonzero(np.diff(seg)) + 1
+    starts = np.concatenate(([0], edges))
+    ends = np.concatenate((edges, [len(seg)]))
+    runs = [(int(s), int(t), int(seg[s])) for s, t in zip(starts, ends) if seg[s] >= 0]
+    if len(runs) > MAX_SPANS:
+        step = int(np.ceil(len(runs) / MAX_SPANS))
+        runs = runs[::step]
+    return runs
+
+
+def _shade(ax, t, seg, air):
+    for s, u, k in _spans(seg):
+        color = "#bbbbbb" if air[k] else _PALETTE[k % len(_PALETTE)]
+        ax.axvspan(t[s], t[min(u, len(t) - 1)], color=color, alpha=0.18 if not air[k] else 0.25, lw=0)
+
+
+def _curves(plt, res) -> str:
+    air = np.array([s["air"] for s in res.segments] + [True], bool)
+    fig, axes = plt.subplots(4, 1, figsize=(10, 9), dpi=100)
+    limit = max(res.force_limit.values()) if res.force_limit else None
+    for row, (tr, seg, label) in enumerate(((res.trace_before, res.seg_before, "before"),
+                                            (res.trace_after, res.seg_after, "after"))):
+        t = np.asarray(tr.t)
+        p = np.asarray(tr.signal("spindle_power"))
+        load = np.hypot(tr.signal("fx"), tr.signal("fy"))
+        ap, al = axes[row], axes[2 + row]
+        tt, pp, ll = _thin(t, p, load)
+        _shade(ap, t, seg, air)
+        _shade(al, t, seg, air)
+        ap.plot(tt, pp, lw=0.7, color="#1f5fa8")
+        al.plot(tt, ll, lw=0.7, color="#b03a2e")
+        if limit is not None:
+            al.axhline(limit, color="k", ls="--", lw=0.8, label=f"limit {limit:.0f} N")
+            al.legend(loc="upper right", fontsize=8)
+        ap.set_ylabel(f"power {label} [W]")
+        al.set_ylabel(f"load {label} [N]")
+        for ax in (ap, al):
+            ax.grid(True, alpha=0.3)
+            ax.set_xlim(t[0] if len(t) else 0, t[-1] if len(t) else 1)
+    axes[-1].set_xlabel("time [s]; bands: segments (grey: air cuts)")
+    fig.tight_layout()
+    out = _svg(fig)
+    plt.close(fig)
+    return out
+
+
+def _feed(plt, res) -> str:
+    fig, ax = plt.subplots(figsize=(10, 3), dpi=100)
+    for tr, seg, label, color in ((res.trace_before, res.seg_before, "before", "#888888"),
+                                  (res.trace_after, res.seg_after, "after", "#1f5fa8")):
+        t = np.asarray(tr.t)
+        # in the optimised segments only: rapids would flatten the scale
+        f = np.where(seg >= 0, np.asarray(tr.signal("feed")), np.nan)
+        tt, ff = _thin(t, f)
+        ax.plot(tt, ff, lw=0.7, color=color, label=label)
+    ax.set_ylabel("path feed in the segments [mm/min]")
+    ax.set_xlabel("time [s]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    out = _svg(fig)
+    plt.close(fig)
+    return out
+
+
+def _tradeoff(plt, res) -> str:
+    f = np.array([x[0] for x in res.tradeoff])
+    t = np.array([x[1] for x in res.tradeoff])
+    fig, ax = plt.subplots(figsize=(7, 3.2), dpi=100)
+    ax.plot(f, t, marker="o", color="#1f5fa8")
+    for k in range(1, len(f)):
+        ax.annotate(f"{t[k] - t[k - 1]:+.1f} s", ((f[k] + f[k - 1]) / 2, (t[k] + t[k - 1]) / 2), fontsize=7,
+                    ha="center", va="bottom")
+    if res.force_limit:
+        ax.axvline(max(res.force_limit.values()), color="k", ls="--", lw=0.8, label="chosen limit")
+        ax.legend(fontsize=8)
+    ax.set_xlabel("load limit [N]")
+    ax.set_ylabel("estimated cycle time [s]")
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    out = _svg(fig)
+    plt.close(fig)
+    return out
+
+
+def _segments_table(res) -> str:
+    e = html.escape
+    rows = []
+    for k, s in enumerate(res.segments):
+        lines = f"{s['lines'][0]}" + (f"–{s['lines'][1]}" if s["lines"][1] != s["lines"][0] else "")
+        color = "#bbbbbb" if s["air"] else _PALETTE[k % len(_PALETTE)]
+        rows.append(f"<tr><td><span style='color:{color}'>&#9632;</span> {k}</td><td>{lines}</td>"
+                    f"<td>{'air' if s['air'] else 'cut'}</td><td>T{s['tool']}</td>"
+                    f"<td>{s['feed_before']:g} → {s['feed_after']:g}</td><td>{s['spindle_after']:g}</td>"
+                    f"<td>{s['mean_power_before']:.0f} → {s['mean_power_after']:.0f}</td>"
+                    f"<td>{s['peak_load_estimate']:.1f}</td><td>{e(s['limited_by'])}</td></tr>")
+    return ("<h2>Segments</h2><table><tr><th>segment</th><th>lines</th><th></th><th>tool</th>"
+            "<th>feed mm/min</th><th>S rpm</th><th>mean power W (estimate)</th><th>peak load N (estimate)</th>"
+            "<th>limited by</th></tr>" + "".join(rows) + "</table>")
+
+
+def _changes_table(res) -> str:
+    e = html.escape
+    rows = "".join(f"<tr><td>{ln}</td><td class='code'>{e(x)}</td><td class='code'>{e(y)}</td></tr>"
+                   for ln, x, y in res.changed_lines[:MAX_CHANGES])
+    more = (f"<p>… and {len(res.changed_lines) - MAX_CHANGES} more.</p>"
+            if len(res.changed_lines) > MAX_CHANGES else "")
+    return (f"<h2>Changed lines ({len(res.changed_lines)})</h2><table><tr><th>line</th><th>before</th>"
+            f"<th>after</th></tr>{rows}</table>{more}")
