@@ -75,6 +75,14 @@ class Problem:
     rates: CostRates
     loss: np.ndarray  # spindle no-load loss polynomial, W: c0 + c1 n + c2 n^2
     evaluations: int = field(default=0)
+    # spindle run-ups the program waits for: per pause, the spindle variable whose speed it
+    # runs up to, the one it starts from (-1: a fixed speed, ``runup_from``), its duration in
+    # the program's own plan and the spindle's acceleration (rpm/s)
+    runup_var: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    runup_prev_var: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    runup_from: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    runup_dur0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    runup_acc: float = 1.0
 
     # ---- the model -------------------------------------------------------------------
     def _interp(self, tab: np.ndarray, fz: np.ndarray) -> np.ndarray:
@@ -112,7 +120,7 @@ class Problem:
         mean_power = (self.mta * fz + self.mtb) * omega
         t_lim = self.limits.power / (2.0 * math.pi * np.maximum(n, self.limits.base_speed) / 60.0)
         ts = self.seg_time(F)
-        time = self.cycle_before + (ts - self.t_base).sum(axis=1)
+        time = self.cycle_before + (ts - self.t_base).sum(axis=1) + self.runup_change(spins)
         cut = ~self.seg_air
         m = 1.0 - self.limits.margin
         v_load = np.where(cut, np.maximum(load / (self.seg_force * m) - 1.0, 0.0), 0.0)
@@ -128,6 +136,17 @@ class Problem:
         return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
                 "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque,
                 "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "tool_lives": wear}
+
+    def runup_change(self, spins: np.ndarray) -> np.ndarray:
+        """Change of the spindle run-up waits (s) at these speeds against the program's."""
+        if not len(self.runup_var):
+            return np.zeros(spins.shape[0])
+        # runup_var -2: a stop, down to 0 rpm
+        to = np.where(self.runup_var >= 0, spins[:, np.maximum(self.runup_var, 0)], 0.0)
+        frm = np.where(self.runup_prev_var >= 0, spins[:, np.maximum(self.runup_prev_var, 0)], self.runup_from)
+        same = (self.runup_prev_var == self.runup_var) & (self.runup_var >= 0)
+        new = np.where(same, 0.0, np.abs(to - frm) / self.runup_acc)
+        return (new - self.runup_dur0).sum(axis=1)
 
     def max_feasible_feed(self, spins: np.ndarray, limit_scale: float = 1.0) -> np.ndarray:
         """Per variable, the highest feed in the range that keeps every cutting segment of it

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import MtwinError
 from ..gcode import records as R
+from ..motion.path import PAUSE
 from .model import feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
@@ -143,6 +144,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
     force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force)}
+    if spindle_range is not None:
+        _runups(prob, program, plan, segs, m)
 
     # ---- a program that breaks a limit even at the lowest feed is reported, not optimised
     spins_try = fixed_spins(prob)
@@ -192,6 +195,12 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
             seeds.append((b.feeds, b.spins))
         except ValueError:
             pass
+        if spindle_range is not None:
+            # and the fastest feeds at the top and the middle of the speed range
+            for n in (spindle_range[1], 0.5 * (spindle_range[0] + spindle_range[1])):
+                sp = np.full(prob.nspin, n)
+                f = prob.max_feasible_feed(sp)
+                seeds.append((np.where(np.isnan(f), feed_range[0], f), sp))
         res = genetic(prob, opts.objective, opts.ga, seeds, target, progress)
         feeds, spins = res.feeds, res.spins
         generations, history = res.generations, res.history
@@ -265,6 +274,41 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                           changed, seg_info, True, round_, prob.evaluations, time.perf_counter() - t_start,
                           force_limits, tradeoff, before, after, _segment_of_samples(before, program, program, segs),
                           seg_after, [], generations, history)
+
+
+def _runups(prob, program, plan, segs, machine) -> None:
+    """The spindle run-up pauses of the plan, tied to the spindle variables they depend on."""
+    from ..motion.path import CAT_SPINDLE
+
+    rec = program.records
+    pauses = np.flatnonzero((plan.seg["kind"] == PAUSE) & (plan.seg["cat"] == CAT_SPINDLE))
+    if not len(pauses) or not segs.count:
+        return
+    # spindle variable of every record: that of the segment of its tool's (or its own) pieces
+    var_of_rec = np.full(len(rec), -1, np.int64)
+    first_seg_of_tool = {}
+    for s in range(segs.count):
+        first_seg_of_tool.setdefault(int(prob.seg_tool[s]), s)
+    for t, s in first_seg_of_tool.items():
+        var_of_rec[rec["tool"] == t] = prob.seg_spin[s]
+    if len(set(prob.seg_spin.tolist())) != len(first_seg_of_tool):  # per segment: by the next piece
+        nxt = np.searchsorted(segs.piece_rec, np.arange(len(rec)))
+        ok = nxt < len(segs.piece_rec)
+        var_of_rec[ok] = prob.seg_spin[segs.piece_seg[nxt[ok]]]
+    target = np.where(rec["spindle_dir"] != 0, np.minimum(rec["spindle"], machine.spindle.max_speed), 0.0)
+    r = plan.seg["rec"][pauses]
+    prev = np.clip(r - 1, 0, None)
+    running_before = (r > 0) & (rec["spindle_dir"][prev] != 0)
+    # a stop (M5) runs down to 0: a fixed speed, from the variable before it
+    stopped = rec["spindle_dir"][r] == 0
+    prob.runup_var = np.where(stopped, -2, var_of_rec[r])
+    prob.runup_prev_var = np.where(running_before, var_of_rec[prev], -1)
+    prob.runup_from = np.where(running_before, target[prev], 0.0)
+    prob.runup_dur0 = plan.dur[pauses]
+    keep = (prob.runup_var >= 0) | ((prob.runup_var == -2) & (prob.runup_prev_var >= 0))
+    for name in ("runup_var", "runup_prev_var", "runup_from", "runup_dur0"):
+        setattr(prob, name, getattr(prob, name)[keep])
+    prob.runup_acc = machine.spindle.acceleration
 
 
 def _ratios(trace, prog, original, segs, prob, limits, seg_of=None) -> np.ndarray:
