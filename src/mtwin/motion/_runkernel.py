@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .._jit import njit
-from ..cutting._engagekernel import (Q_AE, Q_AP, Q_AREA, Q_DX, Q_DY, Q_WMAX, ST_TC, ST_TE, SX_AC, SX_AE,
+from ..cutting._engagekernel import (Q_AE, Q_AP, Q_UH, Q_UZ, Q_AREA, Q_DX, Q_DY, Q_WMAX, ST_TC, ST_TE, SX_AC, SX_AE,
                                        SX_RC, SX_RE, SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC,
                                        SY_TE, SZ_AC, SZ_AE, SZ_RC, SZ_RE, tooth_forces)
 from ._plankernel import ramp_eval
@@ -178,6 +178,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
     v = axes[3]
     integ = axes[4]
     cdir = axes[6]  # kept between periods: the feed direction while the command stands still
+    edir = np.zeros(3)  # the engagement step's own feed direction
     rawprev = axes[5]
     # samples after which a standing command has passed through the filter completely
     settle = nbuf if filt == 1 else 2 * nbuf
@@ -416,8 +417,26 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             # else: the command stands still (end of a move, in-position wait): the engagement
             # still belongs to the direction the tool was fed in, which cdir keeps; projecting
             # on the actual velocity instead made the normal force feed itself back
+            # The chip is set by the feed along the direction the engagement step was computed
+            # for (its feed direction); at a corner the after-interpolation filter still moves
+            # the command along the previous move for a few periods, and projecting on that
+            # blended direction fed the XY speed into a plunge's end-face engagement (2-4x
+            # its torque).  In a straight cut the two directions are the same.
+            euh = eng_q[m_, Q_UH]
+            ed0 = eng_q[m_, Q_DX] * euh
+            ed1 = eng_q[m_, Q_DY] * euh
+            ed2 = eng_q[m_, Q_UZ]
+            en = math.sqrt(ed0 * ed0 + ed1 * ed1 + ed2 * ed2)
+            if en > 0.5:
+                edir[0] = ed0 / en
+                edir[1] = ed1 / en
+                edir[2] = ed2 / en
+            else:
+                edir[0] = cdir[0]
+                edir[1] = cdir[1]
+                edir[2] = cdir[2]
             fz_ = 0.0
-            if cdir[0] * cdir[0] + cdir[1] * cdir[1] + cdir[2] * cdir[2] > 0.0 and nrps >= _N_STOPPED:
+            if edir[0] * edir[0] + edir[1] * edir[1] + edir[2] * edir[2] > 0.0 and nrps >= _N_STOPPED:
                 per = 1.0 / (fl * nrps)  # fz per mm/s of feed
                 num = 0.0
                 den = 1.0
@@ -425,8 +444,8 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                     w = dt * 1e3 / sv[k, SV_MP]
                     ff = _friction(v[k], sv, k)
                     pk = v[k] + w * (fdrv[k] - sv[k, SV_FG] + fb[k] - ff - (fd[kstep, k] if kstep < nfd else 0.0))
-                    num += cdir[k] * pk
-                    den -= cdir[k] * w * fa[k] * per
+                    num += edir[k] * pk
+                    den -= edir[k] * w * fa[k] * per
                 va = max(0.0, num / max(den, 1.0))
                 fz_ = va * per
             else:
