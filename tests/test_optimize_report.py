@@ -34,7 +34,9 @@ def test_the_console_check_sees_errors(tmp_path):
 def test_report_renders_without_console_errors_and_draws_its_plots(tmp_path):
     import matplotlib.image as mpimg
 
-    r = subprocess.run(["python3", "-m", "mtwin", "optimize", str(SAMPLES / "ga_reference.nc"), "-o",
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "mtwin", "optimize", str(SAMPLES / "ga_reference.nc"), "-o",
                         str(tmp_path / "o.nc"), "--method", "ga", "--feed-range", "100,500", "--spindle-range",
                         "1000,8000", "--force-limit", "60", "--report", str(tmp_path / "r.html")],
                        capture_output=True, text=True)

@@ -643,10 +643,22 @@ def optimize(
         raise MtwinError(f"--segmentation must be cluster or changepoint, got {segmentation!r}")
     if spindle_per not in ("tool", "segment"):
         raise MtwinError(f"--spindle-per must be tool or segment, got {spindle_per!r}")
-    if force_limit is not None and not force_limit > 0:
-        raise MtwinError(f"--force-limit must be positive, got {force_limit:g}")
-    if target_power is not None and not target_power > 0:
-        raise MtwinError(f"--target-power must be positive, got {target_power:g}")
+    import math as _math
+
+    if force_limit is not None and not (force_limit > 0 and _math.isfinite(force_limit)):
+        raise MtwinError(f"--force-limit must be a positive number of N, got {force_limit:g}")
+    if target_power is not None and not (target_power > 0 and _math.isfinite(target_power)):
+        raise MtwinError(f"--target-power must be a positive number of W, got {target_power:g}")
+    if output == "-" and json_out:
+        raise MtwinError("-o - and --json both write to stdout: give the program a file name, or leave out --json")
+    if report == "-" or (report is not None and report == output):
+        raise MtwinError("--report needs a file name of its own")
+    # where the results go is checked before the work, not after it
+    for out_path in (output, report):
+        if out_path and out_path != "-":
+            parent = Path(out_path).parent if str(Path(out_path).parent) else Path(".")
+            if not parent.is_dir():
+                raise MtwinError(f"output directory {parent} does not exist")
     if not (0 < tolerance < 1):
         raise MtwinError(f"--tolerance must be between 0 and 1, got {tolerance:g}")
     if not min_segment >= 0:
@@ -673,11 +685,11 @@ def optimize(
         res = run_optimize(tw, prog, opts, stock=box)
     for w in res.warnings:
         _warn(w)
+    write_output(res.output, output, [part], in_place)
     if report:
         from .report.optimize_html import optimize_html
 
         write_output(optimize_html(res, prog.path), report, [part])
-    write_output(res.output, output, [part], in_place)
     _print_optimize(res, prog, json_out)
 
 
@@ -693,7 +705,8 @@ def _print_optimize(res, prog, json_out: bool) -> None:
                "estimate_error": {"cycle_time": res.estimate["cycle_time"] - a.cycle_time},
                "changed_lines": len(res.changed_lines), "verified": res.verified, "rounds": res.rounds,
                "evaluations": res.evaluations, "generations": res.generations, "seconds": res.seconds,
-               "force_limit": res.force_limit, "segments": res.segments,
+               "force_limit": res.force_limit, "force_limit_source": res.force_limit_source,
+               "defaults": res.defaults, "segments": res.segments,
                "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in res.tradeoff],
                "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in res.changed_lines]}
         sys.stdout.write(json.dumps(doc, indent=1) + "\n")
@@ -712,6 +725,10 @@ def _print_optimize(res, prog, json_out: bool) -> None:
     t.add_row("power CV (segment means)", cv(b.power_cv), cv(a.power_cv), "")
     err.print(t)
     lim = ", ".join(f"T{k}: {v:.0f} N" for k, v in res.force_limit.items())
+    if res.force_limit_source:
+        lim += f" ({res.force_limit_source})"
+    for d in res.defaults:
+        err.print(f"note: {d}", soft_wrap=True, highlight=False, markup=False)
     err.print(f"{len(res.segments)} segments, {len(res.changed_lines)} changed line group(s); load limit {lim}; "
               f"verified: same path; limits held on the re-simulated program ({res.rounds} round(s)); estimate "
               f"{res.estimate['cycle_time']:.2f} s vs re-simulated {a.cycle_time:.2f} s; {res.evaluations} "

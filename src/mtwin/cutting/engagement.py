@@ -198,7 +198,7 @@ def _key(plan, program, tools, tool_index, box, res, step) -> str:
     for name in ("kind", "rapid", "rec", "blend"):
         h.update(np.ascontiguousarray(seg[name]).tobytes())
     for name in ("kind", "plane", "turns", "sx", "sy", "sz", "x", "y", "z", "cx", "cy", "cz", "ox", "oy", "oz",
-                 "rot", "comp", "comp_r"):
+                 "rot", "comp", "comp_r", "path_tol", "cam_tol"):
         h.update(np.ascontiguousarray(rec[name]).tobytes())
     if plan.tip_shift is not None and len(seg):
         h.update(np.ascontiguousarray(plan.tip_shift[seg["rec"]]).tobytes())

@@ -310,6 +310,7 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
                         raise WriteError(f"{prog.path}:{li + 1}: the {letter} value of this line is a macro "
                                          f"expression; it cannot be rewritten")
                     del targets[li]
+    _move_s_to_own_line(w, s_target, line0, locked_lines, locked_words)
     unknown = {li for li, letter in locked_words if letter == "F"} | locked_lines
     _apply_modal(w, prog, "F", f_target, split_lines, splits, unknown)
     _apply_modal(w, prog, "S", s_target, {}, {},
@@ -320,6 +321,34 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     if check:
         _self_check(prog, out, new_feed, new_spindle, splits)
     return out
+
+
+def _move_s_to_own_line(w: _Writer, s_target: dict, line0: np.ndarray, locked_lines, locked_words) -> None:
+    """A new speed for the first move after an S word on a line of its own (``S5000 M3``)
+    replaces that word rather than adding one to the move: the spindle is started at the new
+    speed, as the program intended, instead of being changed (and run up again) a line later."""
+    if not s_target:
+        return
+    lx = w.lx
+    s_lines = sorted({int(x) for x in lx.w_line[lx.w_letter == ord("S")]})
+    if not s_lines:
+        return
+    s_set = set(s_lines)
+    rec_lines = np.unique(line0)
+    rec_set = set(rec_lines.tolist())
+    for li in sorted(s_target):
+        if li in s_set:
+            continue
+        k = int(np.searchsorted(s_lines, li)) - 1
+        if k < 0:
+            continue
+        p = s_lines[k]
+        if p in rec_set or p in s_target or p in locked_lines or (p, "S") in locked_words:
+            continue
+        j = int(np.searchsorted(rec_lines, p, side="right"))
+        if j >= len(rec_lines) or rec_lines[j] != li:
+            continue  # a move between the S word and this line already runs at the old speed
+        s_target[p] = s_target.pop(li)
 
 
 def _apply_modal(w: _Writer, prog: Program, letter: str, targets: dict, split_lines: dict, splits: dict,

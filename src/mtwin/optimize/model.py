@@ -176,6 +176,17 @@ def feed_records(program) -> np.ndarray:
     ok &= rec["feed"] > 0
     ok &= (rec["flags"] & (R.FL_SYNC | R.FL_PROBE)) == 0
     ok &= rec["feed_mode"] == R.FEED_PER_MIN
+    # a canned cycle's feeds (in and, for G85/G89, out) are one F word on one line, chosen for
+    # drilling or boring: they stay
+    ok &= (rec["flags"] & R.FL_CANNED) == 0
+    if getattr(program, "is_macro", False) and len(rec):
+        # a line whose F is a macro expression, or a macro statement, cannot be rewritten
+        from ..gcode.macro import mask_source
+
+        _, locked_lines, locked_words = mask_source(program.data, program.dialect)
+        locked = {li + 1 for li in locked_lines} | {li + 1 for li, letter in locked_words if letter == "F"}
+        if locked:
+            ok &= ~np.isin(rec["line"], np.array(sorted(locked)))
     # plunges (mostly downward) keep the programmed feed: the CAM chose it for a tool entering
     # the material with its end face (centre cutting, chip evacuation), which the load model
     # does not judge

@@ -243,14 +243,18 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     nvar = segs.variables
     f0_var = np.zeros(nvar)
     f0_var[segs.seg_var[segs.piece_seg[::-1]]] = rec["feed"][segs.piece_rec[::-1]]
-    if spindle_per == "segment":
+    if spindle_per == "segment" or limits.spindle is None:
+        # S per segment; with no spindle range each segment keeps its own programmed speed
         seg_spin = np.arange(S)
     else:
         tools = np.unique(segs.seg_tool)
         seg_spin = np.searchsorted(tools, segs.seg_tool)
     nspin = int(seg_spin.max()) + 1 if S else 0
-    n0 = np.zeros(max(nspin, 1))
-    n0[seg_spin[segs.piece_seg[::-1]]] = np.minimum(rec["spindle"][segs.piece_rec[::-1]], max_speed)
+    # the program's speed of a spindle variable: the lowest over its pieces (the highest feed
+    # per tooth, so the load estimate stays an upper bound)
+    n0 = np.full(max(nspin, 1), np.inf)
+    np.minimum.at(n0, seg_spin[segs.piece_seg], np.minimum(rec["spindle"][segs.piece_rec], max_speed))
+    n0 = np.where(np.isfinite(n0), n0, max_speed)
     seg_force = np.array([force_of_tool(int(t), float(d)) for t, d in zip(segs.seg_tool, diam_seg)])
     return Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
                    seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, t_base, f0_var, n0[:nspin],

@@ -85,6 +85,8 @@ class OptimizeResult:
     warnings: list = field(default_factory=list)
     generations: int = 0
     history: list | None = None
+    force_limit_source: str = ""  # "" (given) or where the default came from
+    defaults: list = field(default_factory=list)  # what the twin assumed (tools, material)
 
 
 def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) -> OptimizeResult:
@@ -105,32 +107,42 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
     rec = program.records
     ok = feed_records(program)
     if not ok.any():
-        raise MtwinError(f"{program.path}: no feed move whose feed can be set (G1/G2/G3 in mm/min or in/min)")
+        raise MtwinError(f"{program.path}: no feed move whose feed can be set: G1/G2/G3 in mm/min or in/min that "
+                         f"are not plunges, canned cycles or macro-expression feeds (those keep their programmed "
+                         f"feeds)")
+    warnings: list = []
     max_feed = m.max_cutting_feed
     if opts.feed_range is None:
         lo = max(1.0, 0.1 * float(rec["feed"][ok].min()))
         feed_range = (lo, max_feed)
     else:
         feed_range = opts.feed_range
+        if feed_range[0] >= max_feed:
+            raise MtwinError(f"--feed-range {feed_range[0]:g},{feed_range[1]:g}: the low end is at or above the "
+                             f"machine's maximum cutting feed, {max_feed:g} mm/min")
         if feed_range[1] > max_feed:
+            warnings.append(f"{program.path}: warning: --feed-range high end {feed_range[1]:g} mm/min is above the "
+                            f"machine's maximum cutting feed: {max_feed:g} mm/min is used")
             feed_range = (feed_range[0], max_feed)
-    if not (0 < feed_range[0] < feed_range[1]):
-        raise MtwinError(f"--feed-range {feed_range[0]:g},{feed_range[1]:g}: need 0 < low < high (the machine's "
-                         f"maximum cutting feed is {max_feed:g} mm/min)")
-    spindle_range = opts.spindle_range
+    spindle_range = opts.spindle_range if opts.objective != "air" else None
     if spindle_range is not None:
         hi = min(spindle_range[1], m.spindle.max_speed)
         if not (0 < spindle_range[0] < hi):
             raise MtwinError(f"--spindle-range {spindle_range[0]:g},{spindle_range[1]:g}: need 0 < low < high <= "
                              f"the spindle's {m.spindle.max_speed:g} rpm")
+        if spindle_range[1] > hi:
+            warnings.append(f"{program.path}: warning: --spindle-range high end {spindle_range[1]:g} rpm is above "
+                            f"the spindle's maximum: {hi:g} rpm is used")
         spindle_range = (spindle_range[0], hi)
     if opts.spindle_per == "segment" and spindle_range is not None and not opts.allow_s_changes:
         raise MtwinError("--spindle-per segment changes S in mid-tool: add --allow-s-changes")
     n_step = np.minimum(rec["spindle"][model.rec], m.spindle.max_speed)
     fz0 = rec["feed"][model.rec] / (model.flutes * np.maximum(n_step, 1e-9))
     power0 = model.torque(fz0) * 2 * math.pi * n_step / 60.0
+    # a split move has one speed: with a speed per segment, boundaries stay on move ends
+    per_segment_s = opts.spindle_per == "segment" and spindle_range is not None
     segs = segment_path(program, model, power0, ok, min_length=opts.min_segment, method=opts.segmentation,
-                        allow_splits=not getattr(program, "is_macro", False))
+                        allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
     fast = twin.plan(program, feeds=np.where(ok, feed_range[1], rec["feed"]))
     times = move_times(program, plan, fast)
     cut = _program_cutting(twin, program)
@@ -204,57 +216,82 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         res = genetic(prob, opts.objective, opts.ga, seeds, target, progress)
         feeds, spins = res.feeds, res.spins
         generations, history = res.generations, res.history
-    if opts.objective in ("time", "cost", "air"):
+    air_var = np.zeros(prob.nvar, bool)
+    np.logical_or.at(air_var, prob.seg_var, prob.seg_air)
+    cut_var = np.zeros(prob.nvar, bool)
+    np.logical_or.at(cut_var, prob.seg_var, ~prob.seg_air)
+    if opts.objective in ("time", "cost"):
         # air segments at the top of the range (the load is zero there), never above it
-        air_only = np.zeros(prob.nvar, bool)
-        np.logical_or.at(air_only, prob.seg_var, prob.seg_air)
-        cut_var = np.zeros(prob.nvar, bool)
-        np.logical_or.at(cut_var, prob.seg_var, ~prob.seg_air)
-        if opts.objective != "air":
-            feeds = np.where(air_only & ~cut_var, feed_range[1], feeds)
-    feeds = _approach_feeds(prob, segs, feeds)
+        feeds = np.where(air_var & ~cut_var, feed_range[1], feeds)
+    # variables the objective leaves alone keep every record's own programmed feed
+    keep = np.zeros(prob.nvar, bool)
+    if opts.objective == "air":
+        keep = cut_var.copy()
+    elif opts.objective == "smooth":
+        keep = air_var & ~cut_var
+    feeds = _approach_feeds(prob, segs, feeds, program, keep)
 
     # ---- write, verify, re-simulate; a segment over a limit on the full twin is slowed
     round_ = 0
     scale = np.ones(prob.nvar)
-    fresh = twin.machine.controller.style == "linuxcnc"
+    # under the LinuxCNC planner the written program's blends differ from the estimate's:
+    # its engagement is computed afresh (once: the rounds change only feeds)
+    tw_after = _fresh(twin) if twin.machine.controller.style == "linuxcnc" else twin
+    allowed = np.ones(prob.nvar)
+    base_outside = None
+    force_min = 1.0
     while True:
         round_ += 1
-        f_try = _round_feeds(feeds * scale, prob.f0_var, program)
+        f_try = _round_feeds(np.maximum(feeds * scale, feed_range[0]), prob.f0_var, program, segs, prob)
+        f_try = np.where(keep, prob.f0_var, f_try)
         s_try = np.round(spins)
-        feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None)
+        feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep)
         out = rewrite(program, feeds_rec, spins_rec, splits)
         new = twin.load(out, path=program.path)
         diff = compare(program, new)  # the check of `mtwin verify`
         if diff is not None:
             raise VerifyError(f"internal error: the optimised program does not cut the same path: {diff}")
-        tw_after = twin if not fresh else _fresh(twin)
         after = tw_after.simulate(new, stock=stock)
-        seg_after = _segment_of_samples(after, new, program, segs)
+        seg_after, rec_after = _segment_of_samples(after, new, program, segs, with_records=True)
         over_v = _ratios(after, new, program, segs, prob, limits, seg_after)
-        # samples outside the segments (rapids, plunges not optimised) keep the program's
-        # feeds: a limit broken there is the program's own
         if round_ == 1:
-            allowed = np.ones(prob.nvar)
+            seg_before, rec_before = _segment_of_samples(before, program, program, segs, with_records=True)
+            force_min = float(prob.seg_force.min()) if len(prob.seg_force) else 1.0
+            base_outside = _outside_ratios(before, seg_before, rec_before, len(rec), limits, force_min)
             if opts.objective == "air":
                 # the air objective leaves the cuts alone: a limit the program already breaks
                 # there is the program's own, and must only not get worse
                 allowed = np.maximum(allowed, _ratios(before, program, program, segs, prob, limits) * 1.001)
-        bad = over_v > allowed
+        # moves outside the segments (plunges, canned cycles, rapids) keep their feeds, but a
+        # faster move before them changes how they are entered: each must stay within the
+        # limits, or within what it had in the program; otherwise the segment before is slowed
+        out_now = _outside_ratios(after, seg_after, rec_after, len(rec), limits, force_min)
+        worse = out_now > np.maximum(1.0, base_outside * 1.01)
+        blame = np.zeros(prob.nvar)
+        if worse.any():
+            blame = _blame_previous(seg_after, rec_after, worse, prob, out_now / np.maximum(1.0, base_outside))
+        bad = (over_v > allowed) | (blame > 1.0)
         if not bad.any():
             break
         if round_ >= opts.max_rounds:
+            lines = segs.seg_lines(program)
+            where = [f"lines {lines[np.flatnonzero(prob.seg_var == v)[0]][0]}-"
+                     f"{lines[np.flatnonzero(prob.seg_var == v)[0]][-1]}" for v in np.flatnonzero(bad)[:6]]
             raise MtwinError(f"{program.path}: after {round_} rounds the re-simulated program still exceeds a limit "
-                             f"in {int(bad.sum())} segment(s); nothing was written")
-        with np.errstate(divide="ignore"):
-            scale = np.where(bad, scale / over_v * (1 - opts.margin), scale)
-        feeds = _approach_feeds(prob, segs, feeds * scale) / scale
+                             f"in {int(bad.sum())} segment(s) ({', '.join(where)}); nothing was written")
+        ratio = np.maximum(np.where(over_v > allowed, over_v / allowed, 1.0), blame)
+        # the load is f_z·a + b, not proportional to the feed: after the first round the
+        # correction is squared, so a segment with a large edge term still converges
+        power = 1.0 if round_ == 1 else 2.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(bad, scale / ratio ** power * (1 - opts.margin), scale)
+        feeds = _approach_feeds(prob, segs, feeds * scale, program, keep) / scale
 
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, None)
     fig_after = _figures(after, new, segs, prob, rates, seg_after)
     lines = segs.seg_lines(program)
-    limited = _limited_by(prob, f_try, s_try, est, feed_range, times, segs, program)
+    limited = _limited_by(prob, f_try, s_try, est, feed_range, times, segs, program, keep)
     ev_before = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
     seg_info = []
     for s in range(segs.count):
@@ -265,7 +302,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                          "mean_power_before": float(ev_before["mean_power"][0][s]),
                          "mean_power_after": float(est["mean_power"][0][s]),
                          "peak_load_estimate": float(est["load"][0][s])})
-    tradeoff = _tradeoff(prob, s_try, force_limits) if opts.objective in ("time", "cost") else []
+    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") else []
     changed = _changed_lines(program.data, out)
     return OptimizeResult(out, opts.objective, opts.method if opts.objective != "air" else "direct", fig_before,
                           fig_after, {"cycle_time": float(est["time"][0]), "cost": float(est["cost"][0]),
@@ -273,7 +310,11 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                                       "peak_power": float(est["power"][0][~prob.seg_air].max(initial=0.0))},
                           changed, seg_info, True, round_, prob.evaluations, time.perf_counter() - t_start,
                           force_limits, tradeoff, before, after, _segment_of_samples(before, program, program, segs),
-                          seg_after, [], generations, history)
+                          seg_after, warnings, generations, history,
+                          "" if opts.force_limit is not None else
+                          f"default: cost.force_per_diameter {m.cost.force_per_diameter:g} N/mm x the tool's diameter; "
+                          f"the program's own peak is {before.summary.cutting.peak_load:.1f} N; --force-limit sets it",
+                          list(before.summary.cutting.defaults or []))
 
 
 def _runups(prob, program, plan, segs, machine) -> None:
@@ -328,27 +369,47 @@ def _ratios(trace, prog, original, segs, prob, limits, seg_of=None) -> np.ndarra
     return out
 
 
-def _approach_feeds(prob, segs, feeds: np.ndarray) -> np.ndarray:
-    """An air segment that runs straight into a cut is an approach: it keeps at most the cut's
-    feed (or its own programmed one).  At a higher feed the axes, lagging the command by their
-    following error, would still be decelerating when the command enters the material, and
-    the twin's load there would be set by the approach speed."""
+def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray) -> np.ndarray:
+    """An air segment that runs straight into a cut, or into a feed move the optimiser does not
+    set (a plunge), is an approach: it runs at most at that move's feed (or its own programmed
+    one).  At a higher feed the
+    axes, lagging the command by their following error, would still be decelerating when the
+    command enters the material, and the twin's load there would be set by the approach speed."""
+    from ..gcode import records as R
+
+    rec = program.records
     feeds = feeds.copy()
-    nxt_seg = np.full(segs.count, -1)
-    # the piece after the last piece of each segment, if it directly follows on the path
     last_piece = np.zeros(segs.count, np.int64)
     last_piece[segs.piece_seg] = np.arange(len(segs.piece_seg))
-    for s in range(segs.count):
-        k = last_piece[s] + 1
-        if k < len(segs.piece_seg):
-            r0, r1 = segs.piece_rec[k - 1], segs.piece_rec[k]
-            if r1 == r0 or r1 == r0 + 1:
-                nxt_seg[s] = segs.piece_seg[k]
-    for s in np.flatnonzero(prob.seg_air & (nxt_seg >= 0)):
-        n = nxt_seg[s]
-        if not prob.seg_air[n]:
-            v, vn = prob.seg_var[s], prob.seg_var[n]
-            feeds[v] = min(feeds[v], feeds[vn])
+    is_feed = (rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    piece_of_rec = {}
+    for k, r in enumerate(segs.piece_rec):
+        piece_of_rec.setdefault(int(r), k)
+    for s in np.flatnonzero(prob.seg_air):
+        v = prob.seg_var[s]
+        if keep[v]:
+            continue
+        k = last_piece[s]
+        r = int(segs.piece_rec[k])
+        if segs.piece_t1[k] < 1.0 and k + 1 < len(segs.piece_seg):  # the same move goes on
+            nxt = segs.piece_seg[k + 1]
+            cap = feeds[prob.seg_var[nxt]] if not keep[prob.seg_var[nxt]] else rec["feed"][r]
+        else:
+            # the next move with a length, skipping zero-length ones
+            r2 = r + 1
+            while r2 < len(rec) and rec["kind"][r2] != R.DWELL and R.move_lengths(rec[r2:r2 + 1])[0] <= 0:
+                r2 += 1
+            if r2 >= len(rec) or not is_feed[r2]:
+                continue  # a rapid, a dwell or the end follows: nothing is entered at this feed
+            if r2 in piece_of_rec:
+                nxt = segs.piece_seg[piece_of_rec[r2]]
+                if prob.seg_air[nxt]:
+                    continue
+                cap = feeds[prob.seg_var[nxt]] if not keep[prob.seg_var[nxt]] else rec["feed"][r2]
+            else:
+                cap = rec["feed"][r2]  # a plunge or another move the optimiser leaves alone
+        # (never below the air move's own programmed feed: that entry the program already had)
+        feeds[v] = min(feeds[v], max(cap, prob.f0_var[v]))
     return feeds
 
 
@@ -358,23 +419,27 @@ def _fresh(twin):
     return Twin(twin.machine, twin.interpreter, twin.path, twin.cutting, twin.effects)
 
 
-def _round_feeds(f: np.ndarray, f0: np.ndarray, program) -> np.ndarray:
-    """Feeds as they will be written: whole mm/min (0.1 in/min for inch programs), rounded
-    down; a feed within half a step of the program's is the program's (nothing to write)."""
-    inch = bool(len(program.records) and (program.records["flags"][0] & R.FL_INCH))
-    step = 2.54 if inch else 1.0
+def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarray:
+    """Feeds as they will be written: whole mm/min (0.1 in/min where the variable's F is read
+    in inches), rounded down; a feed within half a step of the program's is the program's."""
+    inch = np.zeros(prob.nvar, bool)
+    flags = program.records["flags"][segs.piece_rec]
+    np.logical_or.at(inch, prob.seg_var[segs.piece_seg], (flags & R.FL_F_INCH) != 0)
+    step = np.where(inch, 2.54, 1.0)
     out = np.floor(f / step + 1e-6) * step
     return np.where(np.abs(f - f0) < 0.5 * step, f0, out)
 
 
-def _expand(program, segs, feeds, spins, prob, spin_changes: bool):
+def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndarray):
     """Per-record feeds (NaN: keep), splits and spindle speeds of a candidate."""
     from ..gcode.writer import Split
 
     rec = program.records
     n = len(rec)
     out = np.full(n, np.nan)
-    f_piece = feeds[prob.seg_var[segs.piece_seg]]
+    var = prob.seg_var[segs.piece_seg]
+    # a kept variable keeps each record's own feed (a segment may hold several)
+    f_piece = np.where(keep[var], rec["feed"][segs.piece_rec], feeds[var])
     splits = {}
     order = np.argsort(segs.piece_rec, kind="stable")
     pr = segs.piece_rec[order]
@@ -385,8 +450,6 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool):
         r = int(pr[grp[0]])
         idx = order[grp]
         fs = f_piece[idx]
-        t1 = segs.piece_t1[idx]
-        # merge neighbouring pieces with the same feed
         # merge neighbouring pieces whose feeds differ by under 1 % (the lower feed for both):
         # a split is worth its extra line only for a real change
         ts, fl = [], [fs[0]]
@@ -396,30 +459,44 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool):
                 fl.append(fs[k])
             else:
                 fl[-1] = min(fl[-1], fs[k])
-        del t1
         if ts:
             splits[r] = Split(ts, [float(x) for x in fl])
         elif fl[0] != rec["feed"][r]:
             out[r] = fl[0]
     spindles = np.full(n, np.nan)
-    if spin_changes:
-        # one speed per tool (or segment): every record of the tool from its first cut on
-        for s in range(segs.count):
-            want = spins[prob.seg_spin[s]]
-            rr = segs.piece_rec[segs.piece_seg == s]
-            if not len(rr):
-                continue
-            tool = rec["tool"][rr[0]]
-            same_tool = rec["tool"] == tool
-            if want != min(rec["spindle"][rr[0]], np.inf):
-                spindles[same_tool] = want
+    if spin_changes and segs.count:
+        # every record of a tool, from its first move, runs at the speed of the segment it is
+        # in or, between segments, of the segment before (the first one for the tool's start)
+        first_rec = np.array([segs.piece_rec[segs.piece_seg == s].min() for s in range(segs.count)])
+        order_s = np.argsort(first_rec, kind="stable")
+        want = np.full(n, np.nan)
+        for s in order_s:
+            want[first_rec[s]] = spins[prob.seg_spin[s]]
+        tool = rec["tool"]
+        cur = np.nan
+        for i in range(n):
+            if i > 0 and tool[i] != tool[i - 1]:
+                cur = np.nan
+            if not np.isnan(want[i]):
+                cur = want[i]
+            want[i] = cur
+        # a tool's records before its first segment: that segment's speed
+        for t in np.unique(tool):
+            m = np.flatnonzero(tool == t)
+            ok = m[~np.isnan(want[m])]
+            if len(ok):
+                want[m[m < ok[0]]] = want[ok[0]]
+        # (stopped records too: S is modal, M5 does not clear it)
+        change = ~np.isnan(want) & (want != rec["spindle"])
+        spindles[change] = want[change]
     return out, splits, spindles
 
 
-def _segment_of_samples(trace, new_prog, program, segs) -> np.ndarray:
+def _segment_of_samples(trace, new_prog, program, segs, with_records: bool = False):
     """Segment of every trace sample (-1: none), by path length: the written program runs the
     same path, possibly with split moves, so a sample's distance along the path says which
-    piece of which original record it is in."""
+    piece of which original record it is in.  ``with_records``: also the original record of
+    every sample."""
     rec_new = np.asarray(trace.record, np.int64)
     Ln = R.move_lengths(new_prog.records)
     Lo = R.move_lengths(program.records)
@@ -428,17 +505,16 @@ def _segment_of_samples(trace, new_prog, program, segs) -> np.ndarray:
     # position of each sample: its record's start + the fraction done (from the record's
     # sample range: first to last sample of the record)
     idx = np.clip(rec_new, 0, len(Ln) - 1)
-    first = np.full(len(Ln), -1)
-    last = np.full(len(Ln), -1)
     k = np.arange(len(idx))
+    last = np.full(len(Ln), -1)
     np.maximum.at(last, idx, k)
-    first[::-1] = -1
     fi = np.full(len(Ln), len(idx))
     np.minimum.at(fi, idx, k)
     span = np.maximum(last[idx] - fi[idx], 1)
     frac = (k - fi[idx]) / span
     s = cn[idx] + frac * Ln[idx]
     r_o = np.clip(np.searchsorted(co, s, side="right") - 1, 0, len(Lo) - 1)
+    # a zero-length record of the new program (a dwell, a pause) maps by its own index order
     t_o = np.where(Lo[r_o] > 0, (s - co[r_o]) / np.maximum(Lo[r_o], 1e-12), 0.0)
     key = segs.piece_rec.astype(np.float64) * 4.0 + segs.piece_t0
     o = np.argsort(key)
@@ -448,8 +524,56 @@ def _segment_of_samples(trace, new_prog, program, segs) -> np.ndarray:
     valid = (j >= 0) & (segs.piece_rec[cand] == r_o) & (rec_new >= 0)
     # only feed moves belong to segments
     kind = new_prog.records["kind"][idx]
-    valid &= (kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW)
+    is_feed = (kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW)
+    valid &= is_feed
     out = np.where(valid, segs.piece_seg[cand], -1)
+    if with_records:
+        return out, np.where((rec_new >= 0) & is_feed, r_o, -1)
+    return out
+
+
+def _sample_ratio(trace, limits) -> np.ndarray:
+    """Per sample, the largest of cutting load / limit (N/A here), spindle power and torque
+    over their limits — the machine's own limits."""
+    n = np.abs(np.asarray(trace.signal("spindle_speed")))
+    t_lim = limits.power / (2 * math.pi * np.maximum(n, limits.base_speed) / 60.0)
+    return np.maximum(np.asarray(trace.signal("spindle_power")) / limits.power,
+                      np.asarray(trace.signal("spindle_torque")) / t_lim)
+
+
+def _outside_ratios(trace, seg_of, rec_of, nrec, limits, force) -> np.ndarray:
+    """Per original record, the largest machine-limit ratio (spindle power, torque) and the
+    largest cutting load over the load limit ``force``, over the samples outside the
+    segments, as one array of (2 * nrec) — compared between the program and its rewrite."""
+    out = np.zeros(2 * nrec)
+    m = (seg_of < 0) & (rec_of >= 0)
+    if not m.any():
+        return out
+    r = rec_of[m]
+    np.maximum.at(out, r, _sample_ratio(trace, limits)[m])
+    load = np.hypot(trace.signal("fx"), trace.signal("fy"))[m]
+    np.maximum.at(out, nrec + r, load / force)
+    return out
+
+
+def _blame_previous(seg_of, rec_of, worse, prob, excess) -> np.ndarray:
+    """For records outside the segments that got worse, the ratio to slow the segment run
+    just before them by (per variable)."""
+    nrec = len(worse) // 2
+    bad_rec = np.flatnonzero(worse[:nrec] | worse[nrec:])
+    out = np.zeros(prob.nvar)
+    # the segment of the last segment sample before each sample
+    idx = np.where(seg_of >= 0, np.arange(len(seg_of)), -1)
+    prev = np.maximum.accumulate(idx)
+    for r in bad_rec:
+        where = np.flatnonzero(rec_of == r)
+        if not len(where):
+            continue
+        p = prev[where[0]]
+        if p < 0:
+            continue
+        v = prob.seg_var[seg_of[p]]
+        out[v] = max(out[v], float(max(excess[r], excess[nrec + r])))
     return out
 
 
@@ -488,12 +612,15 @@ def _figures(trace, prog, segs, prob, rates, seg_of) -> Figures:
                    cv)
 
 
-def _limited_by(prob, feeds, spins, est, feed_range, times, segs, program) -> list:
+def _limited_by(prob, feeds, spins, est, feed_range, times, segs, program, keep) -> list:
     out = []
     m = 1.0 - prob.limits.margin
     for s in range(len(prob.seg_var)):
         f = feeds[prob.seg_var[s]]
         n = spins[prob.seg_spin[s]]
+        if keep[prob.seg_var[s]]:
+            out.append("kept (not this objective's)")
+            continue
         if prob.seg_air[s]:
             out.append("feed range (air cut)" if f >= feed_range[1] - 1 else "kept")
             continue
@@ -515,13 +642,16 @@ def _limited_by(prob, feeds, spins, est, feed_range, times, segs, program) -> li
     return out
 
 
-def _tradeoff(prob, spins, force_limits) -> list:
-    """Estimated cycle time against the load limit, 10 N apart: what each extra 10 N buys."""
+def _tradeoff(prob, spins) -> list:
+    """Estimated cycle time against the load limit, 10 N apart (coarser for large limits, at
+    most 16 points): what each extra 10 N buys."""
     base = float(np.median(prob.seg_force))
+    lo = max(10.0, round(base * 0.5 / 10) * 10)
+    step = max(10.0, math.ceil((2 * base - lo) / 15 / 10) * 10)
     out = []
     saved = prob.seg_force.copy()
     try:
-        for lim in np.arange(max(10.0, round(base * 0.5 / 10) * 10), base * 2 + 1e-9, 10.0):
+        for lim in np.arange(lo, base * 2 + 1e-9, step)[:16]:
             prob.seg_force = saved * (lim / base)
             f = prob.max_feasible_feed(spins)
             f = np.where(np.isnan(f), prob.limits.feed[0], f)
