@@ -240,8 +240,18 @@ def test_property_randomly_perturbed_programs(k):
     text = mtwin.rewrite(prog, feeds=np.where(prog.records["kind"] == 1, f, np.nan))
     prog = tw.load(text, path=name)
     limit = float(rng.uniform(60, 120))
+    extra = {} if k < 2 else dict(method="ga", spindle_range=(2000.0, 8000.0), ga=GAOptions(generations=25, seed=k),
+                                  spindle_per=("tool", "segment")[k % 2], allow_s_changes=True)
     r = optimize(tw, prog, OptimizeOptions(objective=("time", "smooth")[k % 2], force_limit=limit,
-                                           feed_range=(50.0, 3000.0)))
+                                           feed_range=(50.0, 3000.0), **extra))
     new = tw.load(r.output, path="out.nc")
     assert compare(prog, new) is None
-    assert mtwin.Twin().simulate(new).summary.cutting.peak_load <= limit
+    tr = mtwin.Twin().simulate(new)
+    c = tr.summary.cutting
+    assert c.peak_load <= limit
+    sp = tw.machine.spindle
+    assert c.peak_power <= sp.rated_power
+    n = np.maximum(np.abs(tr.signal("spindle_speed")), sp.base_speed)
+    assert (tr.signal("spindle_torque") <= sp.rated_power / (2 * math.pi * n / 60) + 1e-9).all()
+    changed = new.records["feed"][new.records["kind"] == 1]
+    assert changed.max() <= tw.machine.max_cutting_feed
