@@ -87,6 +87,7 @@ class OptimizeResult:
     history: list | None = None
     force_limit_source: str = ""  # "" (given) or where the default came from
     defaults: list = field(default_factory=list)  # what the twin assumed (tools, material)
+    search_seconds: float = 0.0  # the search on the fast model alone
 
 
 def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) -> OptimizeResult:
@@ -188,6 +189,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
 
     # ---- search
     generations, history = 0, None
+    t_search = time.perf_counter()
     if opts.objective == "air":
         feeds = prob.f0_var.copy()
         air_var = np.zeros(prob.nvar, bool)
@@ -216,6 +218,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         res = genetic(prob, opts.objective, opts.ga, seeds, target, progress)
         feeds, spins = res.feeds, res.spins
         generations, history = res.generations, res.history
+    search_seconds = time.perf_counter() - t_search
     air_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(air_var, prob.seg_var, prob.seg_air)
     cut_var = np.zeros(prob.nvar, bool)
@@ -314,7 +317,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                           "" if opts.force_limit is not None else
                           f"default: cost.force_per_diameter {m.cost.force_per_diameter:g} N/mm x the tool's diameter; "
                           f"the program's own peak is {before.summary.cutting.peak_load:.1f} N; --force-limit sets it",
-                          list(before.summary.cutting.defaults or []))
+                          list(before.summary.cutting.defaults or []), search_seconds)
 
 
 def _runups(prob, program, plan, segs, machine) -> None:
