@@ -1135,6 +1135,9 @@ def _cache_dir() -> str:
     return os.environ["NUMBA_CACHE_DIR"]
 
 
+from . import cli_grind  # noqa: E402,F401  (registers `mtwin grind` on the app)
+
+
 def main() -> None:
     # --traceback is a debugging switch a user adds at the end of a failing command line:
     # accept it anywhere, not only before the command as click would

@@ -1,0 +1,172 @@
+"""Dynamic programming over (allowance level × program feed level), as in the grinding-cycle
+reference: T[n, m] = min_l T[n−1, l] + τ(n−1, l → n, m), each move simulated with the removal
+twin from the state its best predecessor reached; moves that break a limit are inadmissible;
+the cycle is recovered by back-tracking.
+
+Every move out of one allowance level — all M predecessor states × M feeds — runs as one
+batch of the vectorised removal model, so a 40 × 40 grid is 40 batch runs of 1,600 parts.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cycle import Stage, run_cycle
+from .model import Batch, GrindTwin, State, advance, gauge_reading, gauge_steps, runout_profile
+
+MAX_MOVE_REVS = 4000
+
+
+@dataclass
+class Design:
+    stages: list  # [Stage]
+    cycle_time: float  # s, nominal part, including spark-out and retract
+    grid: tuple  # (feed levels, allowance levels)
+    table: np.ndarray  # T[n, m], inf where unreachable
+    seconds: float
+    sparkout: float = 0.0  # spark-out revolutions the nominal part takes to reach size
+
+
+def feed_levels(twin: GrindTwin, M: int) -> np.ndarray:
+    return np.geomspace(twin["machine.feed_min"], twin["machine.feed_max"], M)
+
+
+def design(twin: GrindTwin, M: int = 40, N: int = 40, scale: dict | None = None, batch: Batch | None = None) -> Design:
+    """The time-optimal stepped cycle for the nominal part (``batch``: one case) under the
+    twin's limits, each tightened by ``scale`` (a factor per limit name, from the robustness
+    loop)."""
+    import time as _time
+
+    t0 = _time.perf_counter()
+    s = scale or {}
+    batch = batch or Batch.nominal(twin, 1)
+    K = int(twin["system.positions"])
+    n_w = twin["work.speed"]
+    feeds = feed_levels(twin, M)
+    A = float(batch.allowance[0] + batch.gauge[0])  # what the gauge reads at the start
+    levels = A * (1.0 - np.arange(N + 1) / N)  # n = 0 … N; N: the gauge reads size
+    force_lim = twin["wheel.force_limit"] * s.get("force", 1.0)
+    burn_lim = twin["limits.burn_qw"] * s.get("burn", 1.0)
+    T = np.full((N + 1, M), np.inf)
+    pred = np.full((N + 1, M), -1, np.int64)
+    # the state at each node; level 0: the untouched part, the same for every feed
+    one = State.start(batch, K)
+    states = [one.take(np.zeros(M, np.int64))]
+    T[0, :] = 0.0
+    B1 = _rep(batch, M * M)
+    dR = runout_profile(B1, K)
+    steps = gauge_steps(twin)
+    for n in range(1, N + 1):
+        prev = states[-1]
+        alive = np.isfinite(T[n - 1])
+        # cases: predecessor l (outer) × feed m (inner)
+        idx_l = np.repeat(np.arange(M), M)
+        feed = np.tile(feeds, M)
+        st = prev.take(idx_l)
+        st.peak_force = np.zeros(M * M)
+        st.peak_rate = np.zeros(M * M)
+        t_start = st.t.copy()
+        running = alive[idx_l].copy()
+        running &= gauge_reading(B1, st) > levels[n]
+        for _ in range(int(MAX_MOVE_REVS * K / steps)):
+            if not running.any():
+                break
+            sub = np.flatnonzero(running)
+            s_sub = st.take(sub)
+            b_sub = _take(B1, sub)
+            advance(b_sub, s_sub, feed[sub], n_w, dR[sub], steps)
+            st.put(sub, s_sub)
+            running[sub] = gauge_reading(b_sub, s_sub) > levels[n]
+        reached = alive[idx_l] & ~running
+        burn = math.pi * twin["work.diameter"] * st.peak_rate / 60.0
+        ok = reached & (st.peak_force <= force_lim) & (burn <= burn_lim)
+        tau = st.t - t_start
+        total = np.where(ok, T[n - 1][idx_l] + tau, np.inf).reshape(M, M)  # [l, m]
+        if n > 1:
+            # a stepped cycle slows down stage by stage (rough, semi-finish, finish): the feed
+            # never rises again; without this the model's lag invites pulsed feeds
+            total[np.tril_indices(M, -1)[::-1]] = np.inf
+        best_l = np.argmin(total, axis=0)
+        T[n] = total[best_l, np.arange(M)]
+        pred[n] = np.where(np.isfinite(T[n]), best_l, -1)
+        states.append(st.take(best_l * M + np.arange(M)))
+    # the end: spark-out may start at any node (n, m) — the gauge switch to zero feed — for as
+    # many revolutions as the quality limits need; all nodes at once, as one batch
+    nodes = [(n, m) for n in range(1, N + 1) for m in np.flatnonzero(np.isfinite(T[n]))]
+    if not nodes:
+        return Design([], math.inf, (feeds, levels), T, _time.perf_counter() - t0)
+    nn = np.array([x[0] for x in nodes])
+    mm = np.array([x[1] for x in nodes])
+    st_end = _stack([states[n] for n in range(N + 1)], nn, mm)
+    extra, revs, ok = _finish(twin, _rep(batch, len(nodes)), st_end, K, s)
+    total = np.where(ok, T[nn, mm] + extra, np.inf)
+    k = int(np.argmin(total))
+    if not np.isfinite(total[k]):
+        return Design([], math.inf, (feeds, levels), T, _time.perf_counter() - t0)
+    n_end, best_m = int(nn[k]), int(mm[k])
+    # back-track
+    path = [best_m]
+    for n in range(n_end, 1, -1):
+        path.append(int(pred[n, path[-1]]))
+    path = path[::-1]  # feed level of the move into n = 1 … n_end
+    stages = []
+    for n, m in enumerate(path, start=1):
+        if stages and stages[-1][0] == m:
+            stages[-1][1] = n
+        else:
+            stages.append([m, n])
+    out = [Stage(float(feeds[m]), float(levels[n])) for m, n in stages]
+    sparkout = float(revs[k])
+    # stage times and the cycle time from one run of the finished cycle
+    _, q, times = run_cycle(twin, batch, out, sparkout)
+    for st_, t in zip(out, times):
+        st_.time = float(t)
+    return Design(out, float(q.cycle_time[0]), (feeds, levels), T, _time.perf_counter() - t0, sparkout)
+
+
+def _finish(twin, batch, st: State, K: int, scale: dict):
+    """Spark-out from each state of a batch as the machine runs it: zero feed until the gauge
+    reads size, at least cycle.sparkout and at most cycle.sparkout_max revolutions; (time
+    added per case, revolutions, whether the size, roundness and roughness limits hold)."""
+    from .cycle import Quality
+
+    n_w = twin["work.speed"]
+    dR = runout_profile(batch, K)
+    steps = gauge_steps(twin)
+    per_rev = K / steps
+    lo = twin["cycle.sparkout"] * per_rev
+    hi = max(twin["cycle.sparkout_max"], twin["cycle.sparkout"]) * per_rev
+    n = batch.size
+    count = np.zeros(n)
+    done = np.zeros(n, bool)
+    t0 = st.t.copy()
+    keep = None
+    while not done.all():
+        active = ~done
+        keep = st.take(done) if done.any() else None
+        advance(batch, st, np.zeros(n), n_w, dR, steps)
+        if keep is not None:
+            st.put(done, keep)
+        count = np.where(active, count + 1, count)
+        done |= active & (((count >= lo) & (gauge_reading(batch, st) <= 0.0)) | (count >= hi))
+    radius_dev = dR - st.removed
+    q = Quality(st.t, batch.allowance - st.removed.mean(axis=1), radius_dev.max(axis=1) - radius_dev.min(axis=1),
+                st.last_f, math.pi * twin["work.diameter"] * st.peak_rate / 60.0, st.peak_force, np.ones(n, bool))
+    v = q.violations(twin, scale)
+    ok = (v["size"] <= 1.0) & (v["roundness"] <= 1.0) & (v["roughness"] <= 1.0)
+    return st.t - t0 + twin["machine.retract"], count / per_rev, ok
+
+
+def _stack(level_states: list, nn: np.ndarray, mm: np.ndarray) -> State:
+    """The states of nodes (n, m) as one batch."""
+    return State.concat([level_states[n].take(np.array([m])) for n, m in zip(nn, mm)])
+
+
+def _rep(batch: Batch, n: int) -> Batch:
+    return Batch(*(np.repeat(getattr(batch, f)[:1], n) for f in ("a1", "a2", "gamma", "allowance", "runout", "gauge")))
+
+
+def _take(batch: Batch, idx) -> Batch:
+    return Batch(*(getattr(batch, f)[idx] for f in ("a1", "a2", "gamma", "allowance", "runout", "gauge")))
