@@ -592,7 +592,7 @@ def _range(text: Optional[str], name: str):
     return (a, b)
 
 
-@app.command(short_help="Optimise F and S under load, power and machine limits; write the program.")
+@app.command(short_help="Optimise F and S under the load and machine limits.")
 @_reports_errors
 def optimize(
     part: str = typer.Argument(..., help="G-code program ('-' for stdin)."),

@@ -12,11 +12,33 @@ import typer
 from .cli import _reports_errors, app, err, write_output
 from .errors import MtwinError
 
-grind_app = typer.Typer(help="Plunge grinding: optimal stepped feed cycles by dynamic programming.",
+grind_app = typer.Typer(help="Plunge grinding: optimal stepped feed cycles.",
                         no_args_is_help=True, rich_markup_mode=None)
 app.add_typer(grind_app, name="grind")
 
 GrindTwinOpt = typer.Option(None, "--twin", help="Grind twin file (TOML); default: the reference's experiment.")
+
+
+def _check_outputs(*paths) -> None:
+    """Where results go is checked before the work, not after it."""
+    from pathlib import Path
+
+    for p in paths:
+        if not p or p == "-":
+            continue
+        if Path(p).is_dir():
+            raise MtwinError(f"{p} is a directory: give a file name")
+        parent = Path(p).parent if str(Path(p).parent) else Path(".")
+        if not parent.is_dir():
+            raise MtwinError(f"output directory {parent} does not exist")
+
+
+def _check_feeds(tw, stages, where: str) -> None:
+    lo, hi = tw["machine.feed_min"], tw["machine.feed_max"]
+    for k, s in enumerate(stages, 1):
+        if not lo <= s.feed <= hi:
+            raise MtwinError(f"{where}: stage {k}: feed {s.feed:g} mm/min is outside the machine's range "
+                             f"{lo:g}-{hi:g} mm/min (machine.feed_min, machine.feed_max)")
 
 
 def _grid(text: str) -> tuple[int, int]:
@@ -29,7 +51,7 @@ def _grid(text: str) -> tuple[int, int]:
     return m, n
 
 
-@grind_app.command("design")
+@grind_app.command("design", short_help="The fastest stepped cycle that every part of a batch survives.")
 @_reports_errors
 def design(
     twin: Optional[str] = GrindTwinOpt,
@@ -52,13 +74,11 @@ def design(
     from .grind.robust import robust_design
 
     M, N = _grid(grid)
-    if cases < 10 or validate < 0 or iterations < 1:
-        raise MtwinError("--cases must be at least 10, --validate at least 0, --iterations at least 1")
+    if cases < 10 or validate < 0 or iterations < 1 or seed < 0:
+        raise MtwinError("--cases must be at least 10, --validate and --seed at least 0, --iterations at least 1")
     if output == "-" and json_out:
         raise MtwinError("-o - and --json both write to stdout")
-    for p in (output, cycle_out, report):
-        if p and p != "-" and not (Path(p).parent if str(Path(p).parent) else Path(".")).is_dir():
-            raise MtwinError(f"output directory {Path(p).parent} does not exist")
+    _check_outputs(output, cycle_out, report)
     tw = GrindTwin.from_toml(twin)
 
     def show(it):
@@ -107,7 +127,7 @@ def design(
         err.print("[yellow]warning: the robustness loop did not remove every defect (see the iterations)[/yellow]")
 
 
-@grind_app.command("simulate")
+@grind_app.command("simulate", short_help="Run a cycle on the nominal part: time and limits.")
 @_reports_errors
 def simulate(
     cycle: str = typer.Argument(..., help="Cycle file (TOML with [cycle] stages; may carry the twin's tables)."),
@@ -121,8 +141,10 @@ def simulate(
     from .grind.io import read_cycle, trace_columns
     from .grind.model import Batch, GrindTwin
 
+    _check_outputs(output)
     stages = read_cycle(cycle)
     tw = GrindTwin.from_toml(twin if twin else cycle)
+    _check_feeds(tw, stages, cycle)
     _, q, times = run_cycle(tw, Batch.nominal(tw), stages)
     v = q.violations(tw)
     figures = {"cycle_time": float(q.cycle_time[0]), "size_error": float(q.size_error[0]),
@@ -149,4 +171,54 @@ def simulate(
         t.add_row(name, f"{figures[key]:.5g} {unit}", f"{ratios[lim]:.0%}")
     err.print(t)
     if not q.reached[0]:
-        err.print("[yellow]warning: the gauge never read size within the revolution limit[/yellow]")
+        err.print("[yellow]warning: the gauge never read size (the spark-out reached cycle.sparkout_max): the part "
+                  "is oversize[/yellow]")
+
+
+@grind_app.command("calibrate", short_help="Fit compliance and stress intensity to a recorded cycle.")
+@_reports_errors
+def calibrate(
+    cycle: str = typer.Argument(..., help="Cycle file the recording was made with (TOML with [cycle] stages)."),
+    measurement: str = typer.Argument(..., help="Recorded cycle, measurement format: t, feed (actual radial "
+                                                 "feed, mm/min) and fx (radial force, N)."),
+    param: list[str] = typer.Option(["system.compliance", "work.sigma"], "--param",
+                                    help="Parameter to fit, by dotted name (repeatable)."),
+    twin: Optional[str] = GrindTwinOpt,
+    output: Optional[str] = typer.Option(None, "-o", "--output", help="Write the fitted twin and the cycle (TOML)."),
+    json_out: bool = typer.Option(False, "--json", help="Result as JSON on stdout."),
+):
+    """Fit grinding parameters (compliance and stress intensity by default) to a recorded
+    cycle by bounded least squares on the actual feed and the radial force."""
+    import numpy as np
+
+    from .grind.io import cycle_toml, fit, read_cycle
+    from .grind.model import BY_NAME, GrindTwin
+    from .loop.measurement import read_measurement
+
+    unknown = [p for p in param if p not in BY_NAME]
+    if unknown:
+        raise MtwinError(f"--param {unknown[0]}: not a grinding parameter (known: {', '.join(BY_NAME)})")
+    _check_outputs(output)
+    stages = read_cycle(cycle)
+    tw = GrindTwin.from_toml(twin if twin else cycle)
+    _check_feeds(tw, stages, cycle)
+    m = read_measurement(measurement)
+    missing = [c for c in ("feed", "fx") if c not in m.signals]
+    if m.t is None or missing:
+        raise MtwinError(f"{measurement}: a recorded cycle needs the columns t, feed and fx"
+                         + (f" (missing: {', '.join(missing)})" if missing else ""))
+    ok = np.isfinite(m.signals["feed"]) & np.isfinite(m.signals["fx"])
+    if ok.sum() < len(param) + 2:
+        raise MtwinError(f"{measurement}: too few complete samples ({int(ok.sum())}) to fit {len(param)} parameter(s)")
+    res = fit(tw, stages, m.t[ok], m.signals["feed"][ok], m.signals["fx"][ok], tuple(param))
+    if output:
+        fitted = tw.with_params(res["values"])
+        write_output(cycle_toml(fitted, stages, f"calibrated by mtwin grind calibrate on {measurement}").encode(),
+                     output, [cycle])
+    if json_out:
+        sys.stdout.write(json.dumps(res, indent=1) + "\n")
+        return
+    for k, v in res["values"].items():
+        err.print(f"{k}: {tw[k]:.6g} -> {v:.6g} {BY_NAME[k].unit}", highlight=False)
+    err.print(f"normalised RMS of feed and force residuals: {res['rms_before']:.4g} -> {res['rms_after']:.4g}",
+              highlight=False)

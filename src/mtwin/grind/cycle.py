@@ -39,7 +39,7 @@ class Quality:
     roughness_feed: np.ndarray  # mm per revolution in the last revolution
     burn_qw: np.ndarray  # mm²/s, largest specific removal rate
     peak_force: np.ndarray  # N
-    reached: np.ndarray  # bool: the gauge read size before the revolution limit
+    reached: np.ndarray  # bool: the gauge read size (not stopped by a revolution limit)
     switch_force: np.ndarray | None = None  # N, the force when the gauge switched to spark-out
 
     def violations(self, twin: GrindTwin, scale: dict | None = None) -> dict:
@@ -60,12 +60,11 @@ class Quality:
         return np.any(np.stack([v[k] > 1.0 for k in LIMIT_NAMES]), axis=0)
 
 
-def run_cycle(twin: GrindTwin, batch: Batch, stages: list, sparkout=None, trace: list | None = None):
+def run_cycle(twin: GrindTwin, batch: Batch, stages: list, trace: list | None = None):
     """Run the cycle on every part of the batch; returns (final State, Quality, stage times of case 0).
 
     After the last stage the feed is zero (spark-out) until the gauge reads size, for at least
-    cycle.sparkout and at most cycle.sparkout_max revolutions; then the wheel retracts.
-    (``sparkout`` is accepted for the record only: the gauge ends the spark-out.)"""
+    cycle.sparkout and at most cycle.sparkout_max revolutions; then the wheel retracts."""
     n = batch.size
     feeds = np.tile(np.array([s.feed for s in stages], float), (n, 1))
     switch = np.tile(np.array([s.switch_allowance for s in stages], float), (n, 1))
@@ -117,7 +116,7 @@ def run_cycles(twin: GrindTwin, batch: Batch, feeds: np.ndarray, switch: np.ndar
         # spark-out: zero feed after the switch until the gauge reads size (within the bounds)
         out_ = active & (stage == S) & (spark > 0)
         done |= out_ & (((spark - 1 >= lo_rev * per_rev) & (g <= 0.0)) | (spark - 1 >= hi_rev * per_rev))
-    reached = stage == S
+    reached = (stage == S) & (gauge_reading(batch, st) <= 0.0)
     K_ = st.removed.shape[1]
     radius_dev = dR - st.removed  # each position's radius over the target, minus the allowance
     q = Quality(

@@ -27,6 +27,7 @@ class Design:
     table: np.ndarray  # T[n, m], inf where unreachable
     seconds: float
     sparkout: float = 0.0  # spark-out revolutions the nominal part takes to reach size
+    predicted: float = math.inf  # the DP's own cycle time (T + spark-out + retract), s
 
 
 def feed_levels(twin: GrindTwin, M: int) -> np.ndarray:
@@ -34,14 +35,19 @@ def feed_levels(twin: GrindTwin, M: int) -> np.ndarray:
 
 
 def design(twin: GrindTwin, M: int = 40, N: int = 40, scale: dict | None = None, batch: Batch | None = None) -> Design:
-    """The time-optimal stepped cycle for the nominal part (``batch``: one case) under the
-    twin's limits, each tightened by ``scale`` (a factor per limit name, from the robustness
-    loop)."""
+    """The time-optimal stepped cycle under the twin's limits.
+
+    ``batch``: case 0 is the nominal part, whose time is minimised; every other case is a part
+    the cycle must also keep within the limits (the robustness loop's defective parts, turned
+    into constraints): each runs every move from its own state, switched by its own gauge
+    reading, and a move or an end that breaks a limit on any of them is inadmissible.
+    ``scale``: a factor per limit name tightening it."""
     import time as _time
 
     t0 = _time.perf_counter()
     s = scale or {}
     batch = batch or Batch.nominal(twin, 1)
+    P = batch.size
     K = int(twin["system.positions"])
     n_w = twin["work.speed"]
     feeds = feed_levels(twin, M)
@@ -51,25 +57,27 @@ def design(twin: GrindTwin, M: int = 40, N: int = 40, scale: dict | None = None,
     burn_lim = twin["limits.burn_qw"] * s.get("burn", 1.0)
     T = np.full((N + 1, M), np.inf)
     pred = np.full((N + 1, M), -1, np.int64)
-    # the state at each node; level 0: the untouched part, the same for every feed
-    one = State.start(batch, K)
-    states = [one.take(np.zeros(M, np.int64))]
+    # the states at each level: M nodes × P parts, index m·P + p; level 0: the untouched parts
+    states = [State.start(batch, K).take(np.tile(np.arange(P), M))]
     T[0, :] = 0.0
-    B1 = _rep(batch, M * M)
+    B1 = _tile(batch, M * M)  # move cases ((l·M) + m)·P + p
     dR = runout_profile(B1, K)
     steps = gauge_steps(twin)
+    case = np.arange(M * M * P)
+    l_of, m_of, p_of = case // (M * P), (case // P) % M, case % P
     for n in range(1, N + 1):
         prev = states[-1]
         alive = np.isfinite(T[n - 1])
-        # cases: predecessor l (outer) × feed m (inner)
-        idx_l = np.repeat(np.arange(M), M)
-        feed = np.tile(feeds, M)
-        st = prev.take(idx_l)
-        st.peak_force = np.zeros(M * M)
-        st.peak_rate = np.zeros(M * M)
+        feed = feeds[m_of]
+        st = prev.take(l_of * P + p_of)
+        st.peak_force = np.zeros(len(case))
+        st.peak_rate = np.zeros(len(case))
         t_start = st.t.copy()
-        running = alive[idx_l].copy()
-        running &= gauge_reading(B1, st) > levels[n]
+        running = alive[l_of] & (gauge_reading(B1, st) > levels[n])
+        if n > 1:
+            # a stepped cycle slows down stage by stage (rough, semi-finish, finish): the feed
+            # never rises again; without this the model's lag invites pulsed feeds
+            running &= m_of <= l_of
         for _ in range(int(MAX_MOVE_REVS * K / steps)):
             if not running.any():
                 break
@@ -79,29 +87,31 @@ def design(twin: GrindTwin, M: int = 40, N: int = 40, scale: dict | None = None,
             advance(b_sub, s_sub, feed[sub], n_w, dR[sub], steps)
             st.put(sub, s_sub)
             running[sub] = gauge_reading(b_sub, s_sub) > levels[n]
-        reached = alive[idx_l] & ~running
         burn = math.pi * twin["work.diameter"] * st.peak_rate / 60.0
-        ok = reached & (st.peak_force <= force_lim) & (burn <= burn_lim)
-        tau = st.t - t_start
-        total = np.where(ok, T[n - 1][idx_l] + tau, np.inf).reshape(M, M)  # [l, m]
+        ok = alive[l_of] & ~running & (st.peak_force <= force_lim) & (burn <= burn_lim)
         if n > 1:
-            # a stepped cycle slows down stage by stage (rough, semi-finish, finish): the feed
-            # never rises again; without this the model's lag invites pulsed feeds
-            total[np.tril_indices(M, -1)[::-1]] = np.inf
+            ok &= m_of <= l_of
+        ok_lm = ok.reshape(M, M, P).all(axis=2)
+        tau = (st.t - t_start).reshape(M, M, P)[:, :, 0]  # the nominal part's time
+        total = np.where(ok_lm, T[n - 1][:, None] + tau, np.inf)  # [l, m]
         best_l = np.argmin(total, axis=0)
         T[n] = total[best_l, np.arange(M)]
         pred[n] = np.where(np.isfinite(T[n]), best_l, -1)
-        states.append(st.take(best_l * M + np.arange(M)))
+        states.append(st.take(((best_l[:, None] * M + np.arange(M)[:, None]) * P + np.arange(P)[None, :]).ravel()))
     # the end: spark-out may start at any node (n, m) — the gauge switch to zero feed — for as
     # many revolutions as the quality limits need; all nodes at once, as one batch
-    nodes = [(n, m) for n in range(1, N + 1) for m in np.flatnonzero(np.isfinite(T[n]))]
+    # (the robustness loop may cap the switch point: s["switch"], mm the gauge reads)
+    nodes = [(n, m) for n in range(1, N + 1) for m in np.flatnonzero(np.isfinite(T[n]))
+             if levels[n] <= s.get("switch", np.inf) + 1e-12]
     if not nodes:
         return Design([], math.inf, (feeds, levels), T, _time.perf_counter() - t0)
     nn = np.array([x[0] for x in nodes])
     mm = np.array([x[1] for x in nodes])
-    st_end = _stack([states[n] for n in range(N + 1)], nn, mm)
-    extra, revs, ok = _finish(twin, _rep(batch, len(nodes)), st_end, K, s)
-    total = np.where(ok, T[nn, mm] + extra, np.inf)
+    st_end = State.concat([states[n].take(m * P + np.arange(P)) for n, m in zip(nn, mm)])
+    extra, revs, ok = _finish(twin, _tile(batch, len(nodes)), st_end, K, s)
+    ok_node = ok.reshape(len(nodes), P).all(axis=1)
+    extra0 = extra.reshape(len(nodes), P)[:, 0]
+    total = np.where(ok_node, T[nn, mm] + extra0, np.inf)
     k = int(np.argmin(total))
     if not np.isfinite(total[k]):
         return Design([], math.inf, (feeds, levels), T, _time.perf_counter() - t0)
@@ -118,17 +128,19 @@ def design(twin: GrindTwin, M: int = 40, N: int = 40, scale: dict | None = None,
         else:
             stages.append([m, n])
     out = [Stage(float(feeds[m]), float(levels[n])) for m, n in stages]
-    sparkout = float(revs[k])
-    # stage times and the cycle time from one run of the finished cycle
-    _, q, times = run_cycle(twin, batch, out, sparkout)
+    sparkout = float(revs.reshape(len(nodes), P)[k, 0])
+    # stage times and the cycle time from one run of the finished cycle on the nominal part
+    _, q, times = run_cycle(twin, _take(batch, np.array([0])), out)
     for st_, t in zip(out, times):
         st_.time = float(t)
-    return Design(out, float(q.cycle_time[0]), (feeds, levels), T, _time.perf_counter() - t0, sparkout)
+    return Design(out, float(q.cycle_time[0]), (feeds, levels), T, _time.perf_counter() - t0, sparkout,
+                  float(total[k]))
 
 
 def _finish(twin, batch, st: State, K: int, scale: dict):
-    """Spark-out from each state of a batch as the machine runs it: zero feed until the gauge
-    reads size, at least cycle.sparkout and at most cycle.sparkout_max revolutions; (time
+    """Spark-out from each state of a batch as the machine runs it (``cycle.run_cycles``): zero
+    feed until the gauge reads size, at least cycle.sparkout and at most cycle.sparkout_max
+    revolutions; (time
     added per case, revolutions, whether the size, roundness and roughness limits hold)."""
     from .cycle import Quality
 
@@ -137,12 +149,12 @@ def _finish(twin, batch, st: State, K: int, scale: dict):
     steps = gauge_steps(twin)
     per_rev = K / steps
     lo = twin["cycle.sparkout"] * per_rev
-    hi = max(twin["cycle.sparkout_max"], twin["cycle.sparkout"]) * per_rev
+    hi = twin["cycle.sparkout_max"] * per_rev
     n = batch.size
     count = np.zeros(n)
-    done = np.zeros(n, bool)
     t0 = st.t.copy()
-    keep = None
+    # the same test as run_cycles: zero-feed intervals done so far, then the gauge
+    done = ((count >= lo) & (gauge_reading(batch, st) <= 0.0)) | (count >= hi)
     while not done.all():
         active = ~done
         keep = st.take(done) if done.any() else None
@@ -153,19 +165,21 @@ def _finish(twin, batch, st: State, K: int, scale: dict):
         done |= active & (((count >= lo) & (gauge_reading(batch, st) <= 0.0)) | (count >= hi))
     radius_dev = dR - st.removed
     q = Quality(st.t, batch.allowance - st.removed.mean(axis=1), radius_dev.max(axis=1) - radius_dev.min(axis=1),
-                st.last_f, math.pi * twin["work.diameter"] * st.peak_rate / 60.0, st.peak_force, np.ones(n, bool))
+                st.last_f, math.pi * twin["work.diameter"] * st.peak_rate / 60.0, st.peak_force,
+                gauge_reading(batch, st) <= 0.0)
     v = q.violations(twin, scale)
-    ok = (v["size"] <= 1.0) & (v["roundness"] <= 1.0) & (v["roughness"] <= 1.0)
+    ok = (v["size"] <= 1.0) & (v["roundness"] <= 1.0) & (v["roughness"] <= 1.0) & q.reached
     return st.t - t0 + twin["machine.retract"], count / per_rev, ok
 
 
-def _stack(level_states: list, nn: np.ndarray, mm: np.ndarray) -> State:
-    """The states of nodes (n, m) as one batch."""
-    return State.concat([level_states[n].take(np.array([m])) for n, m in zip(nn, mm)])
-
-
 def _rep(batch: Batch, n: int) -> Batch:
-    return Batch(*(np.repeat(getattr(batch, f)[:1], n) for f in ("a1", "a2", "gamma", "allowance", "runout", "gauge")))
+    """``n`` copies of the batch's first part."""
+    return _tile(_take(batch, np.array([0])), n)
+
+
+def _tile(batch: Batch, n: int) -> Batch:
+    """The whole batch ``n`` times over (case i is part i % size)."""
+    return Batch(*(np.tile(getattr(batch, f), n) for f in ("a1", "a2", "gamma", "allowance", "runout", "gauge")))
 
 
 def _take(batch: Batch, idx) -> Batch:

@@ -14,7 +14,8 @@ from .model import Batch, GrindTwin, read_toml
 def read_cycle(path: str) -> list:
     """The stages of a cycle file: ``[cycle] stages = [{feed = …, switch_allowance = …}, …]``."""
     raw = read_toml(path, "cycle file")
-    stages = raw.get("cycle", {}).get("stages")
+    cyc = raw.get("cycle", {})
+    stages = cyc.get("stages") if isinstance(cyc, dict) else None
     if not isinstance(stages, list) or not stages:
         raise ConfigError(f"{path}: no [cycle] stages = [{{feed = …, switch_allowance = …}}, …]")
     out = []
@@ -26,8 +27,9 @@ def read_cycle(path: str) -> list:
         f, a = s["feed"], s["switch_allowance"]
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in (f, a)):
             raise ConfigError(f"{path}: stage {i}: feed and switch_allowance must be numbers")
-        if f < 0 or a < 0:
-            raise ConfigError(f"{path}: stage {i}: feed and switch_allowance must be >= 0")
+        if f <= 0 or a < 0:
+            raise ConfigError(f"{path}: stage {i}: feed must be > 0 mm/min (the spark-out at zero feed follows the "
+                              f"last stage) and switch_allowance >= 0 mm")
         if a > last:
             raise ConfigError(f"{path}: stage {i}: switch allowances must not increase from stage to stage")
         last = a
@@ -48,24 +50,34 @@ def cycle_toml(twin: GrindTwin, stages: list, note: str = "") -> str:
 def cycle_gcode(twin: GrindTwin, stages: list, sparkout_s: float, title: str = "MTWIN PLUNGE CYCLE") -> str:
     """The cycle as G-code for a cylindrical grinder (Fanuc-style, radius programming, G91).
 
-    Each stage is a G31 skip move: the radial infeed X- at the stage's feed, ended by the
-    skip signal the in-process gauge gives at the stage's switch point (the X distance is the
-    nominal infeed plus a margin; the gauge, not the distance, ends it).  The spark-out is a
+    Each stage is a G31 skip move: the radial infeed X- at the stage's feed, ended by the skip
+    signal the in-process gauge gives at the stage's switch point.  Its distance is what the
+    twin's nominal part needs programmed (the part's allowance plus the elastic deflection the
+    stage builds up) plus half again and 0.01 mm: long enough that the gauge, not the distance,
+    ends the stage, short enough to bound the infeed if the gauge fails.  The spark-out is a
     dwell of the nominal part's spark-out time (on the machine the gauge's size signal ends it),
     then a rapid retract."""
-    allowance = twin["work.allowance"]
-    runout = twin["work.runout"]
+    cols = trace_columns(twin, stages)
+    t = cols["t"]
+    dt = np.diff(np.concatenate([[0.0], t]))
+    programmed = np.cumsum(cols["feed_cmd"] / 60.0 * dt)  # mm of infeed at the end of each interval
+    # the infeed each stage needed on the nominal part: up to the last interval it ran in
+    need = []
+    done = 0.0
+    for k, st in enumerate(stages):
+        at = np.flatnonzero(np.isclose(cols["feed_cmd"], st.feed) & (cols["feed_cmd"] > 0))
+        end = float(programmed[at[-1]]) if len(at) else done
+        need.append(max(end - done, 0.0))
+        done = max(end, done)
     lines = ["%", f"O9001 ({title})",
              f"(WHEEL {twin['wheel.diameter']:g} X {twin['wheel.width']:g} MM AT {twin['wheel.speed']:g} RPM,"
              f" WORK D{twin['work.diameter']:g} AT {twin['work.speed']:g} RPM)",
              "(RADIUS PROGRAMMING, G91 INCREMENTAL RADIAL INFEED; G31 SKIP = GAUGE SWITCH POINT)",
              "G21 G40 G80", f"M3 S{int(round(twin['wheel.speed']))} (WHEEL)",
              f"(WORK SPINDLE {twin['work.speed']:g} RPM)", "G91"]
-    left = allowance + runout
-    for k, s in enumerate(stages, 1):
-        depth = max(left - s.switch_allowance, 0.0) + 0.02  # a margin: the gauge ends the move
-        lines.append(f"G31 X-{depth:.4f} F{s.feed:.4g} (STAGE {k}: UNTIL GAUGE READS {s.switch_allowance:.4f} MM)")
-        left = s.switch_allowance
+    for k, (s_, d) in enumerate(zip(stages, need), 1):
+        lines.append(f"G31 X-{1.5 * d + 0.01:.4f} F{s_.feed:.4g} (STAGE {k}: UNTIL GAUGE READS "
+                     f"{s_.switch_allowance:.4f} MM; NOMINAL INFEED {d:.4f})")
     lines.append(f"G04 X{sparkout_s:.2f} (SPARK-OUT UNTIL GAUGE READS SIZE)")
     lines += ["G00 X2. (RETRACT, INCREMENTAL)", "M30", "%"]
     return "\n".join(lines) + "\n"

@@ -1,21 +1,24 @@
 """The plunge-grinding twin: parameters and the allowance-removal model (docs/grinding.md).
 
-Per workpiece revolution and per angular position k (K positions around the part, so an
-initial run-out ΔR_k is modelled), the radial force of the wide-range force model (PHYSICS.md
-section 7) with the feed per revolution f = Δt_f (mm/rev):
+Per gauge interval and per angular position k (K positions around the part, so an initial
+run-out ΔR_k is modelled), the radial force with the feed per revolution f = Δt_f (mm/rev):
 
-    P_y(f) = a1·f + a2·√f,   a1 = 1.9·σ·B·(π·d·n_w / V),   a2 = η·B·(σ/3)·√(d·D / (D + d))
+    P_y(f) = a1·f + a2·√f,   a1 = 1.9·σ·B·(π·d·n_w) / (π·D·n_s),   a2 = η·B·(σ/3)·√(d·D / (D + d))
 
-(the reference's two terms with its minute feed S_f = f·n_w and the wheel speed V in the
-workpiece speed's units — read so that both terms are in N; [D]).  The system deflects by
-y = γ·P_y, so what the wheel has been fed but not yet removed at position k is
-t_p − t_f,k − ΔR_k = f + γ·P_y(f), a quadratic in x = √f:
+This is PHYSICS.md section 7's wide-range force model reinterpreted [D]: its second term with
+S_f = f·n_w as written (a2 = η·K2·√n_w); its first term divided by n_w — read literally, with
+V in the workpiece speed's units, it is not a force (N/min), and 1.9·σ·B·h_eq with the
+equivalent chip thickness h_eq = f·v_w/V is the force it stands for (the literal reading is
+180 times larger here, about 5,500 N at 3 mm/min, which would make the reference's own
+experiment infeasible).  The system deflects by y = γ·P_y, so what the wheel has been fed but
+not yet removed at position k is t_p − t_f,k − ΔR_k = f + γ·P_y(f), a quadratic in x = √f:
 
-    (1 + γ·a1)·x² + γ·a2·x − (t_p − t_f,k − ΔR_k) = 0,
+    (1 + γ·a1)·x² + γ·a2·x − (t_p − t_f,k − ΔR_k) = 0.
 
-whose positive root is the reference's closed form (its "Δt_f" is this x; f = x²).  Where the
-wheel is not yet in contact (the right-hand side ≤ 0) nothing is removed and the force is 0.
-A zero programmed feed (spark-out) lets the stored deflection grind itself away.
+Its positive root is the reference's closed form, which therefore gives √Δt_f (the square is
+missing there); f = x².  Where the wheel is not yet in contact (the right-hand side ≤ 0)
+nothing is removed and the force is 0.  A zero programmed feed (spark-out) lets the stored
+deflection grind itself away.
 
 Every array is (cases, K): batches of parts (the robustness loop, the DP's transitions) run
 as one numpy computation.
@@ -48,7 +51,7 @@ PARAMS = (
     Param("system.positions", "", 36.0, 4.0, 720.0, "angular positions K around the part", "[E]"),
     Param("gauge.error", "mm", 0.0, -0.1, 0.1, "in-process gauge error (reads this much over the size)", "[E]"),
     Param("gauge.reads_per_rev", "", 12.0, 1.0, 720.0, "gauge readings per workpiece revolution", "[E]"),
-    Param("machine.feed_min", "mm/min", 0.05, 0.0, 100.0, "lowest programmed radial feed", "[E]"),
+    Param("machine.feed_min", "mm/min", 0.05, 0.001, 100.0, "lowest programmed radial feed", "[E]"),
     Param("machine.feed_max", "mm/min", 3.0, 0.001, 100.0, "highest programmed radial feed", "[E]"),
     Param("machine.retract", "s", 0.5, 0.0, 60.0, "rapid approach and retract, per cycle", "[E]"),
     Param("limits.size", "mm", 0.004, 1e-5, 1.0, "size tolerance on the radius (|final − target|)", "[E]"),
@@ -58,7 +61,7 @@ PARAMS = (
     Param("limits.burn_qw", "mm^2/s", 4.0, 0.01, 100.0,
           "burn: largest specific removal rate Q'w = π·d·(actual feed, mm/s)", "[E] ~3-6 for hardened steel"),
     Param("cycle.sparkout", "", 4.0, 0.0, 200.0, "fewest spark-out revolutions after the last stage", "[E]"),
-    Param("cycle.sparkout_max", "", 60.0, 0.0, 1000.0,
+    Param("cycle.sparkout_max", "", 150.0, 0.0, 1000.0,
           "most spark-out revolutions the design may choose (it takes the fewest that hold the limits)", "[E]"),
 )
 BY_NAME = {p.name: p for p in PARAMS}
@@ -84,6 +87,13 @@ class GrindTwin:
             v[k] = p.check(x, k)
         if v["machine.feed_min"] >= v["machine.feed_max"]:
             raise ConfigError("machine.feed_min must be below machine.feed_max")
+        if v["cycle.sparkout_max"] < v["cycle.sparkout"]:
+            raise ConfigError("cycle.sparkout_max must not be below cycle.sparkout")
+        for k in ("system.positions", "gauge.reads_per_rev", "cycle.sparkout", "cycle.sparkout_max"):
+            if v[k] != int(v[k]):
+                raise ConfigError(f"{k} must be a whole number, got {v[k]:g}")
+        if int(v["system.positions"]) % int(v["gauge.reads_per_rev"]):
+            raise ConfigError("gauge.reads_per_rev must divide system.positions (a reading every so many positions)")
         return GrindTwin(v)
 
     @classmethod
@@ -152,7 +162,8 @@ def removal_step(rhs: np.ndarray, a1, a2, gamma):
     c = 1.0 + gamma * a1
     b = gamma * a2
     r = np.maximum(rhs, 0.0)
-    x = -b / (2.0 * c) + np.sqrt((b / (2.0 * c)) ** 2 + r / c)
+    # x = −b/2c + √((b/2c)² + r/c), written without the cancellation for small r
+    x = 2.0 * r / (b + np.sqrt(b * b + 4.0 * c * r) + 1e-300)
     f = x * x
     return f, a1 * f + a2 * x
 
@@ -269,6 +280,3 @@ def gauge_steps(twin) -> int:
     return max(1, int(round(K / twin["gauge.reads_per_rev"])))
 
 
-def approach_infeed(batch: Batch) -> np.ndarray:
-    """Programmed infeed at which the wheel would touch the part's high point."""
-    return np.zeros(batch.size)

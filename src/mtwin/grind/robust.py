@@ -20,11 +20,11 @@ from .model import Batch, GrindTwin
 #: Default variation, relative (±) or absolute ranges (docs/grinding.md).
 VARIATION = {
     "allowance": 0.30,  # ± relative
-    "runout": (0.0, 0.02),  # mm, absolute range
+    "runout": 2.0,  # from 0 to this many times the twin's run-out
     "bluntness": 0.50,  # ± relative
     "compliance": 0.30,  # ± relative
     "sigma": 0.15,  # ± relative
-    "gauge": (-0.001, 0.001),  # mm, absolute range
+    "gauge": 0.001,  # mm, ± around the twin's gauge error
 }
 
 
@@ -38,16 +38,15 @@ def sample(twin: GrindTwin, n: int, seed: int = 0, variation: dict | None = None
     def rel(col, name, base):
         return base * (1.0 + var[name] * (2.0 * u[:, col] - 1.0))
 
-    def ab(col, name):
-        lo, hi = var[name]
-        return lo + (hi - lo) * u[:, col]
 
     a1, a2 = twin.coefficients()
     sigma = rel(4, "sigma", 1.0)
     eta = rel(2, "bluntness", 1.0)
-    factors = {"allowance": rel(0, "allowance", twin["work.allowance"]), "runout": ab(1, "runout"),
+    factors = {"allowance": rel(0, "allowance", twin["work.allowance"]),
+               "runout": var["runout"] * twin["work.runout"] * u[:, 1],
                "bluntness": eta * twin["wheel.bluntness"], "compliance": rel(3, "compliance", twin["system.compliance"]),
-               "sigma": sigma * twin["work.sigma"], "gauge": ab(5, "gauge")}
+               "sigma": sigma * twin["work.sigma"],
+               "gauge": twin["gauge.error"] + var["gauge"] * (2.0 * u[:, 5] - 1.0)}
     b = Batch(a1 * sigma, a2 * sigma * eta, factors["compliance"], factors["allowance"], factors["runout"],
               factors["gauge"])
     return b, factors
@@ -88,20 +87,21 @@ def robust_design(twin: GrindTwin, M: int = 40, N: int = 40, cases: int = 300, s
     out = Robust(design(twin, M, N))
     first_mask = None
     prev_scale: dict = {}  # the limits before the last tightening
+    best = None  # (defects, cycle time, design) of the best iteration
     for it in range(max_iter):
         d = out.design if it == 0 else design(twin, M, N, scale)
         backoff = 0
         while not d.stages and it > 0 and backoff < 4:
             # tightened too far for any cycle: halfway back (geometrically) and again
-            scale = {k: (scale[k] * prev_scale.get(k, 1.0)) ** 0.5 for k in scale}
+            scale = {k: (scale[k] * prev_scale.get(k, 1.0 if k != "switch" else 2.0 * scale[k])) ** 0.5
+                     for k in scale}
             d = design(twin, M, N, scale)
             backoff += 1
         if not d.stages:
-            # no cycle meets the tightened limits: the last one found stands, not robust
             out.feasible = False
             break
         out.design = d
-        _, q, _ = run_cycle(twin, batch, d.stages, d.sparkout)
+        _, q, _ = run_cycle(twin, batch, d.stages)
         v = q.violations(twin)
         bad = {k: v[k] > 1.0 for k in LIMIT_NAMES}
         mask = np.any(np.stack(list(bad.values())), axis=0)
@@ -109,6 +109,8 @@ def robust_design(twin: GrindTwin, M: int = 40, N: int = 40, cases: int = 300, s
             first_mask = mask
         out.iterations.append(Iteration(d.cycle_time, d.stages, cases, int(mask.sum()),
                                         {k: int(b.sum()) for k, b in bad.items() if b.any()}, dict(scale)))
+        if best is None or (int(mask.sum()), d.cycle_time) < best[:2]:
+            best = (int(mask.sum()), d.cycle_time, d)
         if progress:
             progress(out.iterations[-1])
         if not mask.any():
@@ -120,20 +122,29 @@ def robust_design(twin: GrindTwin, M: int = 40, N: int = 40, cases: int = 300, s
         # far the worst part missed it (at most halved per iteration), so the loop closes in
         # on the cycle rather than jumping past every feasible one
         prev_scale = dict(scale)
-        for k, b in bad.items():
-            if b.any() and k != "reach":
-                step = max(0.5, float(v[k][b].max()) ** -0.5) * 0.98
-                scale[k] = scale.get(k, 1.0) * step
-                if k == "size":
-                    # the size scatter comes from the deflection left when the spark-out ends
-                    # (it differs part to part): the roughness proxy, the last revolution's
-                    # removal, is that deflection at work — tightened with it
-                    scale["roughness"] = scale.get("roughness", 1.0) * step
+
+        def step(ratio):
+            return max(0.5, float(ratio) ** -0.5) * 0.98
+
+        for k in ("roundness", "roughness", "burn", "force"):
+            if bad[k].any():
+                scale[k] = scale.get(k, 1.0) * step(v[k][bad[k]].max())
+        over = bad["size"] & (q.size_error > 0) | bad["reach"]
+        under = bad["size"] & (q.size_error < 0)
+        if over.any():
+            # oversize: a part that stores less deflection than the nominal (a sharper wheel,
+            # a stiffer set-up) cannot grind the allowance left at the switch to spark-out
+            # away: the spark-out starts nearer size (an absolute cap on that switch point)
+            scale["switch"] = min(scale.get("switch", np.inf), d.stages[-1].switch_allowance * 0.85)
+        if under.any():
+            scale["size"] = scale.get("size", 1.0) * step(v["size"][under].max())
+    if best is not None and best[2] is not out.design and out.iterations and out.iterations[-1].defects > best[0]:
+        out.design = best[2]  # not robust: the iteration with the fewest defects stands
     out.factors = factors
     out.defect_mask = first_mask
-    if validate and out.feasible and out.design.stages:
+    if validate and out.design.stages:
         vb, _ = sample(twin, validate, seed + 1000, variation)
-        _, q, _ = run_cycle(twin, vb, out.design.stages, out.design.sparkout)
+        _, q, _ = run_cycle(twin, vb, out.design.stages)
         v = q.violations(twin)
         bad = {k: v[k] > 1.0 for k in LIMIT_NAMES}
         mask = np.any(np.stack(list(bad.values())), axis=0)

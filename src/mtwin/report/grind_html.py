@@ -53,6 +53,9 @@ def grind_html(twin, result, cols: dict) -> bytes:
                  "variation); each broken limit is tightened for the next design.</p><table><tr><th>iteration</th>"
                  "<th>cycle s</th><th>defective parts</th><th>broken limits</th><th>tightened limits</th></tr>"
                  f"{rows}</table>")
+    if not result.feasible:
+        parts.append("<p style='color:#b03a2e'><b>Not robust:</b> the robustness loop did not remove every defect; "
+                     "the cycle shown is the iteration with the fewest defective parts.</p>")
     if result.validation is not None:
         v = result.validation
         parts.append(f"<p>Validation on a fresh sample of {v.cases} parts: <b>{v.defects}</b> defective.</p>")
