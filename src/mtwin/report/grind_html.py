@@ -47,7 +47,7 @@ def grind_html(twin, result, cols: dict) -> bytes:
     plt.close(fig)
     rows = "".join(f"<tr><td>{k}</td><td>{it.cycle_time:.2f}</td><td>{it.defects} / {it.cases}</td>"
                    f"<td>{e(', '.join(f'{n}: {c}' for n, c in it.broken.items()) or '—')}</td>"
-                   f"<td>{e(', '.join(f'{n} ×{v:.3g}' for n, v in it.scale.items()) or '—')}</td></tr>"
+                   f"<td>{e(', '.join(_limit_text(n, v) for n, v in it.scale.items()) or '—')}</td></tr>"
                    for k, it in enumerate(result.iterations, 1))
     parts.append("<h2>Robustness iterations</h2><p>The cycle run on a batch sample (Latin hypercube over the "
                  "variation); each broken limit is tightened for the next design.</p><table><tr><th>iteration</th>"
@@ -66,6 +66,11 @@ def grind_html(twin, result, cols: dict) -> bytes:
              "text-align:right}td:first-child,th:first-child{text-align:left}svg{max-width:100%;height:auto}")
     return ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>mtwin grind</title>"
             f"<style>{style}</style></head><body>{''.join(parts)}</body></html>").encode("utf-8")
+
+
+def _limit_text(name: str, value: float) -> str:
+    # "switch" is an absolute cap on the spark-out switch point; the others scale their limit
+    return f"spark-out switch ≤ {value:.4f} mm" if name == "switch" else f"{name} ×{value:.3g}"
 
 
 def _defect_map(plt, factors: dict, mask: np.ndarray) -> str:
