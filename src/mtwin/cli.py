@@ -735,6 +735,42 @@ def _print_optimize(res, prog, json_out: bool) -> None:
               f"evaluations in {res.seconds:.1f} s", soft_wrap=True)
 
 
+import_app = typer.Typer(help="Read machine logs into the measurement format.", no_args_is_help=True,
+                         rich_markup_mode=None)
+app.add_typer(import_app, name="import")
+
+
+@import_app.command("mtconnect", short_help="An MTConnect log (SHDR or agent XML) as a measurement.")
+@_reports_errors
+def import_mtconnect(
+    log: str = typer.Argument(..., help="SHDR log (timestamp|item|value) or MTConnectStreams XML."),
+    output: str = typer.Option(..., "-o", "--output", help="Measurement file (.csv; '-' for stdout)."),
+    run: Optional[int] = typer.Option(None, "--run", help="Which program run of the log (1, 2, …; default: the "
+                                                           "first complete one)."),
+    block_is: str = typer.Option("line", "--block-is", help="What Block_Number counts: line (the file's line, "
+                                                             "default) | n (the N word; needs --program)."),
+    program: Optional[str] = typer.Option(None, "--program", help="The program the log ran (for --block-is n)."),
+):
+    """Data items logged on change become a time series sampled at every change: t, line,
+    feed (mm/min; MTConnect reports mm/s), spindle_speed, and tool and overrides where logged.
+    Runs, feed holds and assumptions are listed on stderr and in the file's metadata."""
+    from pathlib import Path
+
+    from .loop.mtconnect import read_mtconnect
+    from .motion.trace import write_columns
+
+    data = Path(program).read_bytes() if program else None
+    m = read_mtconnect(log, run, block_is, data)
+    cols = {"t": m.t, "line": m.line, **m.signals, **getattr(m, "extra", {})}
+    write_columns(output, cols, m.meta)
+    for k, r in enumerate(m.runs, 1):
+        err.print(f"run {k}: {r.program or '(unnamed)'}, {'complete' if r.complete else 'incomplete'}"
+                  + (f", {len(r.holds)} feed hold(s)" if r.holds else ""), highlight=False)
+    err.print(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s, lines "
+              f"{int(m.line[m.line > 0].min()) if (m.line > 0).any() else '-'}–{int(m.line.max())}"
+              + (f"; overrides {m.meta['overrides']}" if "overrides" in m.meta else ""), highlight=False)
+
+
 @app.command(short_help="A synthetic measurement: the twin, extra effects, noise.")
 @_reports_errors
 def synth(

@@ -91,6 +91,11 @@ def read_measurement(path: str, maps=()) -> Measurement:
     """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there)."""
     mapping = parse_maps(maps)
     name = str(path)
+    if not name.endswith(".parquet") and name != "-":
+        from .mtconnect import is_mtconnect, read_mtconnect
+
+        if is_mtconnect(name):  # an MTConnect log (SHDR or agent XML): read directly
+            return read_mtconnect(name)
     if name.endswith(".parquet"):
         header, rows, meta, first_row = _read_parquet(name)
     else:

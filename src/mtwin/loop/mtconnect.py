@@ -1,0 +1,301 @@
+"""MTConnect logs into the measurement format: SHDR (``timestamp|item|value``, several
+item/value pairs on a line, values logged on change) and agent XML streams
+(``MTConnectStreams``).
+
+What a control reports is a set of data items, each logged when it changes.  The reader turns
+them into a time series sampled at every change: ``t`` (s since the program started),
+``line`` (the program line being executed), ``feed`` (the actual path feed, converted from
+the mm/s MTConnect reports to mm/min), ``spindle_speed`` (rpm), and extra columns ``tool``,
+``feed_override`` and ``spindle_override`` (%) where the log has them.
+
+Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
+
+* ``Block_Number`` is the 1-based line of the program file, not its N word (``--block-is
+  line``, the default); ``--block-is n`` maps N words to lines, in program order, so N
+  numbers that wrap (every 990 lines in those posts) still find their line;
+* lines the control never reports (sampled every 0.15–0.2 s) belong to the block before: the
+  ``line`` column holds the last reported line until the next;
+* a broken record — a value alone on the next line after ``|Block_Number|`` — is joined back;
+* ``Program_Runtime_Seconds`` first repeats the previous program's total: it is not used;
+* program names may switch before the start: a run is named by ``Program_Name_Running`` at
+  its ``Program_Status`` ACTIVE;
+* several programs (or repeats) in one log are separate runs, from ACTIVE to the next
+  PROGRAM_COMPLETED, READY, STOPPED or INTERRUPTED; ``run`` picks one (the first complete one
+  by default); an incomplete run is reported as such;
+* feed holds (``Execution`` FEED_HOLD until ACTIVE again) are listed as intervals in the
+  metadata (``feed_holds_s``); with no override item in the log, 100 % is assumed and the
+  metadata says so.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from datetime import datetime
+
+import numpy as np
+
+from ..errors import SourceLocation
+from .measurement import Measurement, MeasurementError
+
+_TS = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?Z?")
+_END = {"PROGRAM_COMPLETED", "READY", "STOPPED", "INTERRUPTED", "PROGRAM_STOPPED"}
+# data item names (SHDR item names or XML element names / names) -> what they are
+_ITEMS = {
+    "block_number": "block", "block": "block", "line": "block", "linenumber": "block",
+    "feed_rate": "feed", "pathfeedrate": "feed", "path_feedrate": "feed", "actual_feed": "feed",
+    "spindle_speed": "spindle", "rotaryvelocity": "spindle", "spindlespeed": "spindle",
+    "current_tool": "tool", "toolnumber": "tool", "tool_number": "tool",
+    "program_status": "status", "execution": "status",
+    "program_name_running": "program", "program": "program", "program_name_editing": "program_editing",
+    "feed_override": "feed_ovr", "pathfeedrateoverride": "feed_ovr", "feedrate_override": "feed_ovr",
+    "spindle_override": "spindle_ovr", "rotaryvelocityoverride": "spindle_ovr",
+}
+
+
+def is_mtconnect(path: str) -> bool:
+    """A file that looks like an SHDR log or an MTConnectStreams document."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096).decode("utf-8", "replace")
+    except OSError:
+        return False
+    first = head.lstrip("\ufeff").lstrip().splitlines()[0] if head.strip() else ""
+    return bool(_TS.match(first) and "|" in first) or "<MTConnectStreams" in head
+
+
+@dataclass
+class Event:
+    t: float  # s since the epoch
+    item: str  # normalised kind (see _ITEMS), or the raw name
+    value: str
+    line: int  # line of the log file
+
+
+@dataclass
+class Run:
+    program: str
+    start: int  # index into the events
+    end: int  # one past the last event
+    complete: bool
+    holds: list = field(default_factory=list)  # (t0, t1) s since the run's start
+
+
+def _seconds(ts: str, path: str, ln: int) -> float:
+    s = ts.rstrip("Z")
+    if "." in s:
+        head, frac = s.split(".", 1)
+        s = f"{head}.{frac[:6]}"  # datetime takes microseconds (7-digit .NET ticks are common)
+    try:
+        return datetime.fromisoformat(s).timestamp()
+    except ValueError:
+        raise MeasurementError(f"cannot read the timestamp {ts!r}", SourceLocation(path, ln, 1)) from None
+
+
+def read_shdr(path: str) -> list:
+    """Events of an SHDR log, in file order."""
+    try:
+        text = open(path, "rb").read().decode("utf-8", "replace")
+    except OSError as exc:
+        raise MeasurementError(f"cannot read {path}: {exc.strerror or exc}", SourceLocation(path, 0, 0)) from None
+    out: list = []
+    lines = text.splitlines()
+    for i, raw in enumerate(lines, 1):
+        ln = raw.strip().lstrip("\ufeff")
+        if not ln:
+            continue
+        if "|" not in ln:
+            # a broken record: a value alone on the line after an item logged without one
+            if out and out[-1].value == "" and out[-1].line == i - 1:
+                out[-1].value = ln
+                continue
+            raise MeasurementError(f"not an SHDR record (timestamp|item|value): {ln[:40]!r}", SourceLocation(path, i, 1))
+        parts = ln.split("|")
+        if not _TS.match(parts[0]):
+            raise MeasurementError(f"not an SHDR timestamp: {parts[0][:40]!r}", SourceLocation(path, i, 1))
+        t = _seconds(parts[0], path, i)
+        pairs = parts[1:]
+        if len(pairs) % 2:
+            pairs.append("")
+        for k in range(0, len(pairs), 2):
+            name = pairs[k].strip()
+            out.append(Event(t, _ITEMS.get(name.lower(), name), pairs[k + 1].strip(), i))
+    if not out:
+        raise MeasurementError("the log holds no records", SourceLocation(path, 1, 1))
+    return out
+
+
+def read_streams(path: str) -> list:
+    """Events of an MTConnectStreams XML document (any namespace), by timestamp."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise MeasurementError(f"cannot read the MTConnect XML: {exc}", SourceLocation(path, 0, 0)) from None
+    out = []
+    for el in root.iter():
+        ts = el.attrib.get("timestamp")
+        if ts is None:
+            continue
+        tag = el.tag.split("}", 1)[-1]
+        name = el.attrib.get("name") or el.attrib.get("dataItemId") or tag
+        kind = _ITEMS.get(name.lower()) or _ITEMS.get(tag.lower()) or name
+        if tag == "RotaryVelocity" and "override" in name.lower():
+            kind = "spindle_ovr"
+        out.append(Event(_seconds(ts, path, 0), kind, (el.text or "").strip(), 0))
+    if not out:
+        raise MeasurementError("no timestamped data items in the MTConnect XML", SourceLocation(path, 0, 0))
+    out.sort(key=lambda e: e.t)
+    return out
+
+
+def runs(events: list) -> list:
+    """The program runs in a log: ACTIVE to the next end state."""
+    out = []
+    name = ""
+    start = None
+    hold_t0 = None
+    holds: list = []
+    for k, e in enumerate(events):
+        if e.item == "program" and e.value:
+            name = e.value
+        if e.item != "status":
+            continue
+        v = e.value.upper()
+        if v == "ACTIVE":
+            if hold_t0 is not None and start is not None:
+                holds.append((hold_t0 - events[start].t, e.t - events[start].t))
+                hold_t0 = None
+                continue
+            if start is not None:  # ACTIVE again without an end: the earlier run was cut
+                out.append(Run(name, start, k, False, holds))
+            start, holds = k, []
+        elif start is not None and v == "FEED_HOLD":
+            hold_t0 = e.t
+        elif start is not None and v in _END:
+            out.append(Run(name, start, k + 1, v == "PROGRAM_COMPLETED" or v == "READY", holds))
+            start, holds = None, []
+    if start is not None:
+        out.append(Run(name, start, len(events), False, holds))
+    # the name running at the start of each run (names may switch before it); else the name
+    # last loaded for editing before it
+    for r in out:
+        for e in events[r.start:min(r.start + 20, r.end)]:
+            if e.item == "program" and e.value:
+                r.program = e.value
+                break
+        if not r.program:
+            edit = [e.value for e in events[:r.start] if e.item == "program_editing" and e.value]
+            r.program = edit[-1] if edit else ""
+    return out
+
+
+def n_to_lines(program_data: bytes) -> dict:
+    """N number -> the lines that carry it, in file order."""
+    table: dict = {}
+    for i, raw in enumerate(program_data.split(b"\n"), 1):
+        m = re.match(rb"\s*/?\s*[Nn](\d+)", raw)
+        if m:
+            table.setdefault(int(m.group(1)), []).append(i)
+    return table
+
+
+def to_measurement(path: str, events: list, run: int | None = None, block_is: str = "line",
+                   program_data: bytes | None = None) -> Measurement:
+    """The chosen run of a log as a measurement (a sample at every logged change)."""
+    all_runs = runs(events)
+    if not all_runs:
+        raise MeasurementError("no program run in the log (no Program_Status / Execution ACTIVE)",
+                               SourceLocation(path, events[0].line, 1))
+    if run is None:
+        complete = [r for r in all_runs if r.complete]
+        chosen = complete[0] if complete else all_runs[0]
+    else:
+        if not 1 <= run <= len(all_runs):
+            raise MeasurementError(f"--run {run}: the log has {len(all_runs)} run(s)", SourceLocation(path, 0, 0))
+        chosen = all_runs[run - 1]
+    ev = events[chosen.start:chosen.end]
+    t0 = ev[0].t
+    n_map = n_to_lines(program_data) if block_is == "n" and program_data is not None else None
+    if block_is == "n" and n_map is None:
+        raise MeasurementError("--block-is n needs the program (to map N words to lines)", SourceLocation(path, 0, 0))
+    state = {"line": -1.0, "feed": np.nan, "spindle_speed": np.nan, "tool": np.nan, "feed_override": np.nan,
+             "spindle_override": np.nan}
+    rows_t: list = []
+    rows: list = []
+    # the state before the run: the last value of each item logged before ACTIVE
+    for e in events[:chosen.start]:
+        _apply(state, e, path, None, [0])
+    pos = [0]  # the line an N word was last mapped to
+    for e in ev:
+        if not _apply(state, e, path, n_map, pos):
+            continue
+        if rows_t and rows_t[-1] == e.t - t0:
+            rows[-1] = dict(state)
+        else:
+            rows_t.append(e.t - t0)
+            rows.append(dict(state))
+    if not rows:
+        raise MeasurementError("the run holds no samples", SourceLocation(path, ev[0].line, 1))
+    t = np.array(rows_t)
+    signals = {"feed": np.array([r["feed"] for r in rows]), "spindle_speed": np.array([r["spindle_speed"] for r in rows])}
+    extra = {k: np.array([r[k] for r in rows]) for k in ("tool", "feed_override", "spindle_override")
+             if not np.all(np.isnan([r[k] for r in rows]))}
+    line = np.array([int(r["line"]) for r in rows], np.int64)
+    end_t = ev[-1].t - t0
+    meta = {"source": f"MTConnect log {path}", "program": chosen.program, "run": str(all_runs.index(chosen) + 1),
+            "runs": str(len(all_runs)), "complete": "yes" if chosen.complete else "no",
+            "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
+    if "feed_override" not in extra:
+        meta["overrides"] = "not logged: 100 % assumed"
+    if chosen.holds:
+        meta["feed_holds_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.holds)
+    m = Measurement(path, t, signals, line, meta, [])
+    m.extra = extra  # type: ignore[attr-defined]
+    m.runs = all_runs  # type: ignore[attr-defined]
+    m.end_time = end_t  # type: ignore[attr-defined]
+    return m
+
+
+def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
+    """Update the state with one event; True when it changed a column."""
+    v = e.value
+    if e.item == "block":
+        if v in ("", "UNAVAILABLE"):
+            return False
+        try:
+            b = int(float(v))
+        except ValueError:
+            raise MeasurementError(f"Block_Number {v!r} is not a number", SourceLocation(path, e.line, 1)) from None
+        if n_map is not None:
+            lines = n_map.get(b)
+            if not lines:
+                return False  # an N the program does not have (a subprogram's): not a line
+            nxt = [x for x in lines if x >= pos[0]]
+            b = nxt[0] if nxt else lines[0]
+            pos[0] = b
+        state["line"] = float(b)
+        return True
+    key = {"feed": "feed", "spindle": "spindle_speed", "tool": "tool", "feed_ovr": "feed_override",
+           "spindle_ovr": "spindle_override"}.get(e.item)
+    if key is None:
+        return False
+    if v in ("", "UNAVAILABLE"):
+        state[key] = np.nan
+        return True
+    try:
+        x = float(v)
+    except ValueError:
+        raise MeasurementError(f"{e.item} value {v!r} is not a number", SourceLocation(path, e.line, 1)) from None
+    state[key] = x * 60.0 if key == "feed" else x  # MTConnect path feed: mm/s
+    return True
+
+
+def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", program_data: bytes | None = None):
+    """Read an SHDR log or an MTConnectStreams XML into a measurement."""
+    if block_is not in ("line", "n"):
+        raise MeasurementError(f"--block-is must be line or n, got {block_is!r}", SourceLocation(path, 0, 0))
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    events = read_streams(path) if b"<MTConnectStreams" in head else read_shdr(path)
+    return to_measurement(path, events, run, block_is, program_data)

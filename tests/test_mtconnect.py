@@ -1,0 +1,130 @@
+"""MTConnect logs (SHDR and agent XML) into the measurement format: the quirks of real logs,
+runs, holds, N-word mapping, and the NIST Hurco VMX24 logs where the workspace has them."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import REALDATA
+
+from mtwin.loop.measurement import MeasurementError, read_measurement
+from mtwin.loop.mtconnect import is_mtconnect, read_mtconnect
+
+SHDR = """\
+2017-02-02T18:26:37.5000000Z|Program_Name_Editing|OLD.NC
+2017-02-02T18:26:44.2656250Z|Block_Number|0
+2017-02-02T18:26:48.1093750Z|Block_Number|3
+2017-02-02T18:26:48.1250000Z|Program_Status|ACTIVE
+2017-02-02T18:26:48.1406250Z|Program_Name_Running|PART.NC
+2017-02-02T18:26:48.2187500Z|Program_Runtime_Seconds|1441
+2017-02-02T18:26:48.3906250Z|Feed_Rate|10|Spindle_Speed|5000
+2017-02-02T18:26:49.0000000Z|Block_Number|
+4
+2017-02-02T18:26:49.5000000Z|Feed_Rate|20.5
+2017-02-02T18:26:50.0000000Z|Execution|FEED_HOLD
+2017-02-02T18:26:52.0000000Z|Execution|ACTIVE
+2017-02-02T18:26:53.0000000Z|Block_Number|6
+2017-02-02T18:26:54.0000000Z|Program_Status|PROGRAM_COMPLETED
+2017-02-02T18:27:00.0000000Z|Program_Status|ACTIVE
+2017-02-02T18:27:01.0000000Z|Block_Number|3
+2017-02-02T18:27:02.0000000Z|Feed_Rate|5
+"""
+
+
+def test_shdr_log_with_its_quirks(tmp_path):
+    p = tmp_path / "log.txt"
+    p.write_text(SHDR)
+    assert is_mtconnect(str(p))
+    m = read_mtconnect(str(p))
+    assert m.meta["program"] == "PART.NC" and m.meta["runs"] == "2" and m.meta["complete"] == "yes"
+    assert m.meta["overrides"].startswith("not logged")
+    assert m.meta["feed_holds_s"] == "1.875-3.875"  # FEED_HOLD .. ACTIVE, from the run's start
+    # Block_Number logged before ACTIVE is the run's first line; the broken record (a value
+    # alone on the next line) is joined back; Program_Runtime_Seconds is not a column
+    assert list(m.line) == [3, 4, 4, 6]
+    np.testing.assert_allclose(m.signals["feed"][[0, 2]], [600.0, 1230.0])  # mm/s -> mm/min
+    assert m.signals["spindle_speed"][0] == 5000
+    np.testing.assert_allclose(m.t, [0.265625, 0.875, 1.375, 4.875])
+    assert m.end_time == pytest.approx(5.875)
+    second = read_mtconnect(str(p), run=2)
+    assert second.meta["complete"] == "no" and list(second.line) == [3, 3]
+    with pytest.raises(MeasurementError, match="3 run|2 run"):
+        read_mtconnect(str(p), run=3)
+    # the measurement reader takes the log as it is
+    assert list(read_measurement(str(p)).line) == [3, 4, 4, 6]
+
+
+def test_n_words_map_to_lines_in_program_order(tmp_path):
+    prog = b"%\nN10 G21\nN20 G0 X0\nN10 G1 X5 F100\nN20 G1 X10\nM30\n"  # N numbers repeat (a wrap)
+    log = ("2020-01-01T00:00:00Z|Program_Status|ACTIVE\n2020-01-01T00:00:01Z|Block_Number|20\n"
+           "2020-01-01T00:00:02Z|Block_Number|10\n2020-01-01T00:00:03Z|Block_Number|20\n"
+           "2020-01-01T00:00:04Z|Program_Status|READY\n")
+    p = tmp_path / "n.txt"
+    p.write_text(log)
+    m = read_mtconnect(str(p), block_is="n", program_data=prog)
+    assert list(m.line) == [3, 4, 5]
+    with pytest.raises(MeasurementError, match="needs the program"):
+        read_mtconnect(str(p), block_is="n")
+
+
+def test_agent_xml_stream(tmp_path):
+    xml = """<?xml version="1.0"?>
+<MTConnectStreams xmlns="urn:mtconnect.org:MTConnectStreams:1.3"><Streams><DeviceStream name="VMC">
+<ComponentStream component="Path"><Samples>
+<PathFeedrate dataItemId="pf" name="Frt" timestamp="2020-01-01T00:00:01.5Z">12.5</PathFeedrate>
+</Samples><Events>
+<Execution dataItemId="ex" timestamp="2020-01-01T00:00:01Z">ACTIVE</Execution>
+<Line dataItemId="ln" timestamp="2020-01-01T00:00:02Z">7</Line>
+<Execution dataItemId="ex" timestamp="2020-01-01T00:00:05Z">READY</Execution>
+</Events></ComponentStream></DeviceStream></Streams></MTConnectStreams>"""
+    p = tmp_path / "s.xml"
+    p.write_text(xml)
+    assert is_mtconnect(str(p))
+    m = read_mtconnect(str(p))
+    assert list(m.line) == [-1, 7]
+    np.testing.assert_allclose(m.signals["feed"], [750.0, 750.0])
+    assert m.end_time == pytest.approx(4.0)
+
+
+def test_bad_logs_name_their_line(tmp_path):
+    p = tmp_path / "bad.txt"
+    p.write_text("2020-01-01T00:00:00Z|Program_Status|ACTIVE\nhello\n")
+    with pytest.raises(MeasurementError, match=r"bad.txt:2:"):
+        read_mtconnect(str(p))
+    p.write_text("2020-01-01T00:00:00Z|Block_Number|1\n")
+    with pytest.raises(MeasurementError, match="no program run"):
+        read_mtconnect(str(p))
+
+
+HURCO = REALDATA / "nist_smstestbed_mtc_hurco"
+
+
+@pytest.mark.skipif(not HURCO.is_dir(), reason=f"{HURCO} not present (the development workspace's real logs)")
+@pytest.mark.parametrize("plate,runtime", [(12, 1461), (13, 928), (14, 1102)])
+def test_nist_hurco_logs(plate, runtime):
+    m = read_mtconnect(str(HURCO / "Split" / f"Plate-Op1-Hurco04-{plate}of20.txt"))
+    assert m.meta["complete"] == "yes"
+    assert m.meta["program"] == f"NIST_MTC_CRADA_PLATE-{plate}.NC"
+    # the run's length agrees with the control's own Program_Runtime_Seconds at the end
+    assert abs(m.end_time - runtime) < 1.5
+    # rapids at 176 mm/s per axis run faster along a diagonal; nothing faster than both at once
+    assert np.nanmax(m.signals["feed"]) <= 176 * 60 * 2 ** 0.5 * 1.01
+    assert m.line.max() == 4160 and (np.diff(m.line[m.line > 0]) >= 0).mean() > 0.99
+
+
+@pytest.mark.skipif(not HURCO.is_dir(), reason=f"{HURCO} not present (the development workspace's real logs)")
+def test_compare_reads_the_log_directly(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "mtwin", "compare", str(HURCO / "NC-Code" / "NIST_MTC_CRADA_PLATE-13.NC"),
+                        str(HURCO / "Split" / "Plate-Op1-Hurco04-13of20.txt"), "--json"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    import json
+
+    doc = json.loads(r.stdout)
+    assert doc["cycle_time"]["measured"] == pytest.approx(926.4, abs=2)
+    imp = subprocess.run([sys.executable, "-m", "mtwin", "import", "mtconnect",
+                          str(HURCO / "Split" / "Plate-Op1-Hurco04-13of20.txt"), "-o", str(tmp_path / "m.csv")],
+                         capture_output=True, text=True)
+    assert imp.returncode == 0, imp.stderr
+    assert (tmp_path / "m.csv").read_text().startswith("# format: mtwin-measurement 1")
