@@ -810,11 +810,32 @@ def synth(
               f"effects: {meta['effects']}", soft_wrap=True)
 
 
+def _print_blocks(b: dict) -> None:
+    from rich.table import Table
+
+    t = Table(title=f"per-block timing: {b['groups']:,} logged block groups, RMS {b['rms']:.3f} s "
+                    f"(noise floor ≈ {b['noise_floor_per_group']:.2f} s per group)", title_justify="left")
+    for col in ("kind", "groups", "measured s", "simulated s", "simulated − measured s", "RMS s"):
+        t.add_column(col, justify="left" if col == "kind" else "right")
+    for k in b["by_kind"]:
+        t.add_row(k["kind"], f"{k['groups']:,}", f"{k['measured']:.1f}", f"{k['simulated']:.1f}", f"{k['error']:+.1f}",
+                  f"{k['rms']:.3f}")
+    err.print(t)
+    w = Table(title="worst blocks", title_justify="left")
+    for col in ("lines", "kind", "measured s", "simulated s", "error s", "G-code"):
+        w.add_column(col, justify="right" if col.endswith(" s") else "left")
+    for x in b["worst"]:
+        lines = f"{x['first_line']}" + (f"–{x['last_line']}" if x["last_line"] != x["first_line"] else "")
+        w.add_row(lines, x["kind"], f"{x['measured']:.2f}", f"{x['simulated']:.2f}", f"{x['error']:+.2f}", x["text"][:40])
+    err.print(w)
+
+
 @app.command(short_help="Compare the twin with a measurement: errors, and where.")
 @_reports_errors
 def compare(
     part: str = typer.Argument(..., help="G-code program the measurement was recorded on."),
-    measurement: str = typer.Argument(..., help="Measurement file (measurement format: CSV or .parquet)."),
+    measurement: str = typer.Argument(..., help="Measurement file (measurement format: CSV or .parquet), or an "
+                                                 "MTConnect log (SHDR or agent XML)."),
     align: str = typer.Option("auto", "--align", help="auto | line | position | xcorr."),
     xcorr_signal: Optional[str] = typer.Option(None, "--xcorr-signal", help="Signal for --align xcorr."),
     maps: Optional[list[str]] = typer.Option(None, "--map", metavar="SRC=DST[*SCALE]",
@@ -845,6 +866,16 @@ def compare(
     res = run_compare(trace, meas, align, xcorr_signal)
     for n in res.notes:
         err.print(f"note: {n}", soft_wrap=True)
+    blocks = None
+    if meas.t is not None and meas.line is not None and (meas.line > 0).any():
+        # per-block timing: the measured line changes against the interpolator's
+        import numpy as np
+
+        from .loop.blocks import block_timing
+
+        blocks = block_timing(prog, meas.t, meas.line, trace.t, np.asarray(trace.line),
+                              getattr(meas, "end_time", None))
+        res_blocks = blocks.as_dict(prog.data.decode("latin-1").split("\n"))
     if report:
         from .loop.journal import read_journal
         from .report.compare_html import compare_html
@@ -853,10 +884,15 @@ def compare(
                      [part, measurement])
         err.print(f"wrote {report}", soft_wrap=True)
     if json_out:
-        sys.stdout.write(json.dumps(res.as_dict(), indent=2) + "\n")
+        doc = res.as_dict()
+        if blocks is not None:
+            doc["blocks"] = res_blocks
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         return
     from rich.table import Table
 
+    if blocks is not None and len(blocks.measured):
+        _print_blocks(res_blocks)
     c = res.cycle_time
     if c["measured"] is None:  # a summary measurement has no clock
         err.print(f"{prog.path} against {measurement}: {len(meas.rows)} summary rows by line range; "
