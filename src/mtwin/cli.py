@@ -1118,7 +1118,8 @@ def effects_list(ctx: typer.Context, effect_file: Optional[list[str]] = EffectFi
         t.add_column(col, no_wrap=col != "what it is")
     for r in rows:
         t.add_row(r["name"] + ("" if r["origin"] == "built-in" else " (user)"),
-                  "in the loop" if r["stage"] == "loop" else "on observation", r["description"])
+                  {"loop": "in the loop", "plan": "before planning"}.get(r["stage"], "on observation"),
+                  r["description"])
     err.print(t)
 
 
@@ -1132,7 +1133,9 @@ def effects_show(name: str = typer.Argument(..., help="An effect's name."),
 
     c = get(name)
     lines = [f"{c.name}: {c.description}",
-             f"acts {'in the loop (the drives and the process feel it)' if c.stage == 'loop' else 'on observation (a transform of the simulated trace)'}",
+             "acts " + {"loop": "in the loop (the drives and the process feel it)",
+                        "plan": "before planning (the controller's timing: the whole run follows it)"}.get(
+                 c.stage, "on observation (a transform of the simulated trace)"),
              f"changes: {', '.join(c.signals)}", "parameters:"]
     for p in c.params:
         unit = f" {p.unit}" if p.unit else ""

@@ -16,6 +16,7 @@ from .base import Effect, StepInfo
 from .drives import CoulombFriction, Gravity, Inertia, StribeckFriction, ViscousFriction
 from .observation import Backlash, Runout, ServoDelay, SpindleNoLoad, ThermalDrift
 from .process import SizeEffect, ToolWear
+from .timing import ArcAcceleration, BlockTime, CornerSlowdown, SpindleRunup, ToolChangeTime
 
 __all__ = ["Effect", "StepInfo", "available", "get", "load_file", "register", "parse_effect_spec"]
 
@@ -24,6 +25,7 @@ ENTRY_POINT_GROUP = "mtwin.effects"
 BUILTIN: tuple[type[Effect], ...] = (
     SpindleNoLoad, ToolWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
     Backlash, ServoDelay, ThermalDrift, Inertia,
+    ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration,
 )
 
 # effects registered in this process (files, tests, register()): name -> class
@@ -36,8 +38,10 @@ def _validate(cls, origin: str) -> type[Effect]:
         raise ConfigError(f"{origin}: {cls!r} is not a subclass of mtwin.effects.Effect")
     if not cls.name or not cls.description:
         raise ConfigError(f"{origin}: effect class {cls.__name__} needs a name and a one-line description")
-    if cls.stage not in ("loop", "observation"):
-        raise ConfigError(f"{origin}: effect {cls.name}: stage must be 'loop' or 'observation'")
+    from .base import STAGES
+
+    if cls.stage not in STAGES:
+        raise ConfigError(f"{origin}: effect {cls.name}: stage must be one of {', '.join(STAGES)}")
     from ..motion.trace import SIGNALS
 
     bad = [s for s in cls.signals if s not in SIGNALS]

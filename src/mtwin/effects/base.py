@@ -9,7 +9,9 @@ The twin is a base model plus an ordered list of effects.  An effect is a small 
   per-axis servo/friction/plant table, a per-engagement-step scale of the cutting
   coefficients), so the drives and the process feel it; ``stage = "observation"``: as a
   vectorised transform of the finished :class:`~mtwin.motion.trace.Trace` (what a sensor
-  or an unmodelled load adds to what is measured).
+  or an unmodelled load adds to what is measured); ``stage = "plan"``: by changing the
+  controller's timing parameters before the program is planned (tool-change and spindle
+  waits, block times, corner and arc speeds), so every stage after it runs on that plan.
 
 Estimator rules (as scikit-learn's): ``__init__`` only stores the values it is given;
 :meth:`Effect.resolved` checks them against the declarations.  A user effect subclasses
@@ -24,7 +26,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..params import Param
 
-STAGES = ("loop", "observation")
+STAGES = ("loop", "observation", "plan")
 
 
 class Effect:
@@ -66,6 +68,11 @@ class Effect:
     def cutting_scale(self, steps: "StepInfo", p: dict[str, float]) -> np.ndarray | None:
         """A factor on the cutting coefficients per engagement step (None: no change)."""
         return None
+
+    # ---- before planning (stage "plan")
+    def machine(self, m, p: dict[str, float]):
+        """The machine the program is planned on (``twin.machine.with_params``-style copy)."""
+        return m
 
     # ---- on observation (stage "observation")
     def observe(self, trace, p: dict[str, float]) -> None:

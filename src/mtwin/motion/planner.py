@@ -130,6 +130,11 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
                          np.sqrt(np.clip(1.0 - (a_n / a_axis) ** 2, 0.0, 1.0)))
         vmax[arc] = np.minimum(v, v_cut)
         amax[arc] = a_axis * (K._ACC_RATIO_TAN if linuxcnc else ratio)
+    if arc.any() and getattr(c, "arc_acceleration", 0.0) > 0:
+        # a control's own normal-acceleration limit on arcs, below the axes' (small arcs)
+        r = np.minimum(seg["r0"], seg["r1"])[arc]
+        cut = seg["rapid"][arc] == 0
+        vmax[arc] = np.where(cut, np.minimum(vmax[arc], np.sqrt(c.arc_acceleration * np.maximum(r, 0.0))), vmax[arc])
     if c.min_block_time > 0:
         vmax = np.minimum(vmax, seg["length"] / c.min_block_time)
     seg["vmax"] = vmax
@@ -168,7 +173,9 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
                 k = int(np.searchsorted(m6, line, "right")) - 1
                 if k >= 0 and m6[k] >= prev:
                     line = int(m6[k])
-            out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change, line))
+            first = i == change_tool[0] and tools[i] != 0
+            extra = getattr(machine.timing, "first_tool_change_extra", 0.0) if first else 0.0
+            out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change + extra, line))
     if sp.wait_for_speed:
         prev = np.concatenate(([0.0], target[:-1]))
         for i in change_speed:

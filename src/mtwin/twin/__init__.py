@@ -108,7 +108,17 @@ class Twin:
         and so the cached engagement, stays the same."""
         from ..motion.planner import plan_program
 
-        return plan_program(_with_overrides(program, feeds, spindles), self.machine)
+        return plan_program(_with_overrides(program, feeds, spindles), self.planned_machine)
+
+    @property
+    def planned_machine(self):
+        """The machine programs are planned on: this twin's, with its plan-stage effects
+        (tool-change and spindle waits, block times, corner and arc speeds) applied."""
+        m = self.machine
+        for e in self.effects:
+            if e.stage == "plan":
+                m = e.machine(m, e.resolved())
+        return m
 
     def simulate(self, program, *, every: int = 1, disturbance: np.ndarray | None = None, progress=None,
                  cutting: bool = True, stock=None, tooth_resolution: bool = False, feeds=None, spindles=None):

@@ -46,6 +46,8 @@ class Controller:
     exact_stop_rapids: bool = P(True, "bool", "decelerate to a stop at the end of every rapid (in-position check)", "bool")
     in_position: float = P(0.02, "mm", "in-position width: at an exact stop the next block waits until every "
                            "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg")
+    arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), 0 = the axes' "
+                                "limits only [E: small arcs on a Hurco VMX24 run at 250-340 mm/s^2]", "nonneg")
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,8 @@ class Spindle:
 @dataclass(frozen=True)
 class Timing:
     tool_change: float = P(4.0, "s", "tool change, chip to chip [S: 1.5-4 s]", "nonneg")
+    first_tool_change_extra: float = P(0.0, "s", "extra time of a program's first tool change (the magazine "
+                                       "comes from its home position) [E: Hurco VMX24 about 2 s]", "nonneg")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,82 @@
+"""Timing effects: what a real control spends time on that the base planner does not know.
+
+They act before planning (``stage = "plan"``): each changes a controller or timing parameter
+of the machine the program is planned on, so the whole twin — plan, drives, trace — runs on
+it.  Each parameter's default leaves the twin as it is (0: the twin file's value), so an
+effect added without values changes nothing and a calibration starts from the twin."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ..params import Param
+from .base import Effect
+
+_TIME = ("feed", "spindle_speed")  # what a timing change shows in: when things happen
+
+
+class ToolChangeTime(Effect):
+    name = "toolchange-time"
+    description = "a tool change takes longer (or shorter) than the twin file says, the first of a program longer still"
+    stage = "plan"
+    params = (Param("extra", "s", 0.0, -30.0, 120.0, "time added to every tool change"),
+              Param("first_extra", "s", 0.0, 0.0, 120.0, "time added to a program's first tool change"))
+    signals = _TIME
+
+    def machine(self, m, p):
+        t = m.timing
+        return replace(m, timing=replace(t, tool_change=max(0.0, t.tool_change + p["extra"]),
+                                         first_tool_change_extra=t.first_tool_change_extra + p["first_extra"]))
+
+
+class SpindleRunup(Effect):
+    name = "spindle-runup"
+    description = "the control waits until the spindle is at speed after a start, a speed change and a stop"
+    stage = "plan"
+    params = (Param("acceleration", "rpm/s", 0.0, 0.0, 100000.0,
+                    "run-up and braking rate the waits follow, 0 = the twin file's"),)
+    signals = _TIME
+
+    def machine(self, m, p):
+        sp = replace(m.spindle, wait_for_speed=True)
+        if p["acceleration"] > 0:
+            sp = replace(sp, acceleration=p["acceleration"])
+        return replace(m, spindle=sp)
+
+
+class BlockTime(Effect):
+    name = "block-time"
+    description = "every block takes at least a minimum time (the control's block processing rate)"
+    stage = "plan"
+    params = (Param("min_time", "s", 0.0, 0.0, 1.0, "shortest time a block may take, 0 = the twin file's"),)
+    signals = ("feed",)
+
+    def machine(self, m, p):
+        c = m.controller
+        return replace(m, controller=replace(c, min_block_time=max(c.min_block_time, p["min_time"])))
+
+
+class CornerSlowdown(Effect):
+    name = "corner-slowdown"
+    description = "the control slows down more (or less) at corners: its allowable velocity change per axis"
+    stage = "plan"
+    params = (Param("corner_velocity", "mm/min", 0.0, 0.0, 100000.0,
+                    "allowable velocity change per axis at a corner, 0 = the twin file's"),)
+    signals = ("feed",)
+
+    def machine(self, m, p):
+        if p["corner_velocity"] <= 0:
+            return m
+        return replace(m, controller=replace(m.controller, corner_velocity=p["corner_velocity"]))
+
+
+class ArcAcceleration(Effect):
+    name = "arc-acceleration"
+    description = "the control limits the normal acceleration v²/r on arcs below the axes' (small arcs run slower)"
+    stage = "plan"
+    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0, "normal-acceleration limit on arcs, 0 = none"),)
+    signals = ("feed",)
+
+    def machine(self, m, p):
+        if p["acceleration"] <= 0:
+            return m
+        return replace(m, controller=replace(m.controller, arc_acceleration=p["acceleration"]))
