@@ -304,6 +304,18 @@ def _warn_clamped(prog, over, highest: float, limit: float) -> None:
                        f"mm/min: clamped to it on {lines.size} line(s) ({listed})"))
 
 
+def check_outputs(*paths) -> None:
+    """Where results go is checked before the work, not after it ('-' is stdout)."""
+    for p in paths:
+        if not p or p == "-":
+            continue
+        if Path(p).is_dir():
+            raise MtwinError(f"{p} is a directory: give a file name")
+        parent = Path(p).parent if str(Path(p).parent) else Path(".")
+        if not parent.is_dir():
+            raise MtwinError(f"output directory {parent} does not exist")
+
+
 def _warn(text: str) -> None:
     from rich.markup import escape
 
@@ -653,12 +665,7 @@ def optimize(
         raise MtwinError("-o - and --json both write to stdout: give the program a file name, or leave out --json")
     if report == "-" or (report is not None and report == output):
         raise MtwinError("--report needs a file name of its own")
-    # where the results go is checked before the work, not after it
-    for out_path in (output, report):
-        if out_path and out_path != "-":
-            parent = Path(out_path).parent if str(Path(out_path).parent) else Path(".")
-            if not parent.is_dir():
-                raise MtwinError(f"output directory {parent} does not exist")
+    check_outputs(output, report)
     if not (0 < tolerance < 1):
         raise MtwinError(f"--tolerance must be between 0 and 1, got {tolerance:g}")
     if not min_segment >= 0:

@@ -9,7 +9,7 @@ from typing import Optional
 
 import typer
 
-from .cli import _reports_errors, app, err, write_output
+from .cli import _reports_errors, app, check_outputs, err, write_output
 from .errors import MtwinError
 
 grind_app = typer.Typer(help="Plunge grinding: optimal stepped feed cycles.",
@@ -17,20 +17,6 @@ grind_app = typer.Typer(help="Plunge grinding: optimal stepped feed cycles.",
 app.add_typer(grind_app, name="grind")
 
 GrindTwinOpt = typer.Option(None, "--twin", help="Grind twin file (TOML); default: the reference's experiment.")
-
-
-def _check_outputs(*paths) -> None:
-    """Where results go is checked before the work, not after it."""
-    from pathlib import Path
-
-    for p in paths:
-        if not p or p == "-":
-            continue
-        if Path(p).is_dir():
-            raise MtwinError(f"{p} is a directory: give a file name")
-        parent = Path(p).parent if str(Path(p).parent) else Path(".")
-        if not parent.is_dir():
-            raise MtwinError(f"output directory {parent} does not exist")
 
 
 def _check_feeds(tw, stages, where: str) -> None:
@@ -67,8 +53,6 @@ def design(
 ):
     """The time-optimal stepped cycle by dynamic programming, then the robustness loop: the
     cycle run on a varied batch, defects turned into tighter limits, re-optimised until none."""
-    from pathlib import Path
-
     from .grind.io import cycle_gcode, cycle_toml, trace_columns
     from .grind.model import GrindTwin
     from .grind.robust import robust_design
@@ -78,7 +62,7 @@ def design(
         raise MtwinError("--cases must be at least 10, --validate and --seed at least 0, --iterations at least 1")
     if output == "-" and json_out:
         raise MtwinError("-o - and --json both write to stdout")
-    _check_outputs(output, cycle_out, report)
+    check_outputs(output, cycle_out, report)
     tw = GrindTwin.from_toml(twin)
 
     def show(it):
@@ -141,7 +125,7 @@ def simulate(
     from .grind.io import read_cycle, trace_columns
     from .grind.model import Batch, GrindTwin
 
-    _check_outputs(output)
+    check_outputs(output)
     stages = read_cycle(cycle)
     tw = GrindTwin.from_toml(twin if twin else cycle)
     _check_feeds(tw, stages, cycle)
@@ -198,7 +182,7 @@ def calibrate(
     unknown = [p for p in param if p not in BY_NAME]
     if unknown:
         raise MtwinError(f"--param {unknown[0]}: not a grinding parameter (known: {', '.join(BY_NAME)})")
-    _check_outputs(output)
+    check_outputs(output)
     stages = read_cycle(cycle)
     tw = GrindTwin.from_toml(twin if twin else cycle)
     _check_feeds(tw, stages, cycle)

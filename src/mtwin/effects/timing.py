@@ -14,6 +14,11 @@ from .base import Effect
 _TIME = ("feed", "spindle_speed")  # what a timing change shows in: when things happen
 
 
+def _controller_set(m, name: str, value: float):
+    """The machine with one controller parameter set; 0 (the effect's default) leaves it."""
+    return replace(m, controller=replace(m.controller, **{name: value})) if value > 0 else m
+
+
 class ToolChangeTime(Effect):
     name = "toolchange-time"
     description = "a tool change takes longer (or shorter) than the twin file says, the first of a program longer still"
@@ -64,9 +69,7 @@ class CornerSlowdown(Effect):
     signals = ("feed",)
 
     def machine(self, m, p):
-        if p["corner_velocity"] <= 0:
-            return m
-        return replace(m, controller=replace(m.controller, corner_velocity=p["corner_velocity"]))
+        return _controller_set(m, "corner_velocity", p["corner_velocity"])
 
 
 class ArcAcceleration(Effect):
@@ -77,6 +80,4 @@ class ArcAcceleration(Effect):
     signals = ("feed",)
 
     def machine(self, m, p):
-        if p["acceleration"] <= 0:
-            return m
-        return replace(m, controller=replace(m.controller, arc_acceleration=p["acceleration"]))
+        return _controller_set(m, "arc_acceleration", p["acceleration"])

@@ -9,7 +9,7 @@ batch of the vectorised removal model, so a 40 × 40 grid is 40 batch runs of 1,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -179,8 +179,8 @@ def _rep(batch: Batch, n: int) -> Batch:
 
 def _tile(batch: Batch, n: int) -> Batch:
     """The whole batch ``n`` times over (case i is part i % size)."""
-    return Batch(*(np.tile(getattr(batch, f), n) for f in ("a1", "a2", "gamma", "allowance", "runout", "gauge")))
+    return Batch(*(np.tile(getattr(batch, f.name), n) for f in fields(Batch)))
 
 
 def _take(batch: Batch, idx) -> Batch:
-    return Batch(*(getattr(batch, f)[idx] for f in ("a1", "a2", "gamma", "allowance", "runout", "gauge")))
+    return Batch(*(getattr(batch, f.name)[idx] for f in fields(Batch)))

@@ -104,28 +104,38 @@ class Problem:
         rows = np.broadcast_to(np.arange(tab.shape[0]), F.shape)
         return tab[rows, i] * (1.0 - a) + tab[rows, i + 1] * a
 
-    def evaluate(self, feeds: np.ndarray, spins: np.ndarray) -> dict:
-        """Figures of candidates: ``feeds`` (P, nvar) mm/min, ``spins`` (P, nspin) rpm."""
-        feeds = np.atleast_2d(feeds)
-        spins = np.atleast_2d(spins)
-        self.evaluations += feeds.shape[0]
+    def _mechanics(self, feeds: np.ndarray, spins: np.ndarray):
+        """Per candidate and segment: feed, speed, feed per tooth, peak load and torque (the
+        tables), peak spindle power, angular speed and the spindle's torque limit."""
         F = feeds[:, self.seg_var]
         n = spins[:, self.seg_spin]
         fz = F / (self.seg_flutes * np.maximum(n, 1e-9))
         load = self._interp(self.load_tab, fz)
         torque = self._interp(self.torque_tab, fz)
         omega = 2.0 * math.pi * n / 60.0
-        loss = self.loss[0] + self.loss[1] * n + self.loss[2] * n * n
-        power = torque * omega + loss
-        mean_power = (self.mta * fz + self.mtb) * omega
+        power = torque * omega + self.loss[0] + self.loss[1] * n + self.loss[2] * n * n
         t_lim = self.limits.power / (2.0 * math.pi * np.maximum(n, self.limits.base_speed) / 60.0)
+        return F, n, fz, load, torque, power, omega, t_lim
+
+    def _excess(self, load, power, torque, t_lim):
+        """Relative excess over the load, power and torque limits (each held the margin under
+        them); -1 on air segments."""
+        m = 1.0 - self.limits.margin
+        cut = ~self.seg_air
+        return tuple(np.where(cut, x / (lim * m) - 1.0, -1.0)
+                     for x, lim in ((load, self.seg_force), (power, self.limits.power), (torque, t_lim)))
+
+    def evaluate(self, feeds: np.ndarray, spins: np.ndarray) -> dict:
+        """Figures of candidates: ``feeds`` (P, nvar) mm/min, ``spins`` (P, nspin) rpm."""
+        feeds = np.atleast_2d(feeds)
+        spins = np.atleast_2d(spins)
+        self.evaluations += feeds.shape[0]
+        F, n, fz, load, torque, power, omega, t_lim = self._mechanics(feeds, spins)
+        mean_power = (self.mta * fz + self.mtb) * omega
         ts = self.seg_time(F)
         time = self.cycle_before + (ts - self.t_base).sum(axis=1) + self.runup_change(spins)
         cut = ~self.seg_air
-        m = 1.0 - self.limits.margin
-        v_load = np.where(cut, np.maximum(load / (self.seg_force * m) - 1.0, 0.0), 0.0)
-        v_power = np.where(cut, np.maximum(power / (self.limits.power * m) - 1.0, 0.0), 0.0)
-        v_torque = np.where(cut, np.maximum(torque / (t_lim * m) - 1.0, 0.0), 0.0)
+        v_load, v_power, v_torque = (np.maximum(x, 0.0) for x in self._excess(load, power, torque, t_lim))
         # cost (Gilbert): rate x time + per tool (cut time / life) x (price + rate x change time)
         r = self.rates
         v_cut = math.pi * self.seg_diam * n / 1000.0  # m/min
@@ -148,7 +158,7 @@ class Problem:
         new = np.where(same, 0.0, np.abs(to - frm) / self.runup_acc)
         return (new - self.runup_dur0).sum(axis=1)
 
-    def max_feasible_feed(self, spins: np.ndarray, limit_scale: float = 1.0) -> np.ndarray:
+    def max_feasible_feed(self, spins: np.ndarray) -> np.ndarray:
         """Per variable, the highest feed in the range that keeps every cutting segment of it
         within the limits at these spindle speeds (bisection on the tables, 40 halvings);
         NaN where even the lowest feed is over a limit."""
@@ -158,10 +168,10 @@ class Problem:
         spins = np.atleast_2d(spins)
 
         def ok(logf):
-            f = np.exp(logf)[None, :]
-            ev = self._constraint_only(f, spins, limit_scale)
+            _, _, _, load, torque, power, _, t_lim = self._mechanics(np.exp(logf)[None, :], spins)
+            over = np.maximum.reduce(self._excess(load, power, torque, t_lim))[0] > 0
             bad = np.zeros(self.nvar, bool)
-            np.logical_or.at(bad, self.seg_var, ev[0] > 0)
+            np.logical_or.at(bad, self.seg_var, over)
             return ~bad
 
         top = ok(hi)
@@ -173,22 +183,6 @@ class Problem:
             hi = np.where(good, hi, mid)
         out = np.where(top, math.exp(math.log(hi_f)), np.exp(lo))
         return np.where(bottom, out, np.nan)
-
-    def _constraint_only(self, feeds, spins, limit_scale=1.0):
-        F = feeds[:, self.seg_var]
-        n = spins[:, self.seg_spin]
-        fz = F / (self.seg_flutes * np.maximum(n, 1e-9))
-        load = self._interp(self.load_tab, fz)
-        torque = self._interp(self.torque_tab, fz)
-        omega = 2.0 * math.pi * n / 60.0
-        loss = self.loss[0] + self.loss[1] * n + self.loss[2] * n * n
-        power = torque * omega + loss
-        t_lim = self.limits.power / (2.0 * math.pi * np.maximum(n, self.limits.base_speed) / 60.0)
-        m = (1.0 - self.limits.margin) * limit_scale
-        cut = ~self.seg_air
-        v = np.maximum.reduce([load / (self.seg_force * m) - 1.0, power / (self.limits.power * m) - 1.0,
-                               torque / (t_lim * m) - 1.0])
-        return np.where(cut, v, -1.0)
 
 
 def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limits, rates: CostRates,

@@ -15,7 +15,7 @@ from ..motion.path import PAUSE
 from .model import feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
-from .segment import segment_path
+from .segment import locate, segment_path
 
 
 class VerifyError(MtwinError):
@@ -91,16 +91,15 @@ class OptimizeResult:
 
 
 def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) -> OptimizeResult:
-    from ..cutting.engagement import engagement_for
     from ..gcode.verify import compare
     from ..gcode.writer import rewrite
-    from ..motion.simulate import _cutting_scale, _program_cutting
+    from ..motion.simulate import _cutting_scale, _program_cutting, simulate_plan
 
     t_start = time.perf_counter()
     m = twin.machine
-    before = twin.simulate(program, stock=stock)
     plan = twin.plan(program)
-    eng = engagement_for(plan, program, _program_cutting(twin, program), stock, cache=twin.engagement_cache)
+    before = simulate_plan(twin, program, plan, stock=stock)
+    eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that scale the cutting coefficients along the path (tool wear) act on the estimate too
     resolved = [(e, e.resolved()) for e in twin.effects if e.stage == "loop"]
     kscale = _cutting_scale(eng, plan, resolved, program)
@@ -117,24 +116,12 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         lo = max(1.0, 0.1 * float(rec["feed"][ok].min()))
         feed_range = (lo, max_feed)
     else:
-        feed_range = opts.feed_range
-        if feed_range[0] >= max_feed:
-            raise MtwinError(f"--feed-range {feed_range[0]:g},{feed_range[1]:g}: the low end is at or above the "
-                             f"machine's maximum cutting feed, {max_feed:g} mm/min")
-        if feed_range[1] > max_feed:
-            warnings.append(f"{program.path}: warning: --feed-range high end {feed_range[1]:g} mm/min is above the "
-                            f"machine's maximum cutting feed: {max_feed:g} mm/min is used")
-            feed_range = (feed_range[0], max_feed)
+        feed_range = _within_machine(opts.feed_range, max_feed, "--feed-range", "mm/min",
+                                     "the machine's maximum cutting feed", program.path, warnings)
     spindle_range = opts.spindle_range if opts.objective != "air" else None
     if spindle_range is not None:
-        hi = min(spindle_range[1], m.spindle.max_speed)
-        if not (0 < spindle_range[0] < hi):
-            raise MtwinError(f"--spindle-range {spindle_range[0]:g},{spindle_range[1]:g}: need 0 < low < high <= "
-                             f"the spindle's {m.spindle.max_speed:g} rpm")
-        if spindle_range[1] > hi:
-            warnings.append(f"{program.path}: warning: --spindle-range high end {spindle_range[1]:g} rpm is above "
-                            f"the spindle's maximum: {hi:g} rpm is used")
-        spindle_range = (spindle_range[0], hi)
+        spindle_range = _within_machine(spindle_range, m.spindle.max_speed, "--spindle-range", "rpm",
+                                        "the spindle's maximum speed", program.path, warnings)
     if opts.spindle_per == "segment" and spindle_range is not None and not opts.allow_s_changes:
         raise MtwinError("--spindle-per segment changes S in mid-tool: add --allow-s-changes")
     n_step = np.minimum(rec["spindle"][model.rec], m.spindle.max_speed)
@@ -255,16 +242,16 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         if diff is not None:
             raise VerifyError(f"internal error: the optimised program does not cut the same path: {diff}")
         after = tw_after.simulate(new, stock=stock)
-        seg_after, rec_after = _segment_of_samples(after, new, program, segs, with_records=True)
-        over_v = _ratios(after, new, program, segs, prob, limits, seg_after)
+        seg_after, rec_after = _segment_of_samples(after, new, program, segs)
+        over_v = _ratios(after, segs, prob, limits, seg_after)
         if round_ == 1:
-            seg_before, rec_before = _segment_of_samples(before, program, program, segs, with_records=True)
+            seg_before, rec_before = _segment_of_samples(before, program, program, segs)
             force_min = float(prob.seg_force.min()) if len(prob.seg_force) else 1.0
             base_outside = _outside_ratios(before, seg_before, rec_before, len(rec), limits, force_min)
             if opts.objective == "air":
                 # the air objective leaves the cuts alone: a limit the program already breaks
                 # there is the program's own, and must only not get worse
-                allowed = np.maximum(allowed, _ratios(before, program, program, segs, prob, limits) * 1.001)
+                allowed = np.maximum(allowed, _ratios(before, segs, prob, limits, seg_before) * 1.001)
         # moves outside the segments (plunges, canned cycles, rapids) keep their feeds, but a
         # faster move before them changes how they are entered: each must stay within the
         # limits, or within what it had in the program; otherwise the segment before is slowed
@@ -291,10 +278,10 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         feeds = _approach_feeds(prob, segs, feeds * scale, program, keep) / scale
 
     est = prob.evaluate(f_try[None, :], s_try[None, :])
-    fig_before = _figures(before, program, segs, prob, rates, None)
+    fig_before = _figures(before, program, segs, prob, rates, seg_before)
     fig_after = _figures(after, new, segs, prob, rates, seg_after)
     lines = segs.seg_lines(program)
-    limited = _limited_by(prob, f_try, s_try, est, feed_range, times, segs, program, keep)
+    limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep)
     ev_before = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
     seg_info = []
     for s in range(segs.count):
@@ -312,12 +299,24 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                                       "peak_load": float(est["load"][0][~prob.seg_air].max(initial=0.0)),
                                       "peak_power": float(est["power"][0][~prob.seg_air].max(initial=0.0))},
                           changed, seg_info, True, round_, prob.evaluations, time.perf_counter() - t_start,
-                          force_limits, tradeoff, before, after, _segment_of_samples(before, program, program, segs),
+                          force_limits, tradeoff, before, after, seg_before,
                           seg_after, warnings, generations, history,
                           "" if opts.force_limit is not None else
                           f"default: cost.force_per_diameter {m.cost.force_per_diameter:g} N/mm x the tool's diameter; "
                           f"the program's own peak is {before.summary.cutting.peak_load:.1f} N; --force-limit sets it",
                           list(before.summary.cutting.defaults or []), search_seconds)
+
+
+def _within_machine(rng: tuple, top: float, option: str, unit: str, what: str, path: str, warnings: list) -> tuple:
+    """A user's range held to the machine: an error when nothing of it is within ``top``, the
+    high end cut to ``top`` with a warning otherwise."""
+    if not (0 < rng[0] < rng[1]) or rng[0] >= top:
+        raise MtwinError(f"{option} {rng[0]:g},{rng[1]:g}: need 0 < low < high, with the low end below {what}, "
+                         f"{top:g} {unit}")
+    if rng[1] > top:
+        warnings.append(f"{path}: warning: {option} high end {rng[1]:g} {unit} is above {what}: {top:g} {unit} is used")
+        return (rng[0], top)
+    return rng
 
 
 def _runups(prob, program, plan, segs, machine) -> None:
@@ -355,17 +354,11 @@ def _runups(prob, program, plan, segs, machine) -> None:
     prob.runup_acc = machine.spindle.acceleration
 
 
-def _ratios(trace, prog, original, segs, prob, limits, seg_of=None) -> np.ndarray:
+def _ratios(trace, segs, prob, limits, seg_of: np.ndarray) -> np.ndarray:
     """Per variable, the largest ratio of load, spindle power or torque to its limit on a
-    simulated trace."""
-    if seg_of is None:
-        seg_of = _segment_of_samples(trace, prog, original, segs)
+    simulated trace (``seg_of``: the segment of every sample)."""
     load = np.hypot(trace.signal("fx"), trace.signal("fy"))
-    n = np.abs(np.asarray(trace.signal("spindle_speed")))
-    t_lim = limits.power / (2 * math.pi * np.maximum(n, limits.base_speed) / 60.0)
-    ratio = np.maximum.reduce([load / prob.seg_force[np.maximum(seg_of, 0)],
-                               trace.signal("spindle_power") / limits.power,
-                               trace.signal("spindle_torque") / t_lim])
+    ratio = np.maximum(load / prob.seg_force[np.maximum(seg_of, 0)], _sample_ratio(trace, limits))
     inside = seg_of >= 0
     out = np.zeros(prob.nvar)
     np.maximum.at(out, prob.seg_var[seg_of[inside]], ratio[inside])
@@ -495,11 +488,11 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
     return out, splits, spindles
 
 
-def _segment_of_samples(trace, new_prog, program, segs, with_records: bool = False):
+def _segment_of_samples(trace, new_prog, program, segs):
     """Segment of every trace sample (-1: none), by path length: the written program runs the
     same path, possibly with split moves, so a sample's distance along the path says which
-    piece of which original record it is in.  ``with_records``: also the original record of
-    every sample."""
+    piece of which original record it is in.  Returns (segment, original feed record) of every
+    sample, -1 where none."""
     rec_new = np.asarray(trace.record, np.int64)
     Ln = R.move_lengths(new_prog.records)
     Lo = R.move_lengths(program.records)
@@ -519,25 +512,17 @@ def _segment_of_samples(trace, new_prog, program, segs, with_records: bool = Fal
     r_o = np.clip(np.searchsorted(co, s, side="right") - 1, 0, len(Lo) - 1)
     # a zero-length record of the new program (a dwell, a pause) maps by its own index order
     t_o = np.where(Lo[r_o] > 0, (s - co[r_o]) / np.maximum(Lo[r_o], 1e-12), 0.0)
-    key = segs.piece_rec.astype(np.float64) * 4.0 + segs.piece_t0
-    o = np.argsort(key)
-    skey = r_o * 4.0 + t_o
-    j = np.searchsorted(key[o], skey, side="right") - 1
-    cand = o[np.clip(j, 0, None)]
-    valid = (j >= 0) & (segs.piece_rec[cand] == r_o) & (rec_new >= 0)
     # only feed moves belong to segments
     kind = new_prog.records["kind"][idx]
     is_feed = (kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW)
-    valid &= is_feed
-    out = np.where(valid, segs.piece_seg[cand], -1)
-    if with_records:
-        return out, np.where((rec_new >= 0) & is_feed, r_o, -1)
-    return out
+    valid = (rec_new >= 0) & is_feed
+    seg = np.where(valid, locate(segs.piece_rec, segs.piece_t0, segs.piece_seg, r_o, t_o), -1)
+    return seg, np.where(valid, r_o, -1)
 
 
 def _sample_ratio(trace, limits) -> np.ndarray:
-    """Per sample, the largest of cutting load / limit (N/A here), spindle power and torque
-    over their limits — the machine's own limits."""
+    """Per sample, the larger of spindle power and spindle torque over their limits (the
+    machine's own; the load limit is per segment)."""
     n = np.abs(np.asarray(trace.signal("spindle_speed")))
     t_lim = limits.power / (2 * math.pi * np.maximum(n, limits.base_speed) / 60.0)
     return np.maximum(np.asarray(trace.signal("spindle_power")) / limits.power,
@@ -580,9 +565,8 @@ def _blame_previous(seg_of, rec_of, worse, prob, excess) -> np.ndarray:
     return out
 
 
-def _figures(trace, prog, segs, prob, rates, seg_of) -> Figures:
-    if seg_of is None:
-        seg_of = _segment_of_samples(trace, prog, prog, segs)
+def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray) -> Figures:
+    """Before/after figures of a simulated trace (``seg_of``: the segment of every sample)."""
     sm = trace.summary
     c = sm.cutting
     p = np.asarray(trace.signal("spindle_power"))
@@ -615,21 +599,20 @@ def _figures(trace, prog, segs, prob, rates, seg_of) -> Figures:
                    cv)
 
 
-def _limited_by(prob, feeds, spins, est, feed_range, times, segs, program, keep) -> list:
+def _limited_by(prob, feeds, spins, feed_range, times, segs, keep) -> list:
+    """What held each segment's feed where it is."""
     out = []
-    m = 1.0 - prob.limits.margin
+    _, _, _, load, torque, power, _, t_lim = prob._mechanics(feeds[None, :], spins[None, :])
+    excess = dict(zip(("load", "power", "torque"), prob._excess(load, power, torque, t_lim)))
     for s in range(len(prob.seg_var)):
         f = feeds[prob.seg_var[s]]
-        n = spins[prob.seg_spin[s]]
         if keep[prob.seg_var[s]]:
             out.append("kept (not this objective's)")
             continue
         if prob.seg_air[s]:
             out.append("feed range (air cut)" if f >= feed_range[1] - 1 else "kept")
             continue
-        t_lim = prob.limits.power / (2 * math.pi * max(n, prob.limits.base_speed) / 60.0)
-        r = {"load": est["load"][0][s] / (prob.seg_force[s] * m), "power": est["power"][0][s] / (prob.limits.power * m),
-             "torque": est["torque"][0][s] / (t_lim * m)}
+        r = {name: float(e[0][s]) + 1.0 for name, e in excess.items()}  # value / (limit x margin)
         k = max(r, key=r.get)
         if r[k] > 0.97:
             out.append(k)

@@ -50,6 +50,22 @@ class Segments:
         return out
 
 
+def locate(piece_rec: np.ndarray, piece_t0: np.ndarray, piece_seg: np.ndarray, rec: np.ndarray,
+           t: np.ndarray) -> np.ndarray:
+    """The segment holding each point (record ``rec``, fraction ``t`` along it): the piece of
+    that record that starts at or before t; -1 where the record is in no segment."""
+    out = np.full(len(rec), -1, np.int64)
+    if not len(piece_rec):
+        return out
+    key = piece_rec.astype(np.float64) * 4.0 + piece_t0  # records in order, pieces within each
+    o = np.argsort(key)
+    j = np.searchsorted(key[o], rec.astype(np.float64) * 4.0 + t, side="right") - 1
+    cand = o[np.clip(j, 0, None)]
+    valid = (j >= 0) & (piece_rec[cand] == rec)
+    out[valid] = piece_seg[cand[valid]]
+    return out
+
+
 def splittable(program) -> np.ndarray:
     """Records the writer can split (a single move of its own line, plain geometry)."""
     rec = program.records
@@ -103,7 +119,6 @@ def segment_path(program, model, power: np.ndarray, optimisable: np.ndarray, *, 
     stretch_ends = np.append(stretch_starts[1:], len(order_ok))
 
     seg_first_step: list[int] = []  # index into order_ok
-    seg_air: list[bool] = []
     cut = power[order_ok] > 0.0
     w_all = model.length[order_ok]
     for a, b in zip(stretch_starts, stretch_ends):
@@ -117,7 +132,6 @@ def segment_path(program, model, power: np.ndarray, optimisable: np.ndarray, *, 
         for s, e, v in _runs(c):
             if not v:
                 seg_first_step.append(a + s)
-                seg_air.append(True)
                 continue
             p = power[order_ok][a + s:a + e]
             ww = w[s:e]
@@ -135,7 +149,6 @@ def segment_path(program, model, power: np.ndarray, optimisable: np.ndarray, *, 
                 starts = _merge_close(starts, p, ww, tol)
             for s0 in starts:
                 seg_first_step.append(a + s + int(s0))
-                seg_air.append(False)
 
     # boundaries -> pieces of records, snapped to move ends or splitting the move
     nseg = len(seg_first_step)
@@ -195,20 +208,9 @@ def segment_path(program, model, power: np.ndarray, optimisable: np.ndarray, *, 
     renum = np.full(max(nseg, 1), -1, np.int64)
     renum[used] = np.arange(len(used))
     piece_seg = renum[piece_seg]
-    air = np.array(seg_air, bool)[used] if nseg else np.zeros(0, bool)
     nseg = len(used)
-    # a segment's air flag from what its pieces really meet after snapping
-    # (steps -> segments by record and position)
-    step_seg = np.full(model.steps, -1, np.int64)
-    if len(piece_rec):
-        key = piece_rec.astype(np.float64) * 4.0 + np.array(p0)
-        o = np.argsort(key)
-        skey = steps_rec.astype(np.float64) * 4.0 + model.pos
-        idx = np.searchsorted(key[o], skey, side="right") - 1
-        valid = idx >= 0
-        cand = o[np.clip(idx, 0, None)]
-        valid &= piece_rec[cand] == steps_rec
-        step_seg[valid] = piece_seg[cand[valid]]
+    # a segment is air when none of the steps its pieces hold after snapping meets material
+    step_seg = locate(piece_rec, np.array(p0, float), piece_seg, steps_rec, model.pos)
     cut_steps = np.bincount(step_seg[(step_seg >= 0) & (power > 0)], minlength=nseg)
     air = cut_steps == 0
     seg_tool = np.zeros(nseg, np.int64)

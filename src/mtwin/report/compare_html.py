@@ -15,8 +15,13 @@ MAX_POINTS = 4000  # per curve: plenty for a screen, keeps the file small
 
 
 def _svg(fig) -> str:
+    """A finished figure as inline SVG (laid out, then closed: every report figure ends here)."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
     buf = io.StringIO()
     fig.savefig(buf, format="svg")
+    plt.close(fig)
     text = buf.getvalue()
     return text[text.index("<svg"):]
 
@@ -99,10 +104,7 @@ def _signal_figure(plt, c, s) -> str:
                 ax.annotate(label, xy=(t[a_], 1.0), xycoords=("data", "axes fraction"), fontsize=7,
                             va="bottom", rotation=0)
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    out = _svg(fig)
-    plt.close(fig)
-    return out
+    return _svg(fig)
 
 
 def _journal_figure(plt, journal) -> str:
@@ -118,7 +120,5 @@ def _journal_figure(plt, journal) -> str:
     ax.set_yscale("log")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
     out = _svg(fig)
-    plt.close(fig)
     return "<h2>Model journal: the error across calibrations</h2>" + out

@@ -42,9 +42,7 @@ def grind_html(twin, result, cols: dict) -> bytes:
     axes[2].set_xlabel("time [s]")
     for a in axes:
         a.grid(True, alpha=0.3)
-    fig.tight_layout()
     parts.append("<h2>The cycle on the nominal part</h2>" + _svg(fig))
-    plt.close(fig)
     rows = "".join(f"<tr><td>{k}</td><td>{it.cycle_time:.2f}</td><td>{it.defects} / {it.cases}</td>"
                    f"<td>{e(', '.join(f'{n}: {c}' for n, c in it.broken.items()) or '—')}</td>"
                    f"<td>{e(', '.join(_limit_text(n, v) for n, v in it.scale.items()) or '—')}</td></tr>"
@@ -89,7 +87,4 @@ def _defect_map(plt, factors: dict, mask: np.ndarray) -> str:
     ax.set_ylabel(b)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    out = _svg(fig)
-    plt.close(fig)
-    return out
+    return _svg(fig)

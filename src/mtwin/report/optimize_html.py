@@ -111,10 +111,7 @@ def _curves(plt, res) -> str:
             ax.grid(True, alpha=0.3)
             ax.set_xlim(t[0] if len(t) else 0, t[-1] if len(t) else 1)
     axes[-1].set_xlabel("time [s]; bands: segments (grey: air cuts)")
-    fig.tight_layout()
-    out = _svg(fig)
-    plt.close(fig)
-    return out
+    return _svg(fig)
 
 
 def _feed(plt, res) -> str:
@@ -130,10 +127,7 @@ def _feed(plt, res) -> str:
     ax.set_xlabel("time [s]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    out = _svg(fig)
-    plt.close(fig)
-    return out
+    return _svg(fig)
 
 
 def _tradeoff(plt, res) -> str:
@@ -150,10 +144,7 @@ def _tradeoff(plt, res) -> str:
     ax.set_xlabel("load limit [N]")
     ax.set_ylabel("estimated cycle time [s]")
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    out = _svg(fig)
-    plt.close(fig)
-    return out
+    return _svg(fig)
 
 
 def _segments_table(res) -> str:
