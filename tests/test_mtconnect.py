@@ -88,6 +88,17 @@ def test_agent_xml_stream(tmp_path):
     assert m.end_time == pytest.approx(4.0)
 
 
+def test_import_refuses_bad_input_with_exit_2_and_writes_nothing(tmp_path):
+    for args in (["missing.txt", "-o", str(tmp_path / "m.csv")],
+                 [str(tmp_path / "log.txt"), "-o", str(tmp_path / "no" / "m.csv")],
+                 [str(tmp_path / "log.txt"), "-o", str(tmp_path / "m.csv"), "--block-is", "n", "--program", "x.nc"]):
+        (tmp_path / "log.txt").write_text(SHDR)
+        r = subprocess.run([sys.executable, "-m", "mtwin", "import", "mtconnect", *args], capture_output=True,
+                           text=True, cwd=tmp_path)
+        assert r.returncode == 2 and "error:" in r.stderr, (args, r.stderr)
+        assert not (tmp_path / "m.csv").exists()
+
+
 def test_bad_logs_name_their_line(tmp_path):
     p = tmp_path / "bad.txt"
     p.write_text("2020-01-01T00:00:00Z|Program_Status|ACTIVE\nhello\n")

@@ -766,7 +766,11 @@ def import_mtconnect(
     from .loop.mtconnect import read_mtconnect
     from .motion.trace import write_columns
 
-    data = Path(program).read_bytes() if program else None
+    check_outputs(output)
+    try:
+        data = Path(program).read_bytes() if program else None
+    except OSError as exc:
+        raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
     m = read_mtconnect(log, run, block_is, data)
     cols = {"t": m.t, "line": m.line, **m.signals, **getattr(m, "extra", {})}
     write_columns(output, cols, m.meta)

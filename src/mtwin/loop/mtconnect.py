@@ -295,7 +295,10 @@ def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", pr
     """Read an SHDR log or an MTConnectStreams XML into a measurement."""
     if block_is not in ("line", "n"):
         raise MeasurementError(f"--block-is must be line or n, got {block_is!r}", SourceLocation(path, 0, 0))
-    with open(path, "rb") as fh:
-        head = fh.read(4096)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        raise MeasurementError(f"cannot read {path}: {exc.strerror or exc}", SourceLocation(path, 0, 0)) from None
     events = read_streams(path) if b"<MTConnectStreams" in head else read_shdr(path)
     return to_measurement(path, events, run, block_is, program_data)
