@@ -757,6 +757,8 @@ def import_mtconnect(
     block_is: str = typer.Option("line", "--block-is", help="What Block_Number counts: line (the file's line, "
                                                              "default) | n (the N word; needs --program)."),
     program: Optional[str] = typer.Option(None, "--program", help="The program the log ran (for --block-is n)."),
+    ignore_item: Optional[list[str]] = typer.Option(None, "--ignore-item", metavar="NAME",
+                                                    help="A data item to read past (an unknown item is an error)."),
 ):
     """Data items logged on change become a time series sampled at every change: t, line,
     feed (mm/min; MTConnect reports mm/s), spindle_speed, and tool and overrides where logged.
@@ -771,7 +773,7 @@ def import_mtconnect(
         data = Path(program).read_bytes() if program else None
     except OSError as exc:
         raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
-    m = read_mtconnect(log, run, block_is, data)
+    m = read_mtconnect(log, run, block_is, data, ignore_item or ())
     cols = {"t": m.t, "line": m.line, **m.signals, **getattr(m, "extra", {})}
     write_columns(output, cols, m.meta)
     for k, r in enumerate(m.runs, 1):
@@ -841,6 +843,10 @@ def _print_blocks(b: dict) -> None:
     err.print(w)
 
 
+AnyProgramOpt = typer.Option(False, "--any-program", help="Accept a log whose program name is not the file's "
+                             "(a renamed file).")
+
+
 @app.command(short_help="Compare the twin with a measurement: errors, and where.")
 @_reports_errors
 def compare(
@@ -855,6 +861,7 @@ def compare(
     report: Optional[str] = typer.Option(None, "--report", help="Write a self-contained HTML report (.html)."),
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
                                           help="Simulate tooth-passing forces (for a dynamometer's measurement)."),
+    any_program: bool = AnyProgramOpt,
     effect: Optional[list[str]] = EffectOpt,
     effect_file: Optional[list[str]] = EffectFileOpt,
     stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
@@ -870,7 +877,7 @@ def compare(
     from .loop.compare import compare as run_compare
 
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
-                                       block_delete)
+                                       block_delete, any_program)
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     cutting = not prog.turning_line()
     trace = tw.simulate(prog, stock=box, cutting=cutting, tooth_resolution=tooth_resolution)
@@ -880,13 +887,17 @@ def compare(
     blocks = None
     if meas.t is not None and meas.line is not None and (meas.line > 0).any():
         # per-block timing: the measured line changes against the interpolator's
-        import numpy as np
+        from .loop.blocks import measurement_block_timing
 
-        from .loop.blocks import block_timing
-
-        blocks = block_timing(prog, meas.t, meas.line, trace.t, np.asarray(trace.line),
-                              getattr(meas, "end_time", None))
+        blocks = measurement_block_timing(prog, meas, trace)
         res_blocks = blocks.as_dict(prog.data.decode("latin-1").split("\n"))
+        if blocks.hold_time > 0:
+            err.print(f"note: {blocks.hold_time:.1f} s of feed hold taken out of the measured times", soft_wrap=True)
+        for x in blocks.excluded[:5]:
+            err.print(f"note: lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} "
+                      f"at {x['t0']:.1f}–{x['t1']:.1f} s", soft_wrap=True)
+        if len(blocks.excluded) > 5:
+            err.print(f"note: {len(blocks.excluded) - 5} more block groups left out (overrides)", soft_wrap=True)
     if report:
         from .loop.journal import read_journal
         from .report.compare_html import compare_html
@@ -931,18 +942,35 @@ def compare(
         err.print(w)
 
 
-def _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient, block_delete):
+def _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient, block_delete,
+                 any_program=False):
     """The twin (with its effects and --effect), the program, the measurement, the stock."""
     from .loop.measurement import read_measurement
 
     meas = read_measurement(measurement, maps)
     tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock)
-    return tw, _load(part, settings), meas, box
+    prog = _load(part, settings)
+    from .loop.measurement import check_against_program
+
+    check_against_program(meas, prog, any_program)
+    return tw, prog, meas, box
 
 
 SignalsOpt = typer.Option(None, "--signals", help="Comma-separated signals to use (default: all in both).")
 MapOpt = typer.Option(None, "--map", metavar="SRC=DST[*SCALE]", help="Read column SRC as signal DST (times SCALE).")
 AlignOpt = typer.Option("auto", "--align", help="auto | line | position | xcorr.")
+ObjectiveOpt = typer.Option("auto", "--objective", help="signals (the residual of each signal) | timing (the block "
+                            "times of a log of the executing line) | auto: timing for a control's log (line, feed "
+                            "and spindle speed only) and timing effects, else signals.")
+
+def _objective(objective: str, meas, effects) -> str:
+    if objective not in ("auto", "signals", "timing"):
+        raise MtwinError(f"--objective {objective}: expected auto, signals or timing")
+    if objective != "auto":
+        return objective
+    log = (meas.t is not None and meas.line is not None and (meas.line > 0).any()
+           and set(meas.signals) <= {"feed", "spindle_speed"})
+    return "timing" if log and all(e.stage == "plan" for e in effects or ()) else "signals"
 
 
 @app.command(short_help="Which physical effect is missing from the twin.")
@@ -953,6 +981,8 @@ def diagnose(
     signals: Optional[str] = SignalsOpt,
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Comma-separated effects to try (default: all "
                                              "not yet in the twin)."),
+    objective: str = ObjectiveOpt,
+    any_program: bool = AnyProgramOpt,
     align: str = AlignOpt,
     maps: Optional[list[str]] = MapOpt,
     json_out: bool = typer.Option(False, "--json", help="The diagnosis as JSON on stdout."),
@@ -965,12 +995,29 @@ def diagnose(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """For each signal: does the twin fit the measurement, and if not, which effect not yet in
-    the twin explains the residual (each fitted alone, ranked by ΔBIC)."""
+    the twin explains the residual (each fitted alone, ranked by ΔBIC).  Against a control's
+    log of its executing line (an MTConnect log): which timing effect explains the block
+    times, ranked by the error each removes."""
     from .loop.fit import diagnose as run_diagnose
     from .loop.fit import target
 
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
-                                       block_delete)
+                                       block_delete, any_program)
+    if _objective(objective, meas, None) == "timing":
+        from .loop.timing import diagnose_timing, timing_case
+
+        d = diagnose_timing(tw, [timing_case(tw, prog, meas, measurement)],
+                            [c.strip() for c in candidates.split(",")] if candidates else None)
+        if json_out:
+            sys.stdout.write(json.dumps({"objective": "timing", "timing": d}, indent=2) + "\n")
+            return
+        c0 = d["before"]["cases"][0]
+        err.print(f"[bold]block timing[/bold]: cycle time {c0['cycle_error']:+.2%}; per-group RMS {d['rms']:.3g} s "
+                  f"(noise {d['noise']:.2g}); over {d['before']['windows']} windows: RMS {d['window_rms']:.3g} s "
+                  f"(noise {d['window_noise']:.2g}) — {d['verdict']}", soft_wrap=True)
+        for c in d["candidates"]:
+            err.print(f"  {c['evidence']}", soft_wrap=True)
+        return
     tg = target(tw, prog, meas, align, [s.strip() for s in signals.split(",")] if signals else None, box)
     d = run_diagnose(tg, [c.strip() for c in candidates.split(",")] if candidates else None)
     if json_out:
@@ -986,14 +1033,20 @@ def diagnose(
 @_reports_errors
 def calibrate(
     part: str = typer.Argument(..., help="G-code program the measurement was recorded on."),
-    measurement: str = typer.Argument(..., help="Measurement file."),
+    measurement: str = typer.Argument(..., help="Measurement file, or an MTConnect log."),
+    more: Optional[list[str]] = typer.Argument(None, metavar="[PART MEASUREMENT]...",
+                                               help="More programs with their measurements: a timing fit over all "
+                                                    "of them."),
     output: str = typer.Option(..., "-o", "--output", help="Twin file to write (the effects and the journal added)."),
     fit_effect: Optional[list[str]] = typer.Option(None, "--fit", metavar="NAME[:P=V,…]",
                                                    help="An effect to add and fit (repeatable; values are starts)."),
     param: Optional[list[str]] = typer.Option(None, "--param", help="A base parameter to fit too, e.g. "
                                               "axes.x.friction.viscous (repeatable)."),
-    validate: Optional[str] = typer.Option(None, "--validate", help="A second measurement: the error on it after the fit."),
+    validate: Optional[str] = typer.Option(None, "--validate", help="A second measurement of PART: the error on it "
+                                           "after the fit."),
     refit: bool = typer.Option(False, "--refit", help="Fit the twin's own effects again too, together with the new ones."),
+    objective: str = ObjectiveOpt,
+    any_program: bool = AnyProgramOpt,
     signals: Optional[str] = SignalsOpt,
     align: str = AlignOpt,
     maps: Optional[list[str]] = MapOpt,
@@ -1007,72 +1060,101 @@ def calibrate(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Fit the --fit effects' parameters (and --param base parameters) to the measurement by
-    bounded least squares; write the twin file with them and a journal entry."""
+    bounded least squares; write the twin file with them and a journal entry.  Against a
+    control's log of its executing line the fit is to the block times (--objective timing),
+    over every PART MEASUREMENT pair given."""
     from pathlib import Path as _P
 
     from .effects import parse_effect_spec
     from .loop.fit import fit, target
     from .loop.journal import calibrated_text, journal_entry, read_journal
+    from .loop.measurement import check_against_program, read_measurement
 
     if not fit_effect and not param and not refit:
         raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects), --param NAME or --refit")
+    if more and len(more) % 2:
+        raise MtwinError(f"more programs come in pairs PART MEASUREMENT: {more[-1]} has no measurement")
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
-                                       block_delete)
+                                       block_delete, any_program)
     new = [parse_effect_spec(e) for e in fit_effect or ()]
     own = {e.name for e in tw.effects}
+    from .twin import Twin as _Twin
+
     if any(e.name in own for e in new) and not refit:
         # fitting an effect the twin already has: fit it from its current values (stacking a
         # second copy on top would write only the increment)
         keep = [e for e in tw.effects if e.name not in {x.name for x in new}]
         new = [next((e for e in tw.effects if e.name == x.name), x) if not x.values else x for x in new]
-        from .twin import Twin as _T0
-
-        tw = _T0(tw.machine, tw.interpreter, tw.path, tw.cutting, tuple(keep))
+        tw = _Twin(tw.machine, tw.interpreter, tw.path, tw.cutting, tuple(keep))
     if refit:
         # the twin's effects start from their current values and are fitted with the new ones
-        from .twin import Twin as _T
-
         new = list(tw.effects) + [e for e in new if e.name not in {x.name for x in tw.effects}]
-        tw = _T(tw.machine, tw.interpreter, tw.path, tw.cutting, ())
+        tw = _Twin(tw.machine, tw.interpreter, tw.path, tw.cutting, ())
     sig = [s.strip() for s in signals.split(",")] if signals else None
-    tg = target(tw, prog, meas, align, sig, box)
-    res = fit(tg, new, sig, tuple(param or ()))
+    how = _objective(objective, meas, new)
+    pairs = [(part, measurement)] + list(zip((more or [])[::2], (more or [])[1::2]))
+    if how == "timing":
+        from .loop.timing import fit_timing, summary, timing_case
+
+        cases = [timing_case(tw, prog, meas, os.path.basename(measurement))]
+        for p_i, m_i in pairs[1:]:
+            prog_i, meas_i = _load(p_i, tw.interpreter), read_measurement(m_i, maps)
+            check_against_program(meas_i, prog_i, any_program)
+            cases.append(timing_case(tw, prog_i, meas_i, os.path.basename(m_i)))
+        res = fit_timing(tw, cases, new, tuple(param or ()))
+    else:
+        if len(pairs) > 1:
+            raise MtwinError("several programs are fitted together only by their block times (--objective timing)")
+        tg = target(tw, prog, meas, align, sig, box)
+        res = fit(tg, new, sig, tuple(param or ()))
     fitted = {e.name: e for e in res.effects}
     effects = [fitted.pop(e.name, e) for e in tw.effects] + list(fitted.values())
+    base = {k: v for k, v in res.params.items() if not k.startswith("effects.")}
     validation = None
     if validate:
-        from .loop.measurement import read_measurement
+        tw2 = _Twin((tw.with_params(base) if base else tw).machine, tw.interpreter, tw.path,
+                    (tw.with_params(base) if base else tw).cutting, effects)
+        meas2 = read_measurement(validate, maps)
+        check_against_program(meas2, prog, any_program)
+        if how == "timing":
+            v = summary(tw2, [timing_case(tw2, prog, meas2, validate)])
+            validation = {"measurement": validate, "block_time": v["rms"], "cycle_error": v["cases"][0]["cycle_error"]}
+        else:
+            from .loop.fit import _rms_by_signal
 
-        tw2 = tw.with_params({k: v for k, v in res.params.items() if not k.startswith("effects.")}) \
-            if any(not k.startswith("effects.") for k in res.params) else tw
-        from .twin import Twin as _Twin
-
-        tw2 = _Twin(tw2.machine, tw2.interpreter, tw2.path, tw2.cutting, effects)
-        tg2 = target(tw2, prog, read_measurement(validate, maps), align, sig, box)
-        from .loop.fit import _rms_by_signal
-
-        validation = {"measurement": validate, **_rms_by_signal(tg2, tg2.base, list(tg2.measured))}
+            tg2 = target(tw2, prog, meas2, align, sig, box)
+            validation = {"measurement": validate, **_rms_by_signal(tg2, tg2.base, list(tg2.measured))}
     previous = read_journal(twin) if twin else []
     source = _P(twin).read_text(encoding="utf-8") if twin else ""
-    base = {k: v for k, v in res.params.items() if not k.startswith("effects.")}
-    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, measurement, res, validation), previous,
+    label = "; ".join(os.path.basename(m) for _, m in pairs) if len(pairs) > 1 else measurement
+    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, label, res, validation), previous,
                            base, tw)
-    write_output(text.encode(), output, [part, measurement])
+    write_output(text.encode(), output, [p for pair in pairs for p in pair])
     if json_out:
         sys.stdout.write(json.dumps({**res.as_dict(), "validation": validation, "twin_file": output}, indent=2) + "\n")
         return
     for k, v in res.params.items():
         u = res.uncertainty.get(k)
-        err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else ""), soft_wrap=True)
+        read = k in getattr(res, "rapid_rates", {})
+        err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else "")
+                  + (" (read off the logged rapids)" if read else ""), soft_wrap=True)
     if param:
         err.print(f"note: the fitted base parameters are written into {output}'s sections (the file is written "
-                  f"back from its parsed form: its comments are not kept)", soft_wrap=True)
-    for s in res.rms_before:
-        err.print(f"{s}: RMS {res.rms_before[s]:.4g} → {res.rms_after[s]:.4g} (noise {res.noise[s]:.4g})", soft_wrap=True)
+                  f"back from its parsed form: its comments are not kept, but its opening comment block is)",
+                  soft_wrap=True)
+    for s_ in res.rms_before:
+        err.print(f"{s_}: RMS {res.rms_before[s_]:.4g} → {res.rms_after[s_]:.4g} (noise {res.noise[s_]:.4g})",
+                  soft_wrap=True)
+    if how == "timing":
+        for b_, a_ in zip(res.before["cases"], res.after["cases"]):
+            err.print(f"{a_['measurement']}: cycle time {b_['cycle_error']:+.2%} → {a_['cycle_error']:+.2%} "
+                      f"(measured {a_['cycle_measured']:.1f} s, simulated {a_['cycle_simulated']:.1f} s); "
+                      f"windows RMS {b_['window_rms']:.3g} → {a_['window_rms']:.3g} s", soft_wrap=True)
     if validation:
-        err.print("validation on " + validate + ": " + ", ".join(f"{k} RMS {v:.4g}" for k, v in validation.items()
-                                                                  if k != "measurement"), soft_wrap=True)
-    err.print(f"wrote {output} ({res.evaluations} simulations)", soft_wrap=True)
+        err.print("validation on " + validate + ": " + ", ".join(
+            f"{k} {v:+.2%}" if k == "cycle_error" else f"{k} RMS {v:.4g}"
+            for k, v in validation.items() if k != "measurement"), soft_wrap=True)
+    err.print(f"wrote {output} ({res.evaluations} evaluations)", soft_wrap=True)
 
 
 @app.command(short_help="The model journal of a twin file: the error across calibrations.")
@@ -1096,6 +1178,10 @@ def journal(path: str = typer.Argument(..., help="Twin file."),
         t.add_column(col)
     for e in j:
         rms = ", ".join(f"{s} {e['rms_before'][s]:.4g} → {e['rms_after'][s]:.4g}" for s in e.get("rms_before", {}))
+        cyc = e.get("cycle_error_before", {})
+        if cyc:
+            rms += "; cycle time " + ", ".join(f"{cyc[k]:+.1%} → {e['cycle_error_after'].get(k, float('nan')):+.1%}"
+                                                for k in cyc)
         t.add_row(str(e.get("iteration")), ", ".join(e.get("effects", [])), str(e.get("measurement", "")), rms)
     err.print(t)
 

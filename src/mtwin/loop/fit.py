@@ -117,32 +117,11 @@ def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None =
     from scipy.optimize import least_squares
 
     signals = [s for s in (signals or tg.measured) if s in tg.measured]
-    free = []  # (key, lower, upper, start)
-    for e in effects:
-        p = e.resolved()
-        for d in e.params:
-            start = (starts or {}).get(f"effects.{e.name}.{d.name}", p[d.name])
-            free.append((f"effects.{e.name}.{d.name}", d.lower, d.upper, float(start)))
-    for name in base_params:
-        v = _base_value(tg.twin, name)
-        free.append((name, 0.0 if v >= 0 else -math.inf, math.inf, v))
-    if not free:
-        raise MtwinError("nothing to fit: give effects with parameters or --param names")
-    keys = [f[0] for f in free]
-    lo = np.array([f[1] for f in free])
-    hi = np.array([f[2] for f in free])
-    x0 = np.clip(np.array([f[3] for f in free]), lo, hi)
-    scale = np.array([_scale(lo_, hi_, x) for lo_, hi_, x in zip(lo, hi, x0)])
+    keys, lo, hi, x0, scale = free_parameters(tg.twin, effects, base_params, starts)
     count = [0]
 
     def build(x):
-        values = dict(zip(keys, x))
-        fitted = [type(e)(**{d.name: values[f"effects.{e.name}.{d.name}"] for d in e.params}) for e in effects]
-        twin = tg.twin
-        base = {k: v for k, v in values.items() if not k.startswith("effects.")}
-        if base:
-            twin = twin.with_params(base)
-        return twin, fitted
+        return build_fitted(tg.twin, effects, keys, x)
 
     # the solver works on u = 1 + (x - x0) / scale, starting at 1: scipy's finite-difference
     # steps are relative to u, so they are then a fixed share of each parameter's range, well
@@ -166,6 +145,37 @@ def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None =
     return FitResult(fitted, dict(zip(keys, map(float, xfit))), dict(zip(keys, unc)),
                      _rms_by_signal(tg, tg.base, signals), _rms_by_signal(tg, after_trace, signals),
                      dict(tg.noise), count[0], signals)
+
+
+def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
+    """(keys, lower, upper, start, scale) of the parameters a fit moves: every parameter of
+    ``effects`` ("effects.NAME.param", starting from the effect's value or ``starts``) and the
+    named base parameters of ``twin`` (from the twin's value)."""
+    free = []  # (key, lower, upper, start)
+    for e in effects:
+        p = e.resolved()
+        for d in e.params:
+            start = (starts or {}).get(f"effects.{e.name}.{d.name}", p[d.name])
+            free.append((f"effects.{e.name}.{d.name}", d.lower, d.upper, float(start)))
+    for name in base_params:
+        v = _base_value(twin, name)
+        free.append((name, 0.0 if v >= 0 else -math.inf, math.inf, v))
+    if not free:
+        raise MtwinError("nothing to fit: give effects with parameters or --param names")
+    keys = [f[0] for f in free]
+    lo = np.array([f[1] for f in free])
+    hi = np.array([f[2] for f in free])
+    x0 = np.clip(np.array([f[3] for f in free]), lo, hi)
+    scale = np.array([_scale(lo_, hi_, x) for lo_, hi_, x in zip(lo, hi, x0)])
+    return keys, lo, hi, x0, scale
+
+
+def build_fitted(twin, effects, keys, x):
+    """(twin with the base values of ``x``, ``effects`` re-made with theirs)."""
+    values = dict(zip(keys, x))
+    fitted = [type(e)(**{d.name: values[f"effects.{e.name}.{d.name}"] for d in e.params}) for e in effects]
+    base = {k: v for k, v in values.items() if not k.startswith("effects.")}
+    return (twin.with_params(base) if base else twin), fitted
 
 
 def _scale(lo, hi, x):

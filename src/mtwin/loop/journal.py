@@ -62,6 +62,18 @@ def _strip_effects_and_journal(text: str) -> str:
     return "\n".join(out)
 
 
+def _leading_comments(text: str) -> str:
+    out = []
+    for line in text.splitlines():
+        if line.strip().startswith("#") or (out and not line.strip()):
+            out.append(line)
+        else:
+            break
+    while out and not out[-1].strip():
+        out.pop()
+    return "\n".join(out)
+
+
 def read_journal(path: str) -> list[dict]:
     from ..config import read_twin_toml
 
@@ -124,8 +136,11 @@ def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]
                     twin=None) -> str:
     """The twin file's new text: its own sections (with fitted ``base`` parameter values), the
     effects, the journal with ``entry``."""
+    head = _leading_comments(source_text)
     if base:
         source_text = with_base_values(source_text, base, twin)
+        if head:  # the file's opening comment block (how it was made) survives the rewrite
+            source_text = head + "\n\n" + source_text
     parts = [_strip_effects_and_journal(source_text)] if source_text.strip() else []
     for e in effects:
         values = e.resolved()
@@ -145,6 +160,12 @@ def journal_entry(iteration: int, measurement: str, fit, validation: dict | None
          "params": {k: v for k, v in fit.params.items()},
          "uncertainty": {k: (v if v is not None else float("nan")) for k, v in fit.uncertainty.items()},
          "rms_before": fit.rms_before, "rms_after": fit.rms_after, "noise": fit.noise}
+    if getattr(fit, "before", None) is not None:  # a timing fit: the cycle times too
+        e["objective"] = "timing"
+        e["cycle_error_before"] = {c["measurement"]: c["cycle_error"] for c in fit.before["cases"]}
+        e["cycle_error_after"] = {c["measurement"]: c["cycle_error"] for c in fit.after["cases"]}
+        e["block_rms_before"] = fit.before["rms"]  # per logged block group
+        e["block_rms_after"] = fit.after["rms"]
     if validation:
         e["validation"] = validation
     return e

@@ -87,6 +87,30 @@ def _summary_base(name: str) -> str | None:
     return None
 
 
+def check_against_program(meas: Measurement, program, any_program: bool = False) -> None:
+    """A measurement recorded on another program is an error: a logged program name that is
+    not the program file's (unless ``any_program``: a renamed file), a line beyond its end."""
+    logged = (meas.meta or {}).get("program", "")
+    if logged and not any_program and program.path:
+        a, b = os.path.basename(logged).lower(), os.path.basename(program.path).lower()
+        if a != b and os.path.splitext(a)[0] != os.path.splitext(b)[0]:
+            raise MeasurementError(f"the log ran {logged}, not {os.path.basename(program.path)}: compare it with that "
+                                   f"program (--any-program if this file is it, renamed)",
+                                   SourceLocation(meas.path, 0, 0))
+    if meas.line is None or not len(meas.line):
+        return
+    n = int(program.data.count(b"\n")) + (0 if program.data.endswith(b"\n") else 1)
+    beyond = np.flatnonzero(meas.line > n)
+    if len(beyond):
+        i = int(beyond[0])
+        src = getattr(meas, "source_line", None)
+        where = SourceLocation(meas.path, int(src[i]) if src is not None else 0, 0 if src is None else 1)
+        raise MeasurementError(f"line {int(meas.line[i])} is beyond the end of {os.path.basename(program.path or '')} "
+                               f"({n} lines): the measurement is of another program"
+                               + (" (or its block numbers are N words: --block-is n)" if src is not None else ""),
+                               where)
+
+
 def read_measurement(path: str, maps=()) -> Measurement:
     """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there)."""
     mapping = parse_maps(maps)

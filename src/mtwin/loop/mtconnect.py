@@ -37,6 +37,9 @@ import numpy as np
 from ..errors import SourceLocation
 from .measurement import Measurement, MeasurementError
 
+_NAMES = ("Block_Number", "Feed_Rate", "Spindle_Speed", "Current_Tool", "Program_Status", "Execution",
+          "Program_Name_Running", "Program", "Line", "PathFeedrate", "RotaryVelocity", "ToolNumber",
+          "PathFeedrateOverride", "RotaryVelocityOverride")
 _TS = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?Z?")
 _END = {"PROGRAM_COMPLETED", "READY", "STOPPED", "INTERRUPTED", "PROGRAM_STOPPED"}
 # data item names (SHDR item names or XML element names / names) -> what they are
@@ -50,6 +53,17 @@ _ITEMS = {
     "feed_override": "feed_ovr", "pathfeedrateoverride": "feed_ovr", "feedrate_override": "feed_ovr",
     "spindle_override": "spindle_ovr", "rotaryvelocityoverride": "spindle_ovr",
 }
+
+
+# data items a log may hold that a comparison does not use (read past, not errors); anything
+# else is an unknown item: an error, since it may be one of ours under a name we do not know
+_UNUSED = re.compile(
+    r"(program_runtime_seconds|spindle_time|part_?count|avail(ability)?|e_?stop|emergency_?stop|"
+    r"(controller_?)?mode|[xyzabcuvw](act|com|pos|load|temp|_?position|_?load|_?temperature)|"
+    r"(path_?)?position|.*_?(load|temperature|temp|alarm|message|fault|warning|condition)|"
+    r"spindle_load|axis_?.*|door.*|coolant.*|operator.*|user.*|block_?text|block_?content|"
+    r"program_?comment|line_?label|tool_?(life|offset|length|radius).*|work_?offset.*|"
+    r"asset.*|device.*|functional_?mode|power.*|serial.*|clock.*|uptime.*|cycle_?time.*)", re.I)
 
 
 def is_mtconnect(path: str) -> bool:
@@ -91,8 +105,10 @@ def _seconds(ts: str, path: str, ln: int) -> float:
         raise MeasurementError(f"cannot read the timestamp {ts!r}", SourceLocation(path, ln, 1)) from None
 
 
-def read_shdr(path: str) -> list:
-    """Events of an SHDR log, in file order."""
+def read_shdr(path: str, ignore=()) -> list:
+    """Events of an SHDR log, in file order.  An item neither used nor known to be unused is
+    an error (``ignore``: names to read past); so is a timestamp before the previous one."""
+    ignore = {x.lower() for x in ignore}
     try:
         text = open(path, "rb").read().decode("utf-8", "replace")
     except OSError as exc:
@@ -113,12 +129,22 @@ def read_shdr(path: str) -> list:
         if not _TS.match(parts[0]):
             raise MeasurementError(f"not an SHDR timestamp: {parts[0][:40]!r}", SourceLocation(path, i, 1))
         t = _seconds(parts[0], path, i)
+        if out and t < out[-1].t - 1e-6:
+            raise MeasurementError(f"the timestamp {parts[0]} is before the previous record's (line "
+                                   f"{out[-1].line}): the log's records are out of order", SourceLocation(path, i, 1))
         pairs = parts[1:]
         if len(pairs) % 2:
             pairs.append("")
+        col = len(parts[0]) + 2
         for k in range(0, len(pairs), 2):
             name = pairs[k].strip()
-            out.append(Event(t, _ITEMS.get(name.lower(), name), pairs[k + 1].strip(), i))
+            key = name.lower()
+            if key not in _ITEMS and key not in ignore and not _UNUSED.fullmatch(key):
+                raise MeasurementError(f"unknown data item {name!r} (read: {', '.join(sorted(_NAMES))}; a log with "
+                                       f"another name for one of them needs it mapped: mtwin import mtconnect "
+                                       f"--ignore-item {name} reads past it)", SourceLocation(path, i, col))
+            out.append(Event(t, _ITEMS.get(key, name), pairs[k + 1].strip(), i))
+            col += len(pairs[k]) + len(pairs[k + 1]) + 2
     if not out:
         raise MeasurementError("the log holds no records", SourceLocation(path, 1, 1))
     return out
@@ -227,14 +253,17 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     for e in events[:chosen.start]:
         _apply(state, e, path, None, [0])
     pos = [0]  # the line an N word was last mapped to
+    src: list = []  # the log line of each sample
     for e in ev:
         if not _apply(state, e, path, n_map, pos):
             continue
         if rows_t and rows_t[-1] == e.t - t0:
             rows[-1] = dict(state)
+            src[-1] = e.line if e.item == "block" else src[-1]
         else:
             rows_t.append(e.t - t0)
             rows.append(dict(state))
+            src.append(e.line)
     if not rows:
         raise MeasurementError("the run holds no samples", SourceLocation(path, ev[0].line, 1))
     t = np.array(rows_t)
@@ -254,6 +283,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     m.extra = extra  # type: ignore[attr-defined]
     m.runs = all_runs  # type: ignore[attr-defined]
     m.end_time = end_t  # type: ignore[attr-defined]
+    m.holds = list(chosen.holds)  # type: ignore[attr-defined]
+    m.source_line = np.array(src, np.int64)  # type: ignore[attr-defined]
     return m
 
 
@@ -291,7 +322,8 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
     return True
 
 
-def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", program_data: bytes | None = None):
+def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", program_data: bytes | None = None,
+                   ignore_items=()):
     """Read an SHDR log or an MTConnectStreams XML into a measurement."""
     if block_is not in ("line", "n"):
         raise MeasurementError(f"--block-is must be line or n, got {block_is!r}", SourceLocation(path, 0, 0))
@@ -300,5 +332,5 @@ def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", pr
             head = fh.read(4096)
     except OSError as exc:
         raise MeasurementError(f"cannot read {path}: {exc.strerror or exc}", SourceLocation(path, 0, 0)) from None
-    events = read_streams(path) if b"<MTConnectStreams" in head else read_shdr(path)
+    events = read_streams(path) if b"<MTConnectStreams" in head else read_shdr(path, ignore_items)
     return to_measurement(path, events, run, block_is, program_data)

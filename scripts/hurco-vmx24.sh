@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Make samples/machines/hurco-vmx24.toml: a Hurco VMX24's timing calibrated with mtwin calibrate
+# on the NIST smart-manufacturing test bed's MTConnect logs of plates 12, 13 and 14.
+#
+#   bash scripts/hurco-vmx24.sh [REALDATA]      (REALDATA: ../shared/realdata by default)
+#
+# Each step adds the effect `mtwin diagnose` ranks next (the journal shows the error falling
+# with each), refitting what came before; the last step fits the axes' base parameters.
+set -euo pipefail
+here="$(cd "$(dirname "$0")/.." && pwd)"
+data="${1:-$here/../shared/realdata}/nist_smstestbed_mtc_hurco"
+out="$here/samples/machines/hurco-vmx24.toml"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+runs=()
+for p in 12 13 14; do
+  runs+=("$data/NC-Code/NIST_MTC_CRADA_PLATE-$p.NC" "$data/Split/Plate-Op1-Hurco04-${p}of20.txt")
+done
+
+cat > "$work/0.toml" <<'TOML'
+# Hurco VMX24 (NIST smart-manufacturing test bed, machine "Hurco04"): timing calibrated on the
+# MTConnect logs of plates 12, 13 and 14 (Plate-Op1-Hurco04-NNof20.txt) with mtwin calibrate.
+# Made by: bash scripts/hurco-vmx24.sh   (the journal below is each step's error; see
+# docs/validation.md for what it predicts).
+#
+# Set by hand before calibrating (not fitted):
+#   spindle.max_speed 12,000 rpm: the programs' S12000 runs at 12,000 (the log's Spindle_Speed);
+#   travel +-1,000 mm: the programs' work offsets (G54/G58) are not known, so no travel check;
+#   axes.z.max_velocity = X's and Y's rapid rate: the logs hold no long Z rapid to read it from
+#     (the tool-change retracts run G28 to a home position the programs do not give).
+# Everything else below the [spindle] table comes from the calibration steps:
+#   1 spindle-runup, 2 toolchange-time, 3 arc-acceleration (the order mtwin diagnose ranks
+#   them on the default twin), 4 the axes: rapid rates (read off the logged rapids),
+#   accelerations, jerk (controller.bell_time) and the in-position width.
+# Overrides were not logged: 100 % is assumed.  Units: mm, s (the programs are inch).
+TOML
+cat >> "$work/0.toml" <<'TOML'
+
+[spindle]
+max_speed = 12000.0
+
+[axes.x]
+min_travel = -1000.0
+max_travel = 1000.0
+
+[axes.y]
+min_travel = -1000.0
+max_travel = 1000.0
+
+[axes.z]
+min_travel = -1000.0
+max_travel = 1000.0
+max_velocity = 10560.0
+TOML
+
+cal() { mtwin calibrate "${runs[@]}" --objective timing "$@"; }
+cal --twin "$work/0.toml" -o "$work/1.toml" --fit spindle-runup
+cal --twin "$work/1.toml" -o "$work/2.toml" --fit toolchange-time --refit
+cal --twin "$work/2.toml" -o "$work/3.toml" --fit arc-acceleration --refit
+cal --twin "$work/3.toml" -o "$work/4.toml" --refit \
+    --param axes.x.max_velocity --param axes.y.max_velocity \
+    --param axes.x.max_acceleration --param axes.y.max_acceleration --param axes.z.max_acceleration \
+    --param controller.bell_time --param controller.in_position
+cp "$work/4.toml" "$out"
+mtwin journal "$out"

@@ -1,0 +1,387 @@
+"""Fitting a twin's timing to a control's logged block times (one or several programs).
+
+A control that logs its executing line gives, per block group, how long the machine took
+(:mod:`.blocks`).  What decides those times is the plan — feeds, rapids, accelerations,
+tool changes, spindle waits — plus the in-position waits at exact stops, which only the
+servo simulation knows.  So a timing case simulates its program once (no cutting: the cut
+does not change when lines start) to learn the waits per line, and every evaluation of a
+fit after that is a plan alone (~0.03 s for a 4,000-line program) with those waits added at
+the end of their lines.  The waits depend a little on the axes' speeds and accelerations,
+so a fit refreshes them with the fitted twin and fits again (two passes), and its final
+figures come from a full re-simulation.
+
+Residuals are per block group: (simulated − measured duration) / the noise floor (0.15 s).
+The fit is bounded least squares (scipy's trust-region reflective) from a start found by
+scanning each parameter over its range — timing objectives have kinks (a minimum block
+time binds or not, an arc limit bites or not) that a local method alone can stall on.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MtwinError
+from .blocks import NOISE_FLOOR, Groups, measurement_groups, run_end_and_holds, simulated_durations
+
+SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
+WINDOW = 10.0  # s: block groups are summed into windows of at least this much measured time…
+WINDOWS = 100  # …or into this many windows over the run, where that makes them shorter (not under 1 s)
+
+
+def windows(measured: np.ndarray, length: float) -> np.ndarray:
+    """Consecutive groups numbered into windows of at least ``length`` s measured time."""
+    out = np.zeros(len(measured), np.int64)
+    k, acc = 0, 0.0
+    for i, d in enumerate(measured):
+        out[i] = k
+        acc += d
+        if acc >= length:
+            k, acc = k + 1, 0.0
+    return out
+
+
+@dataclass
+class TimingCase:
+    """A program and its logged run, with what a timing fit keeps fixed."""
+
+    program: object
+    meas: object
+    label: str
+    groups: Groups
+    cycle_measured: float  # s, the run without its feed holds
+    window: np.ndarray = field(default=None)  # (groups,) the window each group belongs to
+    wait_line: np.ndarray = field(default=None)  # lines with an in-position wait
+    wait: np.ndarray = field(default=None)  # s, the wait of each of those lines at in_position = width
+    slope: np.ndarray = field(default=None)  # s per unit of ln(width / in_position): how it grows as it narrows
+    width: float = 0.0  # mm, the in-position width the waits were simulated at
+
+
+def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
+    if meas.t is None or meas.line is None or not (meas.line > 0).any():
+        raise MtwinError(f"{meas.path}: a timing fit needs a measurement that logs the executing line "
+                         f"(a 'line' column, or an MTConnect log's Block_Number)")
+    g = measurement_groups(program, meas)
+    if len(g.measured) < 3:
+        raise MtwinError(f"{meas.path}: only {len(g.measured)} block groups: too few to fit timing to")
+    end, _ = run_end_and_holds(meas)
+    cycle = (float(end) if end is not None else float(meas.t[-1] - meas.t[0])) - g.hold_time
+    length = min(WINDOW, max(1.0, float(np.sum(g.measured)) / WINDOWS))
+    case = TimingCase(program, meas, label or meas.path, g, cycle, windows(g.measured, length))
+    refresh_waits(twin, case)
+    return case
+
+
+def refresh_waits(twin, case: TimingCase) -> None:
+    """The in-position waits per line, from simulations of the case's program on ``twin``: at
+    its in-position width and at twice it.  The axes settle into the width about
+    exponentially, so a line's wait is close to linear in the log of the width, and an
+    evaluation at another width interpolates (or extrapolates) on that line."""
+    width = float(twin.machine.controller.in_position)
+    lines, w = _waits(twin, case.program)
+    slope = np.zeros_like(w)
+    if width > 0:
+        lines2, w2 = _waits(twin.with_params({"controller.in_position": 2.0 * width}), case.program)
+        at2 = np.zeros_like(w)
+        k = np.searchsorted(lines2, lines)
+        ok = (k < len(lines2)) & (lines2[np.minimum(k, len(lines2) - 1)] == lines)
+        at2[ok] = w2[k[ok]]
+        slope = (w - at2) / math.log(2.0)
+    case.wait_line, case.wait, case.slope, case.width = lines, w, slope, width
+
+
+def _waits(twin, program):
+    trace = twin.simulate(program, cutting=False)
+    plan = twin.plan(program)
+    pl = trace.summary.per_line
+    lines, inv = np.unique(plan.seg["line"], return_inverse=True)
+    planned = np.bincount(inv, weights=plan.dur, minlength=len(lines))
+    k = np.searchsorted(lines, pl.line)
+    ok = (k < len(lines)) & (lines[np.minimum(k, len(lines) - 1)] == pl.line)
+    w = np.zeros(len(pl.line))
+    w[ok] = pl.time[ok] - planned[k[ok]]
+    keep = w > 1e-9
+    return pl.line[keep].astype(np.int64), w[keep]
+
+
+def case_waits(twin, case: TimingCase) -> np.ndarray:
+    """The case's waits per line at ``twin``'s in-position width."""
+    width = float(twin.machine.controller.in_position)
+    if width <= 0:
+        return np.zeros_like(case.wait)
+    if case.width <= 0 or width == case.width:
+        return case.wait
+    return np.maximum(case.wait + case.slope * math.log(case.width / width), 0.0)
+
+
+def plan_starts(plan, wait_line: np.ndarray, wait: np.ndarray):
+    """(lines sorted, the time the interpolator first reaches each, end time) of a plan with
+    the waits added at the end of their lines' last segments."""
+    seg_line = np.asarray(plan.seg["line"], np.int64)
+    n = len(seg_line)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0), 0.0
+    lines_u, last_rev = np.unique(seg_line[::-1], return_index=True)
+    last = n - 1 - last_rev  # last segment of each line
+    w = np.zeros(n)
+    k = np.searchsorted(lines_u, wait_line)
+    ok = (k < len(lines_u)) & (lines_u[np.minimum(k, len(lines_u) - 1)] == wait_line)
+    np.add.at(w, last[k[ok]], wait[ok])
+    before = np.concatenate(([0.0], np.cumsum(w)[:-1]))
+    start = plan.t_start + before
+    first_lines, first = np.unique(seg_line, return_index=True)
+    keep = first_lines > 0
+    return first_lines[keep], start[first][keep], plan.total_time + float(w.sum())
+
+
+def evaluate(twin, case: TimingCase):
+    """(simulated duration of each group, simulated cycle time) of the case on ``twin``."""
+    plan = twin.plan(case.program)
+    lines, starts, end = plan_starts(plan, case.wait_line, case_waits(twin, case))
+    return simulated_durations(case.groups, lines, starts, end), end
+
+
+def residuals(twin, cases) -> np.ndarray:
+    """Per window of each case: (simulated − measured time) / the noise of a window's length
+    (its two ends' report jitter, the noise floor × √2)."""
+    parts = []
+    for c in cases:
+        d, _ = evaluate(twin, c)
+        e = np.where(np.isfinite(d), d - c.groups.measured, 0.0)
+        parts.append(np.bincount(c.window, weights=e) / (NOISE_FLOOR * math.sqrt(2.0)))
+    return np.concatenate(parts)
+
+
+def summary(twin, cases) -> dict:
+    """Per-group and per-window RMS error (s) over all cases, and each case's cycle-time error."""
+    out = {"cases": []}
+    sq, n, wsq, wn = 0.0, 0, 0.0, 0
+    for c in cases:
+        d, cyc = evaluate(twin, c)
+        e = np.where(np.isfinite(d), d - c.groups.measured, 0.0)
+        we = np.bincount(c.window, weights=e)
+        sq += float(np.sum(e * e))
+        n += len(e)
+        wsq += float(np.sum(we * we))
+        wn += len(we)
+        out["cases"].append({"measurement": c.label, "cycle_measured": c.cycle_measured, "cycle_simulated": cyc,
+                             "cycle_error": (cyc - c.cycle_measured) / c.cycle_measured,
+                             "rms": float(np.sqrt(np.mean(e * e))) if len(e) else 0.0,
+                             "window_rms": float(np.sqrt(np.mean(we * we))) if len(we) else 0.0})
+    out["rms"] = math.sqrt(sq / n) if n else 0.0
+    out["window_rms"] = math.sqrt(wsq / wn) if wn else 0.0
+    out["windows"] = wn
+    return out
+
+
+@dataclass
+class TimingFit:
+    """A timing fit: the fitted effects and base parameters, and the error before and after.
+    Shaped like :class:`.fit.FitResult` (what the journal writes), with the cycle times."""
+
+    effects: list
+    params: dict
+    uncertainty: dict
+    rms_before: dict
+    rms_after: dict
+    noise: dict
+    evaluations: int
+    before: dict  # summary() before
+    after: dict  # summary() after, from re-simulated waits
+    rapid_rates: dict = field(default_factory=dict)  # axes.<a>.max_velocity -> (mm/min, spread, rapids) read
+    signals: list = field(default_factory=lambda: [SIGNAL])
+
+    def as_dict(self) -> dict:
+        return {"objective": "timing", "params": self.params, "uncertainty": self.uncertainty,
+                "rms_before": self.rms_before, "rms_after": self.rms_after, "noise": self.noise,
+                "evaluations": self.evaluations, "before": self.before, "after": self.after,
+                "effects": [{"name": e.name, "params": e.resolved()} for e in self.effects]}
+
+
+TIMING_PARAMS = ("axes.", "controller.", "spindle.", "timing.")
+_RAPID = re.compile(r"axes\.([xyz])\.max_velocity")
+MIN_RAPID_LENGTH = 25.0  # mm: a rapid this long cruises for several log samples at 176 mm/s
+MIN_RAPIDS = 3
+
+
+def rapid_rates(cases) -> dict:
+    """Each axis' rapid rate read off the logs: over rapids at least MIN_RAPID_LENGTH long, the
+    highest path speed logged while their line ran, times the share of the path the limiting
+    axis takes (the axis runs at its limit there); the median over the rapids it limits, with
+    the median absolute deviation as its spread.  {"axes.x.max_velocity": (mm/min, spread, n)}.
+
+    Observed, not fitted: the block times cannot tell a higher rapid rate from a higher
+    acceleration on short rapids, the logged speed can."""
+    from ..gcode import records as R
+
+    est: dict = {"x": [], "y": [], "z": []}
+    for c in cases:
+        rec = c.program.records
+        rap = rec[rec["kind"] == R.RAPID]
+        d = np.stack([rap["x"] - rap["sx"], rap["y"] - rap["sy"], rap["z"] - rap["sz"]], axis=1)
+        length = np.linalg.norm(d, axis=1)
+        feed = c.meas.signals.get("feed")
+        if feed is None:
+            continue
+        for r, dd, L in zip(rap, d, length):
+            if L < MIN_RAPID_LENGTH:
+                continue
+            f = feed[c.meas.line == r["line"]]
+            f = f[np.isfinite(f)]
+            if not len(f):
+                continue
+            u = np.abs(dd) / L
+            est["xyz"[int(np.argmax(u))]].append(float(f.max()) * float(u.max()))
+    out = {}
+    for a, v in est.items():
+        if len(v) >= MIN_RAPIDS:
+            med = float(np.median(v))
+            out[f"axes.{a}.max_velocity"] = (med, float(np.median(np.abs(np.array(v) - med))), len(v))
+    return out
+
+
+def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool = True) -> TimingFit:
+    """Fit the parameters of ``effects`` (their values are the starts) and the named base
+    parameters to the block times of ``cases``."""
+    from scipy.optimize import least_squares
+
+    from .fit import build_fitted, free_parameters
+
+    bad = [e.name for e in effects if e.stage != "plan"]
+    if bad:
+        raise MtwinError(f"{', '.join(bad)}: not a timing effect (a timing fit changes only what the plan "
+                         f"depends on: effects of stage 'plan', and base parameters)")
+    bad = [p for p in base_params if not p.startswith(TIMING_PARAMS)]
+    if bad:
+        raise MtwinError(f"--param {', '.join(bad)}: a timing fit changes axes.*, controller.*, spindle.* or "
+                         f"timing.* parameters")
+    read = {p: v for p, v in rapid_rates(cases).items() if p in base_params}
+    for p in base_params:
+        if _RAPID.fullmatch(p) and p not in read:
+            raise MtwinError(f"--param {p}: the logs hold too few long rapids that {p.split('.')[1].upper()} "
+                             f"limits ({MIN_RAPIDS} needed) to read its rapid rate from")
+    if read:  # observed, not fitted: the logged peak speed of long rapids
+        twin = twin.with_params({p: v[0] for p, v in read.items()})
+        base_params = [p for p in base_params if p not in read]
+    keys, lo, hi, x0, scale = free_parameters(twin, effects, base_params, _plan_starts(twin, effects))
+    count = [0]
+    before = summary(twin, cases)
+
+    def fun_x(x):
+        count[0] += 1
+        tw, fitted = build_fitted(twin, effects, keys, x)
+        return residuals(tw.with_effects(*fitted), cases)
+
+    x = x0
+    for _ in range(max(1, passes)):
+        if scan:
+            x = _scan(fun_x, x, lo, hi, keys)
+        u_lo, u_hi = 1.0 + (lo - x) / scale, 1.0 + (hi - x) / scale
+        xs = x.copy()
+        res = least_squares(lambda u: fun_x(np.clip(xs + (u - 1.0) * scale, lo, hi)), np.ones(len(x)),
+                            bounds=(u_lo, u_hi), method="trf", max_nfev=60, diff_step=1e-3, xtol=1e-6, ftol=1e-8)
+        x = np.clip(xs + (res.x - 1.0) * scale, lo, hi)
+        tw, fitted = build_fitted(twin, effects, keys, x)
+        for c in cases:  # the waits as the fitted twin has them
+            refresh_waits(tw.with_effects(*fitted), c)
+    tw, fitted = build_fitted(twin, effects, keys, x)
+    after = summary(tw.with_effects(*fitted), cases)
+    from .fit import _uncertainty
+
+    unc = [None if u is None else u * sc for u, sc in zip(_uncertainty(res, 1), scale)]
+    params = {p: v[0] for p, v in read.items()} | dict(zip(keys, map(float, x)))
+    uncertainty = {p: v[1] for p, v in read.items()} | dict(zip(keys, unc))
+    return TimingFit(fitted, params, uncertainty, {SIGNAL: before["window_rms"]}, {SIGNAL: after["window_rms"]},
+                     {SIGNAL: NOISE_FLOOR * math.sqrt(2.0)}, count[0], before, after, rapid_rates=read)
+
+
+def _plan_starts(twin, effects) -> dict:
+    """Where each timing effect's parameters start: the twin's own value where 0 would mean
+    'the twin file's' (so the scan and the solver start from the twin as it is)."""
+    m = twin.planned_machine
+    own = {"spindle-runup.acceleration": m.spindle.acceleration,
+           "block-time.min_time": m.controller.min_block_time,
+           "corner-slowdown.corner_velocity": m.controller.corner_velocity,
+           "arc-acceleration.acceleration": (m.controller.arc_acceleration
+                                             or min(a.max_acceleration for a in m.axes))}
+    out = {}
+    for e in effects:
+        for d in e.params:
+            key = f"{e.name}.{d.name}"
+            if d.name not in e.values and key in own:
+                out[f"effects.{key}"] = float(own[key])
+    return out
+
+
+def _scan(fun_x, x, lo, hi, keys, points: int = 9) -> np.ndarray:
+    """Coordinate scan: each parameter in turn over a grid of its range (geometric where the
+    range is positive), the best kept — a start for the local solver past the kinks."""
+    from ..errors import ConfigError
+
+    def cost(y):
+        try:
+            return float(np.sum(fun_x(y) ** 2))
+        except ConfigError:  # a base value the machine refuses (a zero speed)
+            return math.inf
+
+    x = x.copy()
+    best = cost(x)
+    for i in range(len(x)):
+        lo_i = lo[i] if math.isfinite(lo[i]) else -abs(x[i]) * 4
+        hi_i = hi[i] if math.isfinite(hi[i]) else max(abs(x[i]) * 4, 1.0)
+        if not keys[i].startswith("effects.") and lo_i == 0 and x[i] > 0:
+            lo_i = x[i] / 8  # a base parameter: around its value (0 is no machine)
+        if lo_i > 0:
+            grid = np.geomspace(lo_i, hi_i, points)
+        elif lo_i == 0 and hi_i > 0:
+            grid = np.concatenate(([0.0], np.geomspace(max(hi_i * 1e-3, abs(x[i]) / 8 or hi_i * 1e-3), hi_i,
+                                                       points - 1)))
+        else:
+            grid = np.linspace(lo_i, hi_i, points)
+        for v in grid:
+            y = x.copy()
+            y[i] = v
+            c = cost(y)
+            if c < best:
+                best, x = c, y
+    return x
+
+
+def diagnose_timing(twin, cases, candidates=None) -> dict:
+    """Each timing effect not yet in the twin fitted alone to the block times, ranked by the
+    squared block-time error it removes (ΔBIC for an extra parameter's price)."""
+    from ..effects import available
+
+    in_model = {e.name for e in twin.effects}
+    classes = [c for n, c in available().items()
+               if c.stage == "plan" and n not in in_model and (candidates is None or n in candidates)]
+    before = summary(twin, cases)
+    n = before["windows"]
+    rows = []
+    for cls in classes:
+        try:
+            fr = fit_timing(twin, cases, [cls()], passes=1)
+        except (MtwinError, ValueError, FloatingPointError):
+            continue
+        rss0, rss1 = n * before["window_rms"] ** 2, n * fr.after["window_rms"] ** 2
+        k = len(fr.params)
+        p = {key.rsplit(".", 1)[-1]: v for key, v in fr.params.items()}
+        rows.append({"effect": cls.name, "params": p, "rms_after": fr.after["rms"],
+                     "window_rms_after": fr.after["window_rms"],
+                     "removed": rss0 - rss1, "explained_variance": 1.0 - rss1 / rss0 if rss0 > 0 else 0.0,
+                     "delta_bic": n * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + k * math.log(max(n, 2)),
+                     "cycle_error_after": [c["cycle_error"] for c in fr.after["cases"]]})
+    rows.sort(key=lambda r: -r["removed"])
+    rms0, wrms0 = before["rms"], before["window_rms"]
+    verdict = ("fits" if wrms0 <= 1.5 * NOISE_FLOOR * math.sqrt(2.0) else
+               "explained" if rows and rows[0]["delta_bic"] < -10 else "unexplained")
+    for r in rows:
+        r["evidence"] = (f"window RMS {wrms0:.3g} → {r['window_rms_after']:.3g} s with {r['effect']} "
+                         f"({', '.join(f'{k}={v:.4g}' for k, v in r['params'].items())}): "
+                         f"{max(r['explained_variance'], 0.0):.0%} of the squared error removed, "
+                         f"ΔBIC {r['delta_bic']:+.0f}; cycle time "
+                         + ", ".join(f"{e:+.1%}" for e in r["cycle_error_after"]))
+    return {"rms": rms0, "window_rms": wrms0, "noise": NOISE_FLOOR, "window_noise": NOISE_FLOOR * math.sqrt(2.0),
+            "verdict": verdict, "before": before, "candidates": rows}

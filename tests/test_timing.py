@@ -1,0 +1,238 @@
+"""Timing calibration against a control's logged block times (loop/timing.py): the plan-only
+evaluation against the full simulation, recovery of known timing effects from a log the twin
+itself wrote, bad logs, and the NIST Hurco VMX24 plates where the workspace has them."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import REALDATA, ROOT
+
+import mtwin
+from mtwin.effects import get
+from mtwin.loop import timing as T
+from mtwin.loop.measurement import Measurement
+
+# two tools, small arcs (r 1 mm), short lines, rapids, a drill-like plunge
+PROGRAM = """\
+G21 G90 G17 G94
+T1 M6
+S9000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G1 X20 F900
+G2 X22 Y2 I0 J2 F3000
+G2 X20 Y4 I-2 J0
+G3 X18 Y6 I0 J2
+G1 X18.5 Y6.5
+G1 X19 Y6
+G1 X19.5 Y6.5
+G1 X40 Y6
+G2 X42 Y8 I0 J2
+G2 X40 Y10 I-2 J0
+G0 Z5
+G0 X80 Y40
+G1 Z-1 F300
+G1 X0 Y40 F1200
+G0 Z5
+M5
+T2 M6
+S12000 M3
+G0 X10 Y10
+G1 Z-1 F300
+G2 X12 Y12 I0 J2 F3000
+G2 X10 Y14 I-2 J0
+G2 X8 Y12 I0 J-2
+G2 X10 Y10 I2 J0
+G1 X60 F1500
+G0 Z5
+M5
+M30
+"""
+
+
+def _log_of(twin, prog, every=0.17, seed=0):
+    """What a control logs of the twin's own run: the executing line every ~0.17 s (jittered),
+    the path speed."""
+    tr = twin.simulate(prog, cutting=False)
+    t, line = np.asarray(tr.t), np.asarray(tr.line)
+    rng = np.random.default_rng(seed)
+    ts = np.cumsum(rng.uniform(0.8 * every, 1.2 * every, int(t[-1] / every) + 5))
+    ts = ts[ts < t[-1]]
+    k = np.searchsorted(t, ts)
+    m = Measurement("log.txt", ts, {"feed": np.asarray(tr.signal("feed"))[k]}, line[k].astype(np.int64), {}, [])
+    m.end_time = float(t[-1])
+    return m
+
+
+@pytest.fixture(scope="module")
+def prog(tmp_path_factory):
+    p = tmp_path_factory.mktemp("timing") / "part.nc"
+    p.write_text(PROGRAM)
+    return mtwin.Twin().load(str(p))
+
+
+def test_plan_with_waits_is_the_simulation(prog):
+    # the fit's evaluation (a plan plus the in-position waits of one simulation) puts every
+    # line start where the full simulation does, and ends where it ends
+    from mtwin.loop.blocks import simulated_starts
+
+    tw = mtwin.Twin()
+    case = T.timing_case(tw, prog, _log_of(tw, prog))
+    plan = tw.plan(prog)
+    lines, starts, end = T.plan_starts(plan, case.wait_line, T.case_waits(tw, case))
+    tr = tw.simulate(prog, cutting=False)
+    sl, ss = simulated_starts(np.asarray(tr.t), np.asarray(tr.line))
+    assert list(lines) == list(sl)
+    assert np.abs(starts - ss).max() < 3 * tw.machine.controller.servo_period
+    assert end == pytest.approx(tr.summary.cycle_time, abs=3e-3)
+    assert case.wait.sum() > 0.05  # there are waits to account for
+    # at another in-position width the log-linear waits stay close to a simulation's
+    wide = tw.with_params({"controller.in_position": 0.03})
+    _, _, end_w = T.plan_starts(plan, case.wait_line, T.case_waits(wide, case))
+    assert end_w == pytest.approx(wide.simulate(prog, cutting=False).summary.cycle_time, abs=0.05)
+
+
+def test_fit_recovers_timing_effects_from_the_twins_own_log(prog):
+    truth = mtwin.Twin().with_effects("toolchange-time:extra=2.5,first_extra=1.5", "arc-acceleration:acceleration=250")
+    meas = _log_of(truth, prog)
+    tw = mtwin.Twin()
+    case = T.timing_case(tw, prog, meas)
+    fr = T.fit_timing(tw, [case], [get("toolchange-time")(), get("arc-acceleration")()])
+    assert fr.params["effects.toolchange-time.extra"] + fr.params["effects.toolchange-time.first_extra"] / 2 == \
+        pytest.approx(2.5 + 1.5 / 2, abs=0.2)
+    assert fr.params["effects.arc-acceleration.acceleration"] == pytest.approx(250, rel=0.15)
+    assert abs(fr.after["cases"][0]["cycle_error"]) < 0.003 < abs(fr.before["cases"][0]["cycle_error"])
+    assert fr.rms_after["window_time"] < 0.5 * fr.rms_before["window_time"]
+
+
+def test_diagnose_ranks_the_missing_timing_effect_first(prog):
+    truth = mtwin.Twin().with_effects("toolchange-time:extra=4")
+    d = T.diagnose_timing(mtwin.Twin(), [T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))])
+    assert d["candidates"][0]["effect"] == "toolchange-time"
+    assert d["candidates"][0]["explained_variance"] > 0.8
+    assert d["verdict"] == "explained"
+
+
+def test_rapid_rate_is_read_off_the_logged_rapids(tmp_path):
+    p = tmp_path / "r.nc"
+    p.write_text("G21 G90\nG0 X0 Y0 Z0\n" + "".join(f"G0 X{100 * (i % 2)} Y{40 * (i % 3)}\nG0 Y{60 + 5 * i}\n"
+                                                      for i in range(6)) + "M30\n")
+    truth = mtwin.Twin().with_params({"axes.x.max_velocity": 9000.0, "axes.y.max_velocity": 7000.0})
+    prog = truth.load(str(p))
+    case = T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog, every=0.05))
+    r = T.rapid_rates([case])
+    assert r["axes.x.max_velocity"][0] == pytest.approx(9000, rel=0.02)
+    assert r["axes.y.max_velocity"][0] == pytest.approx(7000, rel=0.02)
+
+
+def test_a_timing_fit_refuses_what_it_cannot_fit(prog):
+    tw = mtwin.Twin()
+    case = T.timing_case(tw, prog, _log_of(tw, prog))
+    with pytest.raises(mtwin.errors.MtwinError, match="not a timing effect"):
+        T.fit_timing(tw, [case], [get("coulomb-friction")()])
+    with pytest.raises(mtwin.errors.MtwinError, match="axes"):
+        T.fit_timing(tw, [case], [], ["cutting.al6061.ktc"])
+
+
+# ------------------------------------------------------------------ bad logs, exit 2
+
+GOOD = ("2020-01-01T00:00:00.0Z|Program_Name_Running|PART.NC\n2020-01-01T00:00:00.1Z|Program_Status|ACTIVE\n"
+        "2020-01-01T00:00:00.2Z|Block_Number|3\n2020-01-01T00:00:01.0Z|Block_Number|5\n"
+        "2020-01-01T00:00:02.0Z|Program_Status|PROGRAM_COMPLETED\n")
+
+
+@pytest.mark.parametrize("log,where,what", [
+    (GOOD.replace("|Block_Number|5", "|Blok_Numbr|5"), ":4:24:", "unknown data item 'Blok_Numbr'"),
+    (GOOD.replace("00:00:01.0Z", "00:00:00.0Z"), ":4:1:", "before the previous record"),
+    (GOOD.replace("|Block_Number|5", "|Block_Number|500"), ":4:1:", "beyond the end of PART.NC"),
+    (GOOD.replace("|PART.NC", "|OTHER.NC"), "", "the log ran OTHER.NC, not PART.NC"),
+])
+def test_malformed_logs_are_clear_errors(tmp_path, log, where, what):
+    (tmp_path / "PART.NC").write_text("G21 G90\nG0 X0 Y0 Z5\nG1 X10 F600\nG1 Y10\nG1 X0\nG1 Y0\nM30\n")
+    (tmp_path / "log.txt").write_text(log)
+    for cmd in ("compare", "diagnose"):
+        r = subprocess.run([sys.executable, "-m", "mtwin", cmd, "PART.NC", "log.txt"], capture_output=True, text=True,
+                           cwd=tmp_path)
+        assert r.returncode == 2, (cmd, r.stderr)
+        assert "log.txt" + where in r.stderr and what in r.stderr, r.stderr
+    if "OTHER" in log:  # a renamed file is accepted on request
+        r = subprocess.run([sys.executable, "-m", "mtwin", "compare", "PART.NC", "log.txt", "--any-program"],
+                           capture_output=True, text=True, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+
+
+def test_overrides_and_holds(tmp_path):
+    # a feed hold is taken out of its group's time; a group run at 50 % feed override is
+    # left out and listed
+    from mtwin.loop.blocks import measurement_groups
+    from mtwin.loop.mtconnect import read_mtconnect
+
+    (tmp_path / "PART.NC").write_text("G21 G90\nG0 X0 Y0 Z5\nG1 X10 F600\nG1 Y10\nG1 X0\nG1 Y0\nM30\n")
+    (tmp_path / "log.txt").write_text(
+        "2020-01-01T00:00:00.0Z|Program_Name_Running|PART.NC|Program_Status|ACTIVE|Feed_Override|100\n"
+        "2020-01-01T00:00:00.2Z|Block_Number|3\n2020-01-01T00:00:01.0Z|Execution|FEED_HOLD\n"
+        "2020-01-01T00:00:04.0Z|Execution|ACTIVE\n2020-01-01T00:00:04.5Z|Block_Number|4\n"
+        "2020-01-01T00:00:05.5Z|Block_Number|5|Feed_Override|50\n2020-01-01T00:00:07.0Z|Feed_Override|100\n"
+        "2020-01-01T00:00:07.5Z|Block_Number|6\n2020-01-01T00:00:08.5Z|Program_Status|PROGRAM_COMPLETED\n")
+    m = read_mtconnect(str(tmp_path / "log.txt"))
+    g = measurement_groups(mtwin.Twin().load(str(tmp_path / "PART.NC")), m)
+    assert g.hold_time == pytest.approx(3.0)
+    assert list(g.first_line) == [3, 4, 6]
+    assert g.measured[0] == pytest.approx(4.3 - 3.0)
+    assert [x["first_line"] for x in g.excluded] == [5] and "50" in g.excluded[0]["reason"]
+
+
+# ------------------------------------------------------------------ the NIST Hurco VMX24
+
+HURCO = REALDATA / "nist_smstestbed_mtc_hurco"
+PROFILE = ROOT / "samples" / "machines" / "hurco-vmx24.toml"
+need_hurco = pytest.mark.skipif(not HURCO.is_dir(), reason=f"{HURCO} not present (the workspace's real logs)")
+
+
+def _case(twin, plate):
+    from mtwin.loop.measurement import read_measurement
+
+    prog = twin.load(str(HURCO / "NC-Code" / f"NIST_MTC_CRADA_PLATE-{plate}.NC"))
+    return T.timing_case(twin, prog, read_measurement(str(HURCO / "Split" / f"Plate-Op1-Hurco04-{plate}of20.txt")),
+                         f"plate {plate}")
+
+
+@need_hurco
+def test_the_profile_predicts_each_plates_cycle_time_within_2_percent():
+    tw = mtwin.Twin.from_toml(str(PROFILE))
+    for plate in (12, 13, 14):
+        # the full simulation (cutting included), as mtwin compare runs it
+        case = _case(tw, plate)
+        cyc = tw.simulate(case.program, every=50).summary.cycle_time
+        assert abs(cyc - case.cycle_measured) / case.cycle_measured < 0.02, (plate, cyc, case.cycle_measured)
+
+
+@need_hurco
+@pytest.mark.parametrize("left_out", [12, 13, 14])
+def test_leave_one_out_predicts_the_third_plate_within_3_percent(left_out):
+    # the profile's recipe in one fit, from its hand-set base, on two plates; the third predicted
+    base = mtwin.Twin().with_params({"spindle.max_speed": 12000.0, "axes.z.max_velocity": 10560.0,
+                                     **{f"axes.{a}.{k}": v for a in "xyz" for k, v in
+                                        (("min_travel", -1000.0), ("max_travel", 1000.0))}})
+    cases = [_case(base, p) for p in (12, 13, 14) if p != left_out]
+    effects = [get(n)() for n in ("spindle-runup", "toolchange-time", "arc-acceleration")]
+    fr = T.fit_timing(base, cases, effects, ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration",
+                                             "axes.y.max_acceleration", "controller.bell_time",
+                                             "controller.in_position"])
+    fitted = base.with_params({k: v for k, v in fr.params.items() if not k.startswith("effects.")}) \
+        .with_effects(*fr.effects)
+    s = T.summary(fitted, [_case(fitted, left_out)])
+    assert abs(s["cases"][0]["cycle_error"]) < 0.03, s["cases"][0]
+
+
+@need_hurco
+def test_diagnose_names_the_timing_effects_the_profile_adds_in_order():
+    d = T.diagnose_timing(mtwin.Twin(), [_case(mtwin.Twin(), 13)])
+    names = [c["effect"] for c in d["candidates"]]
+    profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
+    assert names[:len(profile)] == profile, (names, profile)
+    # the ones it does not add remove (almost) nothing
+    assert all(c["explained_variance"] < 0.05 for c in d["candidates"][len(profile):])
