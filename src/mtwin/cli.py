@@ -1112,8 +1112,8 @@ def calibrate(
     base = {k: v for k, v in res.params.items() if not k.startswith("effects.")}
     validation = None
     if validate:
-        tw2 = _Twin((tw.with_params(base) if base else tw).machine, tw.interpreter, tw.path,
-                    (tw.with_params(base) if base else tw).cutting, effects)
+        fitted_base = tw.with_params(base) if base else tw
+        tw2 = _Twin(fitted_base.machine, tw.interpreter, tw.path, fitted_base.cutting, effects)
         meas2 = read_measurement(validate, maps)
         check_against_program(meas2, prog, any_program)
         if how == "timing":

@@ -3,27 +3,31 @@
 A control that logs its executing line gives, per block group, how long the machine took
 (:mod:`.blocks`).  What decides those times is the plan — feeds, rapids, accelerations,
 tool changes, spindle waits — plus the in-position waits at exact stops, which only the
-servo simulation knows.  So a timing case simulates its program once (no cutting: the cut
-does not change when lines start) to learn the waits per line, and every evaluation of a
-fit after that is a plan alone (~0.03 s for a 4,000-line program) with those waits added at
-the end of their lines.  The waits depend a little on the axes' speeds and accelerations,
-so a fit refreshes them with the fitted twin and fits again (two passes), and its final
-figures come from a full re-simulation.
+servo simulation knows.  So a timing case simulates its program (no cutting: the cut does
+not change when lines start) at the twin's in-position width and at twice it, to learn each
+line's wait and how it grows as the width narrows; every evaluation of a fit after that is a
+plan alone (~0.03 s for a 4,000-line program) with those waits added at the end of their
+lines.  The waits depend a little on the axes' speeds and accelerations, so a fit refreshes
+them with the fitted twin and fits again (two passes); its final figures use waits
+simulated with the fitted twin.
 
-Residuals are per block group: (simulated − measured duration) / the noise floor (0.15 s).
-The fit is bounded least squares (scipy's trust-region reflective) from a start found by
-scanning each parameter over its range — timing objectives have kinks (a minimum block
-time binds or not, an arc limit bites or not) that a local method alone can stall on.
+Residuals are per window of consecutive block groups (≈ 10 s of measured time):
+(simulated − measured time) / the noise of a window's length, the noise floor (0.15 s) × √2 —
+only its two ends' report jitter.  The fit is bounded least squares (scipy's trust-region
+reflective) from a start found by scanning each parameter over its range — timing
+objectives have kinks (a minimum block time binds or not, an arc limit bites or not) that a
+local method alone can stall on.  A fit works on copies of its cases: the caller's waits
+stay those of the twin they were simulated on.
 """
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import MtwinError
+from ..errors import ConfigError, MtwinError
 from .blocks import NOISE_FLOOR, Groups, measurement_groups, run_end_and_holds, simulated_durations
 
 SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
@@ -143,15 +147,17 @@ def evaluate(twin, case: TimingCase):
     return simulated_durations(case.groups, lines, starts, end), end
 
 
+def _errors(twin, case: TimingCase):
+    """(simulated − measured time per group, per window, simulated cycle time)."""
+    d, cyc = evaluate(twin, case)
+    e = np.where(np.isfinite(d), d - case.groups.measured, 0.0)
+    return e, np.bincount(case.window, weights=e), cyc
+
+
 def residuals(twin, cases) -> np.ndarray:
     """Per window of each case: (simulated − measured time) / the noise of a window's length
     (its two ends' report jitter, the noise floor × √2)."""
-    parts = []
-    for c in cases:
-        d, _ = evaluate(twin, c)
-        e = np.where(np.isfinite(d), d - c.groups.measured, 0.0)
-        parts.append(np.bincount(c.window, weights=e) / (NOISE_FLOOR * math.sqrt(2.0)))
-    return np.concatenate(parts)
+    return np.concatenate([_errors(twin, c)[1] for c in cases]) / (NOISE_FLOOR * math.sqrt(2.0))
 
 
 def summary(twin, cases) -> dict:
@@ -159,9 +165,7 @@ def summary(twin, cases) -> dict:
     out = {"cases": []}
     sq, n, wsq, wn = 0.0, 0, 0.0, 0
     for c in cases:
-        d, cyc = evaluate(twin, c)
-        e = np.where(np.isfinite(d), d - c.groups.measured, 0.0)
-        we = np.bincount(c.window, weights=e)
+        e, we, cyc = _errors(twin, c)
         sq += float(np.sum(e * e))
         n += len(e)
         wsq += float(np.sum(we * we))
@@ -257,9 +261,13 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
     if bad:
         raise MtwinError(f"--param {', '.join(bad)}: a timing fit changes axes.*, controller.*, spindle.* or "
                          f"timing.* parameters")
-    read = {p: v for p, v in rapid_rates(cases).items() if p in base_params}
-    for p in base_params:
-        if _RAPID.fullmatch(p) and p not in read:
+    # the fit refreshes waits: on copies, so the caller's cases (a diagnosis's next candidate,
+    # another fold) keep the waits of the twin they were simulated on
+    cases = [replace(c) for c in cases]
+    rapid = [p for p in base_params if _RAPID.fullmatch(p)]
+    read = {p: v for p, v in rapid_rates(cases).items() if p in rapid} if rapid else {}
+    for p in rapid:
+        if p not in read:
             raise MtwinError(f"--param {p}: the logs hold too few long rapids that {p.split('.')[1].upper()} "
                              f"limits ({MIN_RAPIDS} needed) to read its rapid rate from")
     if read:  # observed, not fitted: the logged peak speed of long rapids
@@ -318,8 +326,6 @@ def _plan_starts(twin, effects) -> dict:
 def _scan(fun_x, x, lo, hi, keys, points: int = 9) -> np.ndarray:
     """Coordinate scan: each parameter in turn over a grid of its range (geometric where the
     range is positive), the best kept — a start for the local solver past the kinks."""
-    from ..errors import ConfigError
-
     def cost(y):
         try:
             return float(np.sum(fun_x(y) ** 2))
@@ -336,7 +342,7 @@ def _scan(fun_x, x, lo, hi, keys, points: int = 9) -> np.ndarray:
         if lo_i > 0:
             grid = np.geomspace(lo_i, hi_i, points)
         elif lo_i == 0 and hi_i > 0:
-            grid = np.concatenate(([0.0], np.geomspace(max(hi_i * 1e-3, abs(x[i]) / 8 or hi_i * 1e-3), hi_i,
+            grid = np.concatenate(([0.0], np.geomspace(max(hi_i * 1e-3, abs(x[i]) / 8), hi_i,
                                                        points - 1)))
         else:
             grid = np.linspace(lo_i, hi_i, points)
