@@ -370,7 +370,7 @@ def _load_effect_files(files) -> None:
             load_file(f)
 
 
-def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock, planner=None):
+def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock, planner=None, tools=None):
     """The twin of the common options (the twin file, --planner, --effect-file, --effect), its
     interpreter settings and the --stock box."""
     from .config import interpreter_settings, load_cutting, load_effects, load_machine
@@ -388,6 +388,10 @@ def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stoc
     settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
     _load_effect_files(effect_file)
     tw = Twin(machine, settings, twin, load_cutting(twin), load_effects(twin))
+    if tools:
+        from .cutting.library import parse_tool_option
+
+        tw = tw.with_tools(dict(parse_tool_option(t) for t in tools))
     if effect:
         tw = tw.with_effects(*effect)
     box = None
@@ -399,6 +403,9 @@ def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stoc
 
 
 PlannerOpt = typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | linuxcnc | grbl.")
+ToolOpt = typer.Option(None, "--tool", metavar="N=TYPE:DIAMETER[:FLUTES]",
+                       help="Declare a tool (mm; flat | ball | bull, e.g. 1=flat:6.35:2; a bull-nose's corner radius "
+                            "fifth): over the twin file's table and the program's comments.")
 
 
 @app.command(short_help="Run a program through the twin: time, errors, loads.")
@@ -420,6 +427,7 @@ def simulate(
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
                                           help="Instantaneous tooth-passing forces instead of revolution averages."),
     planner: Optional[str] = PlannerOpt,
+    tool: Optional[list[str]] = ToolOpt,
     effect: Optional[list[str]] = EffectOpt,
     effect_file: Optional[list[str]] = EffectFileOpt,
     twin: Optional[str] = TwinOpt,
@@ -428,7 +436,7 @@ def simulate(
     block_delete: Optional[bool] = BlockDeleteOpt,
 ):
     """Run a program through the twin: cycle time, following errors, motor torques, trace."""
-    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock, planner)
+    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock, planner, tool)
     machine = tw.machine
     dt = machine.controller.servo_period
     if every is not None and decimate is not None:
@@ -612,8 +620,9 @@ def optimize(
     objective: str = typer.Option("time", "--objective", help="time | cost | smooth | air."),
     method: str = typer.Option("bisect", "--method", help="bisect (per-segment bisection) | ga (genetic algorithm)."),
     force_limit: Optional[float] = typer.Option(None, "--force-limit",
-                                                help="Cutting-load limit, N (default: cost.force_per_diameter x "
-                                                     "tool diameter, 60 N for a 6 mm tool)."),
+                                                help="Cutting-load limit, N (default: learned per tool from the "
+                                                     "program — the load and chip thickness it already runs at; "
+                                                     "then no feed is lowered)."),
     feed_range: Optional[str] = typer.Option(None, "--feed-range", help="LOW,HIGH mm/min (default: 10 % of the "
                                              "lowest F up to the machine's maximum cutting feed)."),
     spindle_range: Optional[str] = typer.Option(None, "--spindle-range",
@@ -623,7 +632,13 @@ def optimize(
     target_power: Optional[float] = typer.Option(None, "--target-power",
                                                  help="smooth: target mean cutting power per segment, W "
                                                       "(default: the 75th percentile of the segments')."),
-    tolerance: float = typer.Option(0.05, "--tolerance", help="smooth: relative tolerance K on the target power."),
+    tolerance: float = typer.Option(0.02, "--tolerance", help="Contour error, mm, a segment may gain over the "
+                                    "program's own on the re-simulated twin."),
+    power_tolerance: float = typer.Option(0.05, "--power-tolerance",
+                                          help="smooth: relative tolerance K on the target power."),
+    finish_feed: str = typer.Option("keep", "--finish-feed", help="keep (finishing passes keep their feed per "
+                                    "tooth) | optimize (treat them as any cut)."),
+    tool: Optional[list[str]] = ToolOpt,
     segmentation: str = typer.Option("cluster", "--segmentation",
                                      help="cluster (sequential clustering) | changepoint (binary segmentation)."),
     min_segment: float = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of path."),
@@ -666,30 +681,34 @@ def optimize(
     if report == "-" or (report is not None and report == output):
         raise MtwinError("--report needs a file name of its own")
     check_outputs(output, report)
-    if not (0 < tolerance < 1):
-        raise MtwinError(f"--tolerance must be between 0 and 1, got {tolerance:g}")
+    if not (0 < power_tolerance < 1):
+        raise MtwinError(f"--power-tolerance must be between 0 and 1, got {power_tolerance:g}")
+    if not (tolerance >= 0 and _math.isfinite(tolerance)):
+        raise MtwinError(f"--tolerance must be a contour error of 0 mm or more, got {tolerance:g}")
+    if finish_feed not in ("keep", "optimize"):
+        raise MtwinError(f"--finish-feed must be keep or optimize, got {finish_feed!r}")
     if not min_segment >= 0:
         raise MtwinError(f"--min-segment must be >= 0, got {min_segment:g}")
     if population < 4 or generations < 1:
         raise MtwinError("--population must be at least 4 and --generations at least 1")
     if report is not None and not report.endswith((".html", ".htm")):
         raise MtwinError(f"--report {report}: use an .html file name")
-    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, None, None, stock, planner)
+    tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, None, None, stock, planner, tool)
     prog = _load(part, settings)
     opts = OptimizeOptions(objective, method, force_limit, _range(feed_range, "--feed-range"),
                            _range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
-                           tolerance=tolerance, segmentation=segmentation, min_segment=min_segment,
+                           power_tolerance=power_tolerance, tolerance=tolerance, finish_feed=finish_feed,
+                           segmentation=segmentation, min_segment=min_segment,
                            ga=GAOptions(population=population, generations=generations, seed=seed))
-    if method == "ga" and not json_out:
-        from rich.progress import BarColumn, Progress, TextColumn
+    from .optimize.run import InfeasibleError
 
-        with Progress(TextColumn("GA"), BarColumn(), TextColumn("gen {task.completed}/{task.total}"),
-                      TextColumn("{task.fields[best]}"), console=err, transient=True) as bar:
-            task = bar.add_task("ga", total=generations, best="")
-            res = run_optimize(tw, prog, opts, stock=box,
-                               progress=lambda g, n, b: bar.update(task, completed=g, best=f"fitness {b:.4f}"))
-    else:
-        res = run_optimize(tw, prog, opts, stock=box)
+    try:
+        res = _run_with_progress(run_optimize, tw, prog, opts, box, generations if method == "ga" else 0)
+    except InfeasibleError as exc:
+        if json_out:
+            sys.stdout.write(json.dumps({"program": prog.path, "objective": objective, "method": method,
+                                         "written": False, "error": str(exc), "reasons": exc.reasons}, indent=1) + "\n")
+        raise
     for w in res.warnings:
         _warn(w)
     write_output(res.output, output, [part], in_place)
@@ -700,21 +719,54 @@ def optimize(
     _print_optimize(res, prog, json_out)
 
 
+def _run_with_progress(run_optimize, tw, prog, opts, box, generations: int):
+    """Run the optimiser with a transient progress display on a terminal's stderr (the stage,
+    and the GA's generations); plain otherwise."""
+    if not err.is_terminal:
+        return run_optimize(tw, prog, opts, stock=box)
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
+                  TimeElapsedColumn(), console=err, transient=True) as bar:
+        task = bar.add_task("optimize", total=None, info="")
+
+        def stage(text: str) -> None:
+            bar.update(task, description=text, total=None, completed=0, info="")
+
+        def ga(g, n, b):
+            bar.update(task, description="GA", total=n, completed=g, info=f"gen {g}/{n}, fitness {b:.4f}")
+
+        return run_optimize(tw, prog, opts, stock=box, progress=ga if generations else None, stage=stage)
+
+
+def _verdict(before: float, after: float) -> tuple[str, float]:
+    """faster / slower / unchanged, and the relative change."""
+    ch = after / before - 1.0 if before else 0.0
+    if abs(ch) < 5e-4:
+        return "unchanged", ch
+    return ("faster" if ch < 0 else "slower"), ch
+
+
 def _print_optimize(res, prog, json_out: bool) -> None:
     b, a = res.before, res.after
+    verdict, change = _verdict(b.cycle_time, a.cycle_time)
 
     def pct(x, y):
         return f"{(y / x - 1) * 100:+.1f} %" if x else "—"
 
     if json_out:
-        doc = {"program": prog.path, "objective": res.objective, "method": res.method, "before": b.as_dict(),
+        doc = {"program": prog.path, "objective": res.objective, "method": res.method, "written": True,
+               "verdict": verdict, "cycle_time_change": change, "before": b.as_dict(),
                "after": a.as_dict(), "estimate": res.estimate,
                "estimate_error": {"cycle_time": res.estimate["cycle_time"] - a.cycle_time},
                "changed_lines": len(res.changed_lines), "verified": res.verified, "rounds": res.rounds,
                "evaluations": res.evaluations, "generations": res.generations, "seconds": res.seconds,
                "force_limit": res.force_limit, "force_limit_source": res.force_limit_source,
+               "limits": res.limits, "kept": res.kept, "contour_error": res.contour_error,
+               "spindle": {str(k): v for k, v in res.spindle.items()},
                "defaults": res.defaults, "segments": res.segments,
                "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in res.tradeoff],
+               "tradeoff_source": res.tradeoff_source,
                "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in res.changed_lines]}
         sys.stdout.write(json.dumps(doc, indent=1) + "\n")
         return
@@ -724,22 +776,45 @@ def _print_optimize(res, prog, json_out: bool) -> None:
     for col in ("", "before", "after", "change"):
         t.add_column(col, justify="right" if col else "left")
     t.add_row("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time))
-    t.add_row("cost", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost))
+    if b.cost is not None and a.cost is not None:
+        t.add_row("cost", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost))
     t.add_row("peak load", f"{b.peak_load:.1f} N", f"{a.peak_load:.1f} N", pct(b.peak_load, a.peak_load))
     t.add_row("peak spindle power", f"{b.peak_power / 1000:.2f} kW", f"{a.peak_power / 1000:.2f} kW",
               pct(b.peak_power, a.peak_power))
+    ce = res.contour_error
+    if ce:
+        t.add_row("contour error (feed moves)", f"{ce['before']:.3f} mm", f"{ce['after']:.3f} mm",
+                  f"{ce['after'] - ce['before']:+.3f} mm")
     cv = (lambda v: "—" if v is None else f"{v:.3f}")
     t.add_row("power CV (segment means)", cv(b.power_cv), cv(a.power_cv), "")
     err.print(t)
-    lim = ", ".join(f"T{k}: {v:.0f} N" for k, v in res.force_limit.items())
-    if res.force_limit_source:
-        lim += f" ({res.force_limit_source})"
+    word = {"faster": f"{-change * 100:.1f} % faster", "slower": f"{change * 100:.1f} % SLOWER",
+            "unchanged": "cycle time unchanged"}[verdict]
+    err.print(f"result: {word} ({b.cycle_time:.2f} -> {a.cycle_time:.2f} s, re-simulated)", highlight=False)
+    for lim in res.limits:
+        if lim.get("tool") is None:
+            continue
+        if lim.get("load") is None:
+            err.print(f"limits T{lim['tool']}: {lim['source']}", highlight=False, soft_wrap=True)
+            continue
+        chip = f", chip thickness {lim['chip_thickness'] * 1000:.1f} µm" if lim.get("chip_thickness") else ""
+        err.print(f"limits T{lim['tool']}: load {lim['load']:.1f} N{chip} ({lim['source']})", highlight=False,
+                  soft_wrap=True)
+    if res.spindle:
+        err.print("spindle speed chosen: " + ", ".join(f"T{k}: S{v:.0f}" for k, v in res.spindle.items()),
+                  highlight=False)
+    for why, lines in res.kept.items():
+        err.print(f"kept their feeds ({why}): {len(lines)} line(s)", highlight=False)
     for d in res.defaults:
         err.print(f"note: {d}", soft_wrap=True, highlight=False, markup=False)
-    err.print(f"{len(res.segments)} segments, {len(res.changed_lines)} changed line group(s); load limit {lim}; "
-              f"verified: same path; limits held on the re-simulated program ({res.rounds} round(s)); estimate "
-              f"{res.estimate['cycle_time']:.2f} s vs re-simulated {a.cycle_time:.2f} s; {res.evaluations} "
-              f"evaluations in {res.seconds:.1f} s", soft_wrap=True)
+    if res.segments:
+        err.print(f"{len(res.segments)} segments, {len(res.changed_lines)} changed line group(s); verified: same path; "
+                  f"limits and contour tolerance ({ce.get('tolerance', 0):g} mm) held on the re-simulated program "
+                  f"({res.rounds} round(s)); estimate {res.estimate['cycle_time']:.2f} s vs re-simulated "
+                  f"{a.cycle_time:.2f} s; {res.evaluations} evaluations in {res.seconds:.1f} s", soft_wrap=True,
+                  highlight=False)
+    else:
+        err.print(f"nothing changed; written as it was ({res.seconds:.1f} s)", highlight=False)
 
 
 import_app = typer.Typer(help="Read machine logs into the measurement format.", no_args_is_help=True,

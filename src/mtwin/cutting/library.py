@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from dataclasses import dataclass, field, fields, replace
 
 from ..errors import ConfigError
@@ -98,14 +99,53 @@ class Cutting:
     # with no tool table in the twin file: the tools the program's comments declare (the rest
     # are the default tool); see for_program
     program_tools: dict[int, Tool] = field(default_factory=dict)
+    # tools declared on the command line (``--tool N=TYPE:DIAMETER[:FLUTES]``): over the
+    # twin file's table and the program's comments
+    declared: dict[int, Tool] = field(default_factory=dict)
 
     def tool(self, number: int, where: str = "") -> Tool:
+        if number in self.declared:
+            return self.declared[number]
         if not self.tools:
             return self.program_tools.get(number, Tool())
         if number not in self.tools:
             raise ConfigError(f"{where}tool T{number} is not in the tool table [tools.*] of the twin file "
                               f"(has {', '.join(f'T{k}' for k in sorted(self.tools))})")
         return self.tools[number]
+
+
+def describes(cutting: Cutting, number: int) -> bool:
+    """Whether the twin knows tool ``number`` (the command line, the twin file's table or the
+    program's comments describe it) rather than standing the default end mill in for it.
+    Call on the cutting part of one program (``for_program``)."""
+    return number in cutting.declared or number in cutting.tools or number in cutting.program_tools
+
+
+def parse_tool_option(text: str) -> tuple[int, Tool]:
+    """``N=TYPE:DIAMETER[:FLUTES]`` (``--tool``), diameter in mm: ``3=flat:6.35:2``,
+    ``1=ball:10``, ``2=bull:12:4:1.5`` (a bull-nose's corner radius last)."""
+    m = re.fullmatch(r"\s*T?(\d+)\s*=\s*([A-Za-z]+)\s*:\s*([0-9.eE+-]+)(?:\s*:\s*(\d+))?(?:\s*:\s*([0-9.eE+-]+))?\s*",
+                     text)
+    if not m:
+        raise ConfigError(f"--tool {text!r}: expected N=TYPE:DIAMETER[:FLUTES[:CORNER_RADIUS]] (mm), "
+                          f"e.g. 1=flat:6:2 or 3=bull:12:4:1.5")
+    typ = m.group(2).lower()
+    if typ not in TOOL_TYPES:
+        raise ConfigError(f"--tool {text!r}: type must be one of {', '.join(TOOL_TYPES)} (the shapes the cutting "
+                          f"model represents), got {typ!r}")
+    try:
+        d = float(m.group(3))
+        cr = float(m.group(5)) if m.group(5) else 0.0
+    except ValueError:
+        raise ConfigError(f"--tool {text!r}: the diameter and corner radius must be numbers (mm)") from None
+    if not (0 < d < 1000 and math.isfinite(d)):
+        raise ConfigError(f"--tool {text!r}: the diameter must be a positive number of mm under 1000")
+    flutes = int(m.group(4)) if m.group(4) else 2
+    if not 1 <= flutes <= 64:
+        raise ConfigError(f"--tool {text!r}: flutes must be 1 to 64")
+    if typ == "bull" and not 0 < cr < d / 2:
+        raise ConfigError(f"--tool {text!r}: a bull-nose tool needs a corner radius between 0 and D/2 (fifth field)")
+    return int(m.group(1)), Tool(type=typ, diameter=d, flutes=flutes, corner_radius=cr if typ == "bull" else 0.0)
 
 
 def cutting_param_names(cutting: Cutting) -> list[str]:
@@ -170,6 +210,11 @@ def for_program(cutting: Cutting, program) -> Cutting:
     ``(T1 D=6 CR=0 - flat end mill)``, Mastercam's tool table, …) replace the default tool,
     and ``defaults_used`` says for each tool the program uses where its description came from."""
     if cutting.tools:
+        if cutting.declared:
+            used = sorted(set(int(t) for t in program.records["tool"]))
+            notes = [f"tool T{t}: {cutting.declared[t].diameter:g} mm {cutting.declared[t].type}, "
+                     f"{cutting.declared[t].flutes} flutes, from --tool" for t in used if t in cutting.declared]
+            return replace(cutting, defaults_used=tuple(notes) + cutting.defaults_used)
         return cutting
     from .tool_comments import to_library_tool
 
@@ -183,6 +228,10 @@ def for_program(cutting: Cutting, program) -> Cutting:
         # selects with a bare T word is the one in the spindle
         only = next(iter(found.tools.values()))
     for t in used:
+        if t in cutting.declared:
+            lib = cutting.declared[t]
+            notes.append(f"tool T{t}: {lib.diameter:g} mm {lib.type}, {lib.flutes} flutes, from --tool")
+            continue
         d = found.tools.get(t) if only is None else only
         lib = to_library_tool(d) if d is not None else None
         if lib is not None:

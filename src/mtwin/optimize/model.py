@@ -35,6 +35,8 @@ class PathModel:
     cutting: np.ndarray  # (m,) bool: the step meets material
     tool: np.ndarray  # (m,) tool number
     diameter: np.ndarray  # (m,) tool diameter, mm
+    chip: np.ndarray  # (m,) largest chip thickness per mm of feed per tooth (h_max = f_z·chip)
+    ae: np.ndarray  # (m,) radial width of cut, mm
 
     @property
     def steps(self) -> int:
@@ -108,7 +110,8 @@ def path_model(twin, program, plan, eng, kscale=None) -> PathModel:
     flutes = eng.tools[trow, 2]
     diameter = 2.0 * eng.tools[trow, 0]
     return PathModel(step_rec, pos, length, fa, fb, ta, tb, flutes, cutting,
-                     program.records["tool"][step_rec].astype(np.int64), diameter)
+                     program.records["tool"][step_rec].astype(np.int64), diameter,
+                     np.where(cutting, q[:, EK.Q_WMAX], 0.0), np.where(cutting, q[:, EK.Q_AE], 0.0))
 
 
 def _within(count: np.ndarray) -> np.ndarray:

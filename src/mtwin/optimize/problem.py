@@ -83,6 +83,13 @@ class Problem:
     runup_from: np.ndarray = field(default_factory=lambda: np.zeros(0))
     runup_dur0: np.ndarray = field(default_factory=lambda: np.zeros(0))
     runup_acc: float = 1.0
+    # the largest chip thickness of a segment per mm of feed per tooth, and its limit (mm;
+    # inf: none) — the chip load a program's own cuts run at, when the limits are learned
+    seg_chip: np.ndarray | None = None
+    seg_hlim: np.ndarray | None = None
+    # per variable, the lowest feed the answer may have (0: the feed range's; the program's
+    # own feed when the limits are learned from it: nothing is slowed)
+    f_floor: np.ndarray | None = None
 
     # ---- the model -------------------------------------------------------------------
     def _interp(self, tab: np.ndarray, fz: np.ndarray) -> np.ndarray:
@@ -117,13 +124,21 @@ class Problem:
         t_lim = self.limits.power / (2.0 * math.pi * np.maximum(n, self.limits.base_speed) / 60.0)
         return F, n, fz, load, torque, power, omega, t_lim
 
-    def _excess(self, load, power, torque, t_lim):
-        """Relative excess over the load, power and torque limits (each held the margin under
-        them); -1 on air segments."""
+    def chip(self, fz: np.ndarray) -> np.ndarray:
+        """Largest chip thickness (mm) of every segment at feeds per tooth ``fz``."""
+        chip = self.seg_chip if self.seg_chip is not None else np.zeros(len(self.seg_var))
+        return fz * chip
+
+    def _excess(self, load, power, torque, t_lim, fz=None):
+        """Relative excess over the load, power, torque and chip-thickness limits (each held
+        the margin under them); -1 on air segments."""
         m = 1.0 - self.limits.margin
         cut = ~self.seg_air
-        return tuple(np.where(cut, x / (lim * m) - 1.0, -1.0)
-                     for x, lim in ((load, self.seg_force), (power, self.limits.power), (torque, t_lim)))
+        pairs = [(load, self.seg_force), (power, self.limits.power), (torque, t_lim)]
+        if fz is not None:
+            hlim = self.seg_hlim if self.seg_hlim is not None else np.full(len(self.seg_var), np.inf)
+            pairs.append((self.chip(fz), hlim))
+        return tuple(np.where(cut, x / (lim * m) - 1.0, -1.0) for x, lim in pairs)
 
     def evaluate(self, feeds: np.ndarray, spins: np.ndarray) -> dict:
         """Figures of candidates: ``feeds`` (P, nvar) mm/min, ``spins`` (P, nspin) rpm."""
@@ -135,7 +150,7 @@ class Problem:
         ts = self.seg_time(F)
         time = self.cycle_before + (ts - self.t_base).sum(axis=1) + self.runup_change(spins)
         cut = ~self.seg_air
-        v_load, v_power, v_torque = (np.maximum(x, 0.0) for x in self._excess(load, power, torque, t_lim))
+        v_load, v_power, v_torque, v_chip = (np.maximum(x, 0.0) for x in self._excess(load, power, torque, t_lim, fz))
         # cost (Gilbert): rate x time + per tool (cut time / life) x (price + rate x change time)
         r = self.rates
         v_cut = math.pi * self.seg_diam * n / 1000.0  # m/min
@@ -144,8 +159,8 @@ class Problem:
         wear = np.where(cut, (ts / 60.0) / life, 0.0).sum(axis=1)  # tool lives used
         cost = r.rate * time / 3600.0 + wear * (r.tool_price + r.rate * r.tool_replace_time / 3600.0)
         return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
-                "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque,
-                "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "tool_lives": wear}
+                "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque + v_chip,
+                "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "v_chip": v_chip, "tool_lives": wear}
 
     def runup_change(self, spins: np.ndarray) -> np.ndarray:
         """Change of the spindle run-up waits (s) at these speeds against the program's."""
@@ -168,8 +183,8 @@ class Problem:
         spins = np.atleast_2d(spins)
 
         def ok(logf):
-            _, _, _, load, torque, power, _, t_lim = self._mechanics(np.exp(logf)[None, :], spins)
-            over = np.maximum.reduce(self._excess(load, power, torque, t_lim))[0] > 0
+            _, _, fz, load, torque, power, _, t_lim = self._mechanics(np.exp(logf)[None, :], spins)
+            over = np.maximum.reduce(self._excess(load, power, torque, t_lim, fz))[0] > 0
             bad = np.zeros(self.nvar, bool)
             np.logical_or.at(bad, self.seg_var, over)
             return ~bad
@@ -182,7 +197,11 @@ class Problem:
             lo = np.where(good, mid, lo)
             hi = np.where(good, hi, mid)
         out = np.where(top, math.exp(math.log(hi_f)), np.exp(lo))
-        return np.where(bottom, out, np.nan)
+        out = np.where(bottom, out, np.nan)
+        if self.f_floor is not None:
+            # never under the floor (the program's own feed, when the limits are its own)
+            out = np.where(self.f_floor > 0, np.fmax(out, self.f_floor), out)
+        return out
 
 
 def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limits, rates: CostRates,
@@ -221,6 +240,9 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
             T = (fz * model.ta[idx] + model.tb[idx]) * model.cutting[idx]
             load_tab[:, g] = np.where(present, np.maximum.reduceat(L, b), 0.0)
             torque_tab[:, g] = np.where(present, np.maximum.reduceat(T, b), 0.0)
+    seg_chip = np.zeros(S)
+    if len(idx):
+        seg_chip = np.where(present, np.maximum.reduceat(model.chip[idx], np.minimum(bounds, len(idx) - 1)), 0.0)
     w = model.length[idx] * model.cutting[idx]
     seg_len = np.bincount(st, weights=model.length[idx], minlength=S)
     mta = np.bincount(st, weights=w * model.ta[idx], minlength=S) / np.maximum(seg_len, 1e-12)
@@ -252,4 +274,4 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     seg_force = np.array([force_of_tool(int(t), float(d)) for t, d in zip(segs.seg_tool, diam_seg)])
     return Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
                    seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, t_base, f0_var, n0[:nspin],
-                   cycle_before, limits, rates, np.asarray(loss, float))
+                   cycle_before, limits, rates, np.asarray(loss, float), seg_chip=seg_chip)

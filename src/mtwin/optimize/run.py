@@ -15,6 +15,7 @@ from ..motion.path import PAUSE
 from .model import feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
+from .guards import FINISH_AE, clear_of_stock, contour_error, finish_lines, learned_levels, trusted_records
 from .segment import locate, segment_path
 
 
@@ -25,7 +26,12 @@ class VerifyError(MtwinError):
 
 
 class InfeasibleError(MtwinError):
-    """Even the lowest feed of the range breaks a limit: the program needs another strategy."""
+    """Even the lowest feed of the range breaks a limit: the program needs another strategy.
+    ``reasons``: per segment, the limit, its lines and tool, the value against the limit."""
+
+    def __init__(self, message: str, reasons: list | None = None):
+        super().__init__(message)
+        self.reasons = reasons or []
 
 
 @dataclass
@@ -39,18 +45,20 @@ class OptimizeOptions:
     allow_s_changes: bool = False
     target_power: float | None = None  # W, smooth; None: the percentile below
     target_percentile: float = 75.0
-    tolerance: float = 0.05  # smooth: |P/P_target - 1|
+    power_tolerance: float = 0.05  # smooth: |P/P_target - 1|
+    tolerance: float = 0.02  # mm: a segment's re-simulated contour error may exceed the program's by this much
+    finish_feed: str = "keep"  # keep: finishing passes keep their feed per tooth; optimize: treated as any cut
     segmentation: str = "cluster"
     min_segment: float = 5.0  # mm, the reference's C
     ga: GAOptions = field(default_factory=GAOptions)
     margin: float = 0.01
-    max_rounds: int = 5
+    max_rounds: int = 8
 
 
 @dataclass
 class Figures:
     cycle_time: float
-    cost: float
+    cost: float | None
     peak_load: float
     peak_power: float
     power_cv: float | None
@@ -88,15 +96,25 @@ class OptimizeResult:
     force_limit_source: str = ""  # "" (given) or where the default came from
     defaults: list = field(default_factory=list)  # what the twin assumed (tools, material)
     search_seconds: float = 0.0  # the search on the fast model alone
+    limits: list = field(default_factory=list)  # per tool: which limits were used and where they came from
+    kept: dict = field(default_factory=dict)  # why moves kept their feeds: reason -> lines
+    contour_error: dict = field(default_factory=dict)  # before/after max contour error in feed moves, mm
+    spindle: dict = field(default_factory=dict)  # tool -> chosen S (rpm), with --spindle-range
+    tradeoff_source: str = "estimated"  # the trade-off curve's times: "estimated" (fast model)
 
 
-def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) -> OptimizeResult:
+def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, stage=None) -> OptimizeResult:
+    """Optimise ``program`` on ``twin`` (see the module and docs/optimize.md).  ``progress``:
+    called with (generation, generations, best fitness) by the GA; ``stage``: called with a
+    short description of each stage (simulating, searching, re-simulating round k)."""
     from ..gcode.verify import compare
     from ..gcode.writer import rewrite
     from ..motion.simulate import _cutting_scale, _program_cutting, simulate_plan
 
     t_start = time.perf_counter()
     m = twin.machine
+    stage = stage or (lambda text: None)
+    stage("simulating the program")
     plan = twin.plan(program)
     before = simulate_plan(twin, program, plan, stock=stock)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
@@ -105,12 +123,23 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
     kscale = _cutting_scale(eng, plan, resolved, program)
     model = path_model(twin, program, plan, eng, kscale)
     rec = program.records
-    ok = feed_records(program)
-    if not ok.any():
+    cut = _program_cutting(twin, program)
+    candidates = feed_records(program)
+    if not candidates.any():
         raise MtwinError(f"{program.path}: no feed move whose feed can be set: G1/G2/G3 in mm/min or in/min that "
                          f"are not plunges, canned cycles or macro-expression feeds (those keep their programmed "
                          f"feeds)")
     warnings: list = []
+    # ---- only where the twin knows the cut (a described tool, a running spindle)
+    trust = trusted_records(program, cut, candidates)
+    warnings += trust.warnings
+    kept = {f"tool T{t} not described": lines for t, lines in trust.undescribed.items()}
+    if trust.stopped:
+        kept["spindle stopped"] = trust.stopped
+    ok = trust.ok
+    if not ok.any():
+        return _unchanged(program, before, opts, warnings, kept, t_start,
+                          "no feed move the twin knows the cut of: the program is written unchanged")
     max_feed = m.max_cutting_feed
     if opts.feed_range is None:
         lo = max(1.0, 0.1 * float(rec["feed"][ok].min()))
@@ -133,37 +162,59 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                         allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
     fast = twin.plan(program, feeds=np.where(ok, feed_range[1], rec["feed"]))
     times = move_times(program, plan, fast)
-    cut = _program_cutting(twin, program)
+
+    # ---- the limits: given, or learned per tool from the program as written
+    learned = opts.force_limit is None
+    levels = learned_levels(model, fz0, ok[model.rec]) if learned else {}
 
     def force_of_tool(tool, diameter):
-        return opts.force_limit if opts.force_limit is not None else m.cost.force_per_diameter * diameter
+        if not learned:
+            return opts.force_limit
+        return max(levels[tool][0], 1e-3) if tool in levels else max(m.cost.force_per_diameter * diameter, 1e-3)
 
     c = m.cost
     rates = CostRates(c.machine_rate, c.labour_rate, c.tool_price, c.tool_replace_time, c.taylor_n, c.taylor_c)
     limits = Limits(None, m.spindle.rated_power, m.spindle.base_speed, feed_range, spindle_range, opts.margin)
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
+    if learned:
+        prob.seg_hlim = np.array([levels[int(t)][1] if int(t) in levels else np.inf for t in prob.seg_tool])
+        if opts.objective in ("time", "cost"):
+            prob.f_floor = prob.f0_var.copy()  # nothing is slowed below the program's own feed
     force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force)}
+    limit_notes = _limit_notes(prob, levels, learned, opts, m)
     if spindle_range is not None:
         _runups(prob, program, plan, segs, m)
 
     # ---- a program that breaks a limit even at the lowest feed is reported, not optimised
+    # (with learned limits the program's own feeds are the floor and its own levels the limits)
     spins_try = fixed_spins(prob)
     if spindle_range is not None:
         spins_try = np.full(prob.nspin, spindle_range[1])
     low = prob.evaluate(np.full((1, prob.nvar), feed_range[0]), spins_try[None, :])
     over = (~prob.seg_air) & ((low["load"][0] > prob.seg_force) | (low["power"][0] > limits.power))
-    if over.any() and opts.objective != "air":
+    if over.any() and opts.objective != "air" and not learned:
         lines = segs.seg_lines(program)
-        parts = []
-        for s in np.flatnonzero(over)[:8]:
-            parts.append(f"lines {lines[s][0]}-{lines[s][-1]}: {low['load'][0][s]:.0f} N (limit "
-                         f"{prob.seg_force[s]:.0f} N), {low['power'][0][s] / 1000:.2f} kW")
-        raise InfeasibleError(f"{program.path}:{lines[np.flatnonzero(over)[0]][0]}: {int(over.sum())} segment(s) break "
-                              f"a limit even at the lowest feed {feed_range[0]:g} mm/min"
+        reasons = []
+        for s in np.flatnonzero(over):
+            ld, pw = float(low["load"][0][s]), float(low["power"][0][s])
+            which = "load" if ld > prob.seg_force[s] else "spindle power"
+            lim_v = float(prob.seg_force[s]) if which == "load" else float(limits.power)
+            val = ld if which == "load" else pw
+            reasons.append({"limit": which, "segment": int(s), "lines": [lines[s][0], lines[s][-1]],
+                            "tool": int(prob.seg_tool[s]), "value": val, "limit_value": lim_v,
+                            "unit": "N" if which == "load" else "W", "over_by": val / lim_v - 1.0,
+                            "at_feed": feed_range[0], "at_spindle": float(spins_try[prob.seg_spin[s]])})
+        parts = [f"segment {r['segment']} (lines {r['lines'][0]}-{r['lines'][1]}, T{r['tool']}): {r['limit']} "
+                 f"{_q(r['value'], r['unit'])} over its limit {_q(r['limit_value'], r['unit'])} by "
+                 f"{100 * r['over_by']:.0f} %" for r in reasons[:8]]
+        raise InfeasibleError(f"{program.path}:{reasons[0]['lines'][0]}: {len(reasons)} segment(s) break a limit even "
+                              f"at the lowest feed {feed_range[0]:g} mm/min"
                               + (f" and {spins_try.max():g} rpm" if spindle_range else "") + ": "
-                              + "; ".join(parts) + " — take a smaller depth or width of cut there, or a larger "
-                              "--force-limit; nothing was written")
+                              + "; ".join(parts) + (" …" if len(reasons) > 8 else "")
+                              + " — take a smaller depth or width of cut there, or a larger --force-limit "
+                              "(or leave it out: the limits are then learned from the program); nothing was written",
+                              reasons=reasons)
 
     # ---- target power for smoothing
     target = opts.target_power
@@ -175,6 +226,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         target = float(np.percentile(mp, opts.target_percentile))
 
     # ---- search
+    stage("searching")
     generations, history = 0, None
     t_search = time.perf_counter()
     if opts.objective == "air":
@@ -187,12 +239,12 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         feeds = np.where(air_var & ~cut_var, np.maximum(top, feeds), feeds)
         spins = prob.n0_spin.copy()
     elif opts.method == "bisect":
-        res = bisect(prob, opts.objective, target, opts.tolerance)
+        res = bisect(prob, opts.objective, target, opts.power_tolerance)
         feeds, spins = res.feeds, res.spins
     else:
         seeds = [(prob.f0_var, fixed_spins(prob))]
         try:
-            b = bisect(prob, "time" if opts.objective == "cost" else opts.objective, target, opts.tolerance)
+            b = bisect(prob, "time" if opts.objective == "cost" else opts.objective, target, opts.power_tolerance)
             seeds.append((b.feeds, b.spins))
         except ValueError:
             pass
@@ -210,6 +262,10 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
     np.logical_or.at(air_var, prob.seg_var, prob.seg_air)
     cut_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(cut_var, prob.seg_var, ~prob.seg_air)
+    floor = np.full(prob.nvar, feed_range[0])
+    if prob.f_floor is not None:
+        floor = np.maximum(floor, prob.f_floor)
+        feeds = np.maximum(feeds, floor)
     if opts.objective in ("time", "cost"):
         # air segments at the top of the range (the load is zero there), never above it
         feeds = np.where(air_var & ~cut_var, feed_range[1], feeds)
@@ -219,9 +275,40 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         keep = cut_var.copy()
     elif opts.objective == "smooth":
         keep = air_var & ~cut_var
+    # an air cut under a stock the twin only guessed is raised only where the tool is provably
+    # clear of that stock: the guess may hold material the program really cuts
+    stock_box = before.summary.cutting.stock if before.summary.cutting else None
+    stock_guessed = stock is None and str(before.summary.cutting.stock_source if before.summary.cutting else
+                                          "default").startswith("default")
+    if stock_guessed:
+        clear = clear_of_stock(program, cut, stock_box)
+        var_clear = np.ones(prob.nvar, bool)
+        np.logical_and.at(var_clear, prob.seg_var[segs.piece_seg], clear[segs.piece_rec])
+        unclear = air_var & ~cut_var & ~var_clear & ~keep
+        if unclear.any():
+            keep |= unclear
+            kept["air cut under a guessed stock"] = _var_lines(program, segs, prob, unclear)
+            warnings.append(f"{program.path}: warning: the stock was guessed ({before.summary.cutting.stock_source}): "
+                            f"{int(unclear.sum())} air-cut segment(s) not provably clear of it keep their feeds; give "
+                            f"the stock (--stock, (MTWIN STOCK …) or cutting.stock) to let them be raised")
+    # finishing passes keep their feed per tooth
+    fin_var = np.zeros(prob.nvar, bool)
+    if opts.finish_feed == "keep" and opts.objective != "air":
+        fin_seg = _finishing_segments(program, model, segs, prob)
+        np.logical_or.at(fin_var, prob.seg_var, fin_seg)
+        fin_var &= ~keep
+        if fin_var.any():
+            kept["finishing pass"] = _var_lines(program, segs, prob, fin_var)
+            var_spin = np.zeros(prob.nvar, np.int64)
+            var_spin[prob.seg_var] = prob.seg_spin
+            feeds = np.where(fin_var, prob.f0_var * np.round(spins)[var_spin] / np.maximum(prob.n0_spin[var_spin], 1e-9),
+                             feeds)
+            if spindle_range is None:
+                keep |= fin_var
     feeds = _approach_feeds(prob, segs, feeds, program, keep)
 
-    # ---- write, verify, re-simulate; a segment over a limit on the full twin is slowed
+    # ---- write, verify, re-simulate; a segment over a limit, or less accurate than the
+    # program by more than the tolerance, on the full twin is slowed
     round_ = 0
     scale = np.ones(prob.nvar)
     # under the LinuxCNC planner the written program's blends differ from the estimate's:
@@ -230,9 +317,14 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
     allowed = np.ones(prob.nvar)
     base_outside = None
     force_min = 1.0
+    contour_before = contour_after = None
+    by_contour = np.zeros(prob.nvar, bool)  # slowed for accuracy
+    frozen = np.zeros(prob.nvar, bool)  # set back to the program's feeds for accuracy
+    cap = np.full(prob.nvar, np.inf)
     while True:
         round_ += 1
-        f_try = _round_feeds(np.maximum(feeds * scale, feed_range[0]), prob.f0_var, program, segs, prob)
+        stage(f"writing and re-simulating (round {round_})")
+        f_try = _round_feeds(np.minimum(np.maximum(feeds * scale, floor), cap), prob.f0_var, program, segs, prob)
         f_try = np.where(keep, prob.f0_var, f_try)
         s_try = np.round(spins)
         feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep)
@@ -244,14 +336,24 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         after = tw_after.simulate(new, stock=stock)
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
         over_v = _ratios(after, segs, prob, limits, seg_after)
+        ce_after = contour_error(after)
         if round_ == 1:
             seg_before, rec_before = _segment_of_samples(before, program, program, segs)
             force_min = float(prob.seg_force.min()) if len(prob.seg_force) else 1.0
             base_outside = _outside_ratios(before, seg_before, rec_before, len(rec), limits, force_min)
+            ce_before = contour_error(before)
+            contour_before = _per_var(ce_before, seg_before, prob)
+            contour_rec_before = _per_rec(ce_before, seg_before, rec_before, program)
+            own = _ratios(before, segs, prob, limits, seg_before) * 1.001
             if opts.objective == "air":
                 # the air objective leaves the cuts alone: a limit the program already breaks
                 # there is the program's own, and must only not get worse
-                allowed = np.maximum(allowed, _ratios(before, segs, prob, limits, seg_before) * 1.001)
+                allowed = np.maximum(allowed, own)
+            if prob.f_floor is not None:
+                # learned limits: a segment the program runs over its tool's level stays at
+                # the program's feed (its own level), it is not slowed
+                allowed = np.maximum(allowed, own)
+            allowed = np.where(keep, np.maximum(allowed, own), allowed)
         # moves outside the segments (plunges, canned cycles, rapids) keep their feeds, but a
         # faster move before them changes how they are entered: each must stay within the
         # limits, or within what it had in the program; otherwise the segment before is slowed
@@ -260,16 +362,58 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
         blame = np.zeros(prob.nvar)
         if worse.any():
             blame = _blame_previous(seg_after, rec_after, worse, prob, out_now / np.maximum(1.0, base_outside))
-        bad = (over_v > allowed) | (blame > 1.0)
-        if not bad.any():
+        # accuracy: the contour error in a segment, and in the moves outside after it
+        contour_after = _per_var(ce_after, seg_after, prob)
+        c_ratio = np.where(frozen, 0.0, contour_after / (contour_before + opts.tolerance))
+        c_rec = _per_rec(ce_after, seg_after, rec_after, program)
+        c_worse = c_rec > contour_rec_before + opts.tolerance
+        cblame = np.zeros(prob.nvar)
+        if c_worse.any():
+            excess = np.concatenate([c_rec / (contour_rec_before + opts.tolerance), np.zeros(len(rec))])
+            cblame = _blame_previous(seg_after, rec_after, np.concatenate([c_worse, np.zeros(len(rec), bool)]),
+                                     prob, excess)
+        at_floor = (f_try <= floor * (1 + 1e-9)) | keep
+        # a segment that cannot be slowed (kept, or at its floor) but lost accuracy lost it to
+        # the faster segment run just before it, which is slowed instead
+        prev = _previous_var(segs, prob)
+        for v in np.flatnonzero(at_floor & (c_ratio > 1.0)):
+            if prev[v] >= 0:
+                cblame[prev[v]] = max(cblame[prev[v]], float(c_ratio[v]))
+        cblame = np.where(frozen, 0.0, cblame)
+        c_bad = ((c_ratio > 1.0) | (cblame > 1.0)) & ~at_floor & ~keep
+        if c_bad.any() and round_ >= opts.max_rounds - 3:
+            # slowing has not brought the accuracy back: these segments, and the ones before
+            # them, go back to the program's own feeds (never above what they have now)
+            grp = c_bad.copy()
+            grp[prev[c_bad & (prev >= 0)]] = True
+            frozen |= grp & ~keep
+            cap = np.where(grp, np.minimum(cap, prob.f0_var), cap)
+            c_bad[:] = False
+            c_ratio = np.where(frozen, 0.0, c_ratio)
+            cblame = np.where(frozen, 0.0, cblame)
+            frozen_now = True
+        else:
+            frozen_now = False
+        blame = np.maximum(blame, cblame)
+        by_contour |= (c_ratio > 1.0) & ~at_floor
+        by_contour |= cblame > 1.0
+        by_contour |= frozen
+        bad = (over_v > allowed) & ~(at_floor & (prob.f_floor is not None))
+        # (blame on a segment already at its floor has nowhere to go: the move after it keeps
+        # what it got, which is at most the program's own entry at a lower feed)
+        bad |= ((blame > 1.0) | (c_ratio > 1.0)) & ~at_floor
+        bad &= ~keep
+        if not bad.any() and not frozen_now:
             break
         if round_ >= opts.max_rounds:
             lines = segs.seg_lines(program)
             where = [f"lines {lines[np.flatnonzero(prob.seg_var == v)[0]][0]}-"
                      f"{lines[np.flatnonzero(prob.seg_var == v)[0]][-1]}" for v in np.flatnonzero(bad)[:6]]
             raise MtwinError(f"{program.path}: after {round_} rounds the re-simulated program still exceeds a limit "
-                             f"in {int(bad.sum())} segment(s) ({', '.join(where)}); nothing was written")
-        ratio = np.maximum(np.where(over_v > allowed, over_v / allowed, 1.0), blame)
+                             f"or the contour tolerance in {int(bad.sum())} segment(s) ({', '.join(where)}); nothing "
+                             f"was written")
+        ratio = np.maximum.reduce([np.where(over_v > allowed, over_v / allowed, 1.0), blame,
+                                   np.where(c_ratio > 1.0, c_ratio, 1.0)])
         # the load is f_z·a + b, not proportional to the feed: after the first round the
         # correction is squared, so a segment with a large edge term still converges
         power = 1.0 if round_ == 1 else 2.0
@@ -280,20 +424,48 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before)
     fig_after = _figures(after, new, segs, prob, rates, seg_after)
+    contour = {"before": float(np.max(ce_before[seg_before >= 0], initial=0.0)),
+               "after": float(np.max(ce_after[seg_after >= 0], initial=0.0)), "tolerance": opts.tolerance,
+               "worst_segment_increase": float(np.max(contour_after - contour_before, initial=0.0))}
+    if prob.f_floor is not None and _worse(opts.objective, fig_before, fig_after):
+        # learned limits promise a program no slower (no dearer) than the user's: when the
+        # full twin says the answer is, the program stays as it was
+        what = "slower" if opts.objective == "time" else "dearer"
+        return _unchanged(program, before, opts, warnings + [
+            f"{program.path}: warning: the re-simulated answer was {what} than the program "
+            f"({fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s): the program is written unchanged"],
+            kept, t_start, "", limit_notes)
     lines = segs.seg_lines(program)
     limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep)
+    fin_seg = fin_var[prob.seg_var]
     ev_before = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
     seg_info = []
     for s in range(segs.count):
         v = prob.seg_var[s]
+        why = limited[s]
+        if keep[v] and fin_seg[s]:
+            why = "kept (finishing pass)"
+        elif keep[v] and stock_guessed and prob.seg_air[s] and opts.objective in ("time", "cost"):
+            why = "kept (air cut under a guessed stock)"
+        elif fin_seg[s]:
+            why = "finishing pass (feed per tooth kept)"
+        elif by_contour[v] and f_try[v] > floor[v] and why in ("objective", "feed range"):
+            why = "accuracy (contour error)"
         seg_info.append({"lines": [lines[s][0], lines[s][-1]], "air": bool(prob.seg_air[s]), "tool": int(prob.seg_tool[s]),
                          "feed_before": float(prob.f0_var[v]), "feed_after": float(f_try[v]),
-                         "spindle_after": float(s_try[prob.seg_spin[s]]), "limited_by": limited[s],
+                         "spindle_after": float(s_try[prob.seg_spin[s]]), "limited_by": why,
+                         "finishing": bool(fin_seg[s]),
                          "mean_power_before": float(ev_before["mean_power"][0][s]),
                          "mean_power_after": float(est["mean_power"][0][s]),
-                         "peak_load_estimate": float(est["load"][0][s])})
+                         "peak_load_estimate": float(est["load"][0][s]),
+                         "contour_error_before": float(contour_before[v]),
+                         "contour_error_after": float(contour_after[v])})
     tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") else []
     changed = _changed_lines(program.data, out)
+    spindle_chosen = {}
+    if spindle_range is not None:
+        for s in range(segs.count):
+            spindle_chosen.setdefault(int(prob.seg_tool[s]), float(s_try[prob.seg_spin[s]]))
     return OptimizeResult(out, opts.objective, opts.method if opts.objective != "air" else "direct", fig_before,
                           fig_after, {"cycle_time": float(est["time"][0]), "cost": float(est["cost"][0]),
                                       "peak_load": float(est["load"][0][~prob.seg_air].max(initial=0.0)),
@@ -301,10 +473,127 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None) ->
                           changed, seg_info, True, round_, prob.evaluations, time.perf_counter() - t_start,
                           force_limits, tradeoff, before, after, seg_before,
                           seg_after, warnings, generations, history,
-                          "" if opts.force_limit is not None else
-                          f"default: cost.force_per_diameter {m.cost.force_per_diameter:g} N/mm x the tool's diameter; "
-                          f"the program's own peak is {before.summary.cutting.peak_load:.1f} N; --force-limit sets it",
-                          list(before.summary.cutting.defaults or []), search_seconds)
+                          "" if not learned else "learned from the program (95th percentile of each tool's engaged "
+                          "steps at its programmed F and S); --force-limit sets one",
+                          list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
+                          spindle_chosen)
+
+
+def _worse(objective: str, before: Figures, after: Figures) -> bool:
+    if objective == "cost":
+        return after.cost > before.cost * (1 + 1e-6)
+    return after.cycle_time > before.cycle_time * (1 + 1e-6)
+
+
+def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limits=None) -> OptimizeResult:
+    """The result of writing the program as it was (nothing the optimiser may change, or no
+    answer better than the program): before = after, no changed line."""
+    sm = before.summary
+    c = sm.cutting
+    fig = Figures(float(sm.cycle_time), None, float(c.peak_load if c else 0.0),
+                  float(c.peak_power if c else 0.0), None)
+    if reason:
+        warnings = warnings + [f"{program.path}: warning: {reason}"]
+    ce = contour_error(before)
+    feed = _feed_samples(before, program)
+    cmax = float(np.max(ce[feed], initial=0.0))
+    return OptimizeResult(bytes(program.data), opts.objective, opts.method, fig, fig,
+                          {"cycle_time": float(sm.cycle_time), "cost": None, "peak_load": fig.peak_load,
+                           "peak_power": fig.peak_power}, [], [], True, 0, 0, time.perf_counter() - t_start, {}, [],
+                          before, before, None, None, warnings, 0, None, "", list(c.defaults or []) if c else [], 0.0,
+                          limits or [], kept, {"before": cmax, "after": cmax, "tolerance": opts.tolerance,
+                                               "worst_segment_increase": 0.0}, {})
+
+
+def _feed_samples(trace, program) -> np.ndarray:
+    r = np.asarray(trace.record, np.int64)
+    kind = program.records["kind"][np.clip(r, 0, len(program.records) - 1)]
+    return (r >= 0) & ((kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW))
+
+
+def _per_var(values: np.ndarray, seg_of: np.ndarray, prob) -> np.ndarray:
+    """Per variable, the largest value over the samples in its segments."""
+    out = np.zeros(prob.nvar)
+    m = seg_of >= 0
+    np.maximum.at(out, prob.seg_var[seg_of[m]], values[m])
+    return out
+
+
+def _per_rec(values: np.ndarray, seg_of: np.ndarray, rec_of: np.ndarray, program) -> np.ndarray:
+    """Per original feed record, the largest value over its samples outside the segments (a
+    sample mapped by path length onto a rapid is the end of the feed move before it: left out)."""
+    kind = program.records["kind"]
+    out = np.zeros(len(kind))
+    r = np.clip(rec_of, 0, len(kind) - 1)
+    m = (seg_of < 0) & (rec_of >= 0) & ((kind[r] == R.LINEAR) | (kind[r] == R.ARC_CW) | (kind[r] == R.ARC_CCW))
+    np.maximum.at(out, rec_of[m], values[m])
+    return out
+
+
+def _previous_var(segs, prob) -> np.ndarray:
+    """Per variable, the variable of the segment run just before its first segment (-1: none)."""
+    first_piece = np.full(segs.count, len(segs.piece_seg))
+    np.minimum.at(first_piece, segs.piece_seg, np.arange(len(segs.piece_seg)))
+    out = np.full(prob.nvar, -1, np.int64)
+    for s in range(segs.count):
+        k = first_piece[s]
+        v = prob.seg_var[s]
+        if 0 < k < len(segs.piece_seg) and out[v] < 0:
+            pv = prob.seg_var[segs.piece_seg[k - 1]]
+            if pv != v:
+                out[v] = pv
+    return out
+
+
+def _var_lines(program, segs, prob, var_mask: np.ndarray) -> list[int]:
+    m = var_mask[prob.seg_var[segs.piece_seg]]
+    return sorted(set(program.records["line"][segs.piece_rec[m]].tolist()))
+
+
+def _finishing_segments(program, model, segs, prob) -> np.ndarray:
+    """Per segment: a finishing pass (a CAM comment calls its operation finishing, or its
+    median radial width of cut, by length, is at most FINISH_AE of the tool's diameter)."""
+    flag = finish_lines(program)
+    out = np.zeros(segs.count, bool)
+    np.logical_or.at(out, segs.piece_seg, flag[segs.piece_rec])
+    m = (segs.step_seg >= 0) & model.cutting
+    if m.any():
+        st = segs.step_seg[m]
+        ratio = model.ae[m] / np.maximum(model.diameter[m], 1e-9)
+        w = model.length[m]
+        o = np.lexsort((ratio, st))
+        st, ratio, w = st[o], ratio[o], w[o]
+        starts = np.flatnonzero(np.r_[True, st[1:] != st[:-1]])
+        cw = np.cumsum(w)
+        before_w = np.r_[0.0, cw][starts]
+        ends = np.r_[starts[1:], len(st)]
+        total = cw[ends - 1] - before_w
+        for a, b, tot, b0 in zip(starts, ends, total, before_w):
+            k = a + int(np.searchsorted(cw[a:b] - b0, 0.5 * tot))
+            if ratio[min(k, b - 1)] <= FINISH_AE and not prob.seg_air[st[a]]:
+                out[st[a]] = True
+    return out & ~prob.seg_air
+
+
+def _limit_notes(prob, levels: dict, learned: bool, opts, m) -> list:
+    """Per tool: the load (and chip) limit used and where it came from."""
+    out = []
+    for t in sorted(set(int(x) for x in prob.seg_tool)):
+        if not learned:
+            out.append({"tool": t, "load": float(opts.force_limit), "chip_thickness": None, "source": "--force-limit"})
+        elif t in levels:
+            lv, h, peak = levels[t]
+            out.append({"tool": t, "load": lv, "chip_thickness": h, "program_peak_load": peak,
+                        "source": "learned: the program's 95th percentile (by length) of this tool's engaged steps"})
+        else:
+            out.append({"tool": t, "load": None, "chip_thickness": None,
+                        "source": "none learned: the tool cuts no material in the twin (its air cuts only)"})
+    out.append({"tool": None, "spindle_power": float(m.spindle.rated_power), "source": "the machine's rated power"})
+    return out
+
+
+def _q(v: float, unit: str) -> str:
+    return f"{v / 1000:.2f} kW" if unit == "W" else f"{v:.1f} {unit}"
 
 
 def _within_machine(rng: tuple, top: float, option: str, unit: str, what: str, path: str, warnings: list) -> tuple:
@@ -602,8 +891,8 @@ def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray) -> Figures:
 def _limited_by(prob, feeds, spins, feed_range, times, segs, keep) -> list:
     """What held each segment's feed where it is."""
     out = []
-    _, _, _, load, torque, power, _, t_lim = prob._mechanics(feeds[None, :], spins[None, :])
-    excess = dict(zip(("load", "power", "torque"), prob._excess(load, power, torque, t_lim)))
+    _, _, fz, load, torque, power, _, t_lim = prob._mechanics(feeds[None, :], spins[None, :])
+    excess = dict(zip(("load", "power", "torque", "chip thickness"), prob._excess(load, power, torque, t_lim, fz)))
     for s in range(len(prob.seg_var)):
         f = feeds[prob.seg_var[s]]
         if keep[prob.seg_var[s]]:

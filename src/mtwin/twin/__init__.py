@@ -55,6 +55,22 @@ class Twin:
         tw.engagement_cache = self.engagement_cache
         return tw
 
+    def with_tools(self, tools: dict) -> "Twin":
+        """A copy that knows these tools (number -> ``mtwin.cutting.library.Tool``, or a
+        ``"TYPE:DIAMETER[:FLUTES[:CORNER_RADIUS]]"`` string in mm) over the twin file's table and
+        the program's comments — what ``--tool N=…`` does on the command line."""
+        from dataclasses import replace
+
+        from ..cutting.library import parse_tool_option
+
+        parsed = {}
+        for n, t in tools.items():
+            parsed[int(n)] = parse_tool_option(f"{int(n)}={t}")[1] if isinstance(t, str) else t
+        tw = Twin(self.machine, self.interpreter, self.path,
+                  replace(self.cutting, declared={**self.cutting.declared, **parsed}), self.effects)
+        tw.engagement_cache = self.engagement_cache
+        return tw
+
     def load(self, source, *, path: str | None = None):
         """Read and interpret a program with this twin's interpreter settings."""
         from ..gcode.interpreter import load_program

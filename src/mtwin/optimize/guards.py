@@ -1,0 +1,182 @@
+"""What the optimiser may change and how far, with default options (issue 18).
+
+* **What the twin knows.**  A feed move is only raised where the twin knows the cut: its tool
+  is described (the command line, the twin file's table or a comment the twin reads) and the
+  spindle runs.  Under a stock the twin only guessed, an air cut is raised only where the tool
+  is provably clear of that stock (above its top, or outside its box with the tool's own
+  radius): a guessed stock's "air" may be material the program really cuts.
+* **Limits learned from the program.**  Without an explicit limit, each tool's load limit
+  and largest chip thickness are the levels the program already runs that tool at on the
+  shop's machine: the 95th percentile (by path length) of its engaged steps at the
+  programmed F and S.  The 95th percentile, not the peak: a level the program holds for at
+  least a twentieth of its cutting length is proven, a one-step spike at a corner entry is
+  not.  It is never above the program's own peak for that tool.
+* **Finishing passes** keep their feed per tooth (surface finish is set by it): a CAM comment
+  naming a finishing operation, or a segment whose radial width of cut is at most
+  ``FINISH_AE`` of the tool's diameter (a wall pass).
+* **Accuracy** (``contour_error``): the re-simulated contour error is held per segment.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import warning_text
+from ..gcode import records as R
+
+PERCENTILE = 95.0  # of a tool's engaged steps, by length: the learned level
+FINISH_AE = 0.05  # radial width of cut / diameter at or under which a pass is a finishing pass
+_FINISH = re.compile(rb"finish|finishing|\bfin\b|\bsemi-?finish", re.I)
+
+
+@dataclass
+class Trust:
+    """Per record: may its feed be set (the twin knows its cut)?  With the warnings to give."""
+
+    ok: np.ndarray  # (records,) bool
+    warnings: list[str]
+    undescribed: dict[int, list[int]]  # tool -> lines of its feed moves that keep their feeds
+    stopped: list[int]  # lines of feed moves with the spindle stopped
+
+
+def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
+    """Which of the ``candidates`` (feed records whose feed could be set) the twin knows."""
+    from ..cutting.library import describes
+
+    rec = program.records
+    ok = candidates.copy()
+    warnings: list[str] = []
+    undescribed: dict[int, list[int]] = {}
+    for t in np.unique(rec["tool"][candidates]):
+        if describes(cutting, int(t)):
+            continue
+        m = candidates & (rec["tool"] == t)
+        ok &= ~m
+        lines = sorted(set(rec["line"][m].tolist()))
+        undescribed[int(t)] = lines
+        warnings.append(warning_text(program.path, lines[0], f"tool T{int(t)} is not described (no tool table entry, "
+                        f"no comment the twin reads; it would be simulated as the default 6 mm end mill): its "
+                        f"{int(m.sum())} feed move(s) keep their programmed feeds (lines {_ranges(lines)}); declare "
+                        f"it with --tool {int(t)}=flat:DIAMETER_MM[:FLUTES] (or ball, bull) or a [tools.{int(t)}] "
+                        f"table in the twin file"))
+    stopped_m = candidates & ((rec["spindle_dir"] == 0) | (rec["spindle"] <= 0))
+    stopped = sorted(set(rec["line"][stopped_m & ok].tolist()))
+    if stopped:
+        warnings.append(warning_text(program.path, stopped[0], f"{int((stopped_m & ok).sum())} feed move(s) run with "
+                        f"the spindle stopped (no M3/M4, or S0 — a router's hand-switched spindle?): the twin cannot "
+                        f"know their cut, so they keep their programmed feeds (lines {_ranges(stopped)})"))
+    ok &= ~stopped_m
+    return Trust(ok, warnings, undescribed, stopped)
+
+
+def clear_of_stock(program, cutting, box) -> np.ndarray:
+    """Per record: is the tool provably clear of the stock box (its tip above the top, or its
+    swept XY box, grown by the tool's radius, outside the stock's)?"""
+    rec = program.records
+    n = len(rec)
+    if box is None or not n:
+        return np.ones(n, bool)
+    x0, y0, _, x1, y1, top = (float(v) for v in box)
+    zmin = np.minimum(rec["z"], rec["sz"])
+    above = zmin > top + 1e-6
+    radius = np.array([cutting.tool(int(t)).radius for t in rec["tool"]]) if n else np.zeros(0)
+    lo_x = np.minimum(rec["x"], rec["sx"])
+    hi_x = np.maximum(rec["x"], rec["sx"])
+    lo_y = np.minimum(rec["y"], rec["sy"])
+    hi_y = np.maximum(rec["y"], rec["sy"])
+    arc = (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    if arc.any():
+        # an arc by its full circle (an upper bound of its extent)
+        r = np.hypot(rec["sx"] - rec["cx"], rec["sy"] - rec["cy"])
+        lo_x = np.where(arc, np.minimum(lo_x, rec["cx"] - r), lo_x)
+        hi_x = np.where(arc, np.maximum(hi_x, rec["cx"] + r), hi_x)
+        lo_y = np.where(arc, np.minimum(lo_y, rec["cy"] - r), lo_y)
+        hi_y = np.where(arc, np.maximum(hi_y, rec["cy"] + r), hi_y)
+    outside = (hi_x + radius < x0) | (lo_x - radius > x1) | (hi_y + radius < y0) | (lo_y - radius > y1)
+    # an arc in another plane bulges in Z and out of its end points' XY box: never provably clear
+    other_plane = arc & (rec["plane"] != R.PLANE_XY)
+    return (above | outside) & ~other_plane
+
+
+def learned_levels(model, fz0: np.ndarray, usable: np.ndarray) -> dict[int, tuple[float, float, float]]:
+    """Per tool: (load level N, chip-thickness level mm, the program's peak load N) of its
+    engaged, optimisable steps at the program's own feed per tooth ``fz0``."""
+    load = model.load(fz0)
+    chip = fz0 * model.chip
+    out = {}
+    for t in np.unique(model.tool):
+        m = usable & (model.tool == t) & model.cutting & (load > 0)
+        if not m.any():
+            continue
+        w = model.length[m]
+        out[int(t)] = (weighted_percentile(load[m], w, PERCENTILE), weighted_percentile(chip[m], w, PERCENTILE),
+                       float(load[m].max()))
+    return out
+
+
+def weighted_percentile(x: np.ndarray, w: np.ndarray, q: float) -> float:
+    """The ``q`` th percentile of ``x`` weighted by ``w`` (the smallest x with at least q % of
+    the weight at or below it)."""
+    o = np.argsort(x)
+    cw = np.cumsum(w[o])
+    if cw[-1] <= 0:
+        return float(x.max())
+    i = int(np.searchsorted(cw, q / 100.0 * cw[-1], side="left"))
+    return float(x[o][min(i, len(x) - 1)])
+
+
+def finish_lines(program) -> np.ndarray:
+    """Per record: is it in an operation a CAM comment calls finishing?  A comment line naming
+    finishing opens the region; the next comment line that does not, once a move has been made
+    in the region, or the end of the program closes it."""
+    rec = program.records
+    n_lines = int(rec["line"].max()) + 1 if len(rec) else 1
+    moving = np.zeros(n_lines + 1, bool)
+    moving[rec["line"]] = True
+    flag = np.zeros(n_lines + 1, bool)
+    state, moved = False, False
+    for i, raw in enumerate(bytes(program.data).split(b"\n"), start=1):
+        if i > n_lines:
+            break
+        text = raw.strip()
+        comment_only = text[:1] in (b"(", b";") or (text[:1] in (b"N", b"n") and re.match(rb"[Nn]\d+\s*[(;]", text))
+        if comment_only:
+            if _FINISH.search(text):
+                state, moved = True, False
+            elif state and moved:
+                state = False
+        flag[i] = state
+        if state and moving[i]:
+            moved = True
+    return flag[rec["line"]]
+
+
+def contour_error(trace) -> np.ndarray:
+    """Per trace sample, the contour error (mm): the part of the following-error vector normal
+    to the commanded direction of travel (central differences of the command) — the
+    simulator's own definition (``max_contour_error``); 0 where the command stands still."""
+    cmd = np.stack([np.asarray(trace.signal(a + "_cmd")) for a in "xyz"], axis=1)
+    err = np.stack([np.asarray(trace.signal(a + "_err")) for a in "xyz"], axis=1)
+    d = np.zeros_like(cmd)
+    if len(cmd) > 2:
+        d[1:-1] = cmd[2:] - cmd[:-2]
+    dn = np.linalg.norm(d, axis=1)
+    moving = dn > 1e-9
+    u = np.where(moving[:, None], d / np.maximum(dn, 1e-300)[:, None], 0.0)
+    a = np.sum(err * u, axis=1)
+    normal = err - a[:, None] * u
+    return np.where(moving, np.linalg.norm(normal, axis=1), 0.0)
+
+
+def _ranges(lines: list[int], most: int = 8) -> str:
+    """``3-7, 12, 20-31`` (the first ``most`` runs, then ``…``)."""
+    runs: list[list[int]] = []
+    for ln in lines:
+        if runs and ln <= runs[-1][1] + 1:
+            runs[-1][1] = ln
+        else:
+            runs.append([ln, ln])
+    txt = [f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:most]]
+    return ", ".join(txt) + (", …" if len(runs) > most else "")
