@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def make_program(n_moves: int) -> bytes:
     """A finishing raster over a wavy surface: 0.9 mm moves at F1500, zig-zag rows."""
     out = ["%", "(mtwin motion benchmark: finishing raster)", "G21 G90 G94 G17 G64 P0.01",
-           "T1 M6", "S8000 M3", "G0 X0 Y0 Z5", "G1 Z0 F600", "F1500"]
+           "(T1 D=6. CR=0. - FLAT END MILL, 2 FLUTES)", "T1 M6", "S8000 M3", "G0 X0 Y0 Z5", "G1 Z0 F600", "F1500"]
     per_row = 250
     step = 0.9
     k = 0

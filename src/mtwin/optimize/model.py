@@ -125,28 +125,40 @@ def _within(count: np.ndarray) -> np.ndarray:
 
 @dataclass
 class MoveTimes:
-    """Per feed record: a time model t(F) = L / min(F, v_cap) + o · min(F, v_cap) / min(F0, v_cap).
+    """Per record, its planned time as a function of the feed: the planner's own durations at
+    a few uniform feeds (every settable feed move at F_k, the rest as programmed) and at the
+    program's own feed, interpolated linearly in 1/F.  A plan, not a formula, so acceleration,
+    jerk, look-ahead over short blocks and arc limits are all in it; above the highest feed
+    planned a move takes its time there (the machine is at its limits), below the lowest the
+    line through the last two points (the L/F part dominates) extends it.
 
-    ``v_cap`` is the planner's speed limit along the record that is not the feed (arc limits,
-    axis speeds, short blocks), read off a plan at the highest feed the optimiser may write;
-    ``o`` is the acceleration overhead of the move in the program's own plan (its time minus
-    L / v), scaled with the speed (a trapezoid's overhead is v / a)."""
+    ``v_cap``: the planner's speed limit along the record that is not the feed (arc limits,
+    axis speeds, short blocks), read off the plan at the highest feed, mm/s."""
 
-    length: np.ndarray  # (records,) mm
+    u: np.ndarray  # (records, K) s/mm: 60 / F of each point, ascending
+    dur: np.ndarray  # (records, K) s
     v_cap: np.ndarray  # (records,) mm/s
-    f0: np.ndarray  # (records,) mm/s, the program's feed
-    overhead: np.ndarray  # (records,) s
+    length: np.ndarray  # (records,) mm
 
     def time(self, rec: np.ndarray, feed_mm_min: np.ndarray, frac: np.ndarray | float = 1.0) -> np.ndarray:
-        v = np.minimum(feed_mm_min / 60.0, self.v_cap[rec])
-        v0 = np.minimum(self.f0[rec], self.v_cap[rec])
+        u = 60.0 / np.maximum(np.asarray(feed_mm_min, float), 1e-9)
+        U = self.u[rec]
+        D = self.dur[rec]
+        K = U.shape[1]
+        i = np.clip((U <= u[:, None]).sum(axis=1) - 1, 0, K - 2)
+        rows = np.arange(len(rec))
+        u0, u1 = U[rows, i], U[rows, i + 1]
+        d0, d1 = D[rows, i], D[rows, i + 1]
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = self.length[rec] / v + self.overhead[rec] * v / np.maximum(v0, 1e-12)
-        return np.where(self.length[rec] > 0, t * frac, 0.0)
+            a = np.where(u1 > u0, (u - u0) / (u1 - u0), 0.0)
+        a = np.maximum(a, 0.0)  # faster than the fastest plan: its time
+        t = d0 + a * (d1 - d0)
+        return np.where(self.length[rec] > 0, np.maximum(t, 0.0) * frac, 0.0)
 
 
-def move_times(program, plan, plan_fast) -> MoveTimes:
-    """Time models of the feed records from the program's plan and a plan at the top feed."""
+def move_times(program, plan, plans_at: list[tuple[float, object]]) -> MoveTimes:
+    """Time models of the records from the program's own plan and plans at uniform feeds
+    (``plans_at``: (feed mm/min, plan) pairs, the highest feed first or anywhere)."""
     nrec = len(program.records)
 
     def per_record(p):
@@ -159,15 +171,22 @@ def move_times(program, plan, plan_fast) -> MoveTimes:
         dur = np.bincount(seg["rec"][m], weights=p.dur[m], minlength=nrec)
         return L, inv, dur
 
-    L, inv0, dur0 = per_record(plan)
-    Lf, invf, _ = per_record(plan_fast)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v_cap = np.where(invf > 0, Lf / invf, np.inf)
-    f0 = program.records["feed"] / 60.0
-    v0 = np.minimum(f0, v_cap)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        overhead = np.where(L > 0, np.maximum(dur0 - L / np.maximum(v0, 1e-12), 0.0), 0.0)
-    return MoveTimes(L, v_cap, f0, overhead)
+    L, _, dur0 = per_record(plan)
+    f0 = np.maximum(program.records["feed"], 1e-9)
+    us, ds = [60.0 / f0], [dur0]
+    top = max(plans_at, key=lambda fp: fp[0])
+    for F, p in plans_at:
+        _, inv, dur = per_record(p)
+        us.append(np.full(nrec, 60.0 / F))
+        ds.append(dur)
+        if p is top[1]:
+            Lf = per_record(p)[0]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                v_cap = np.where(inv > 0, Lf / inv, np.inf)
+    U = np.stack(us, axis=1)
+    D = np.stack(ds, axis=1)
+    o = np.argsort(U, axis=1, kind="stable")
+    return MoveTimes(np.take_along_axis(U, o, 1), np.take_along_axis(D, o, 1), v_cap, L)
 
 
 def feed_records(program) -> np.ndarray:

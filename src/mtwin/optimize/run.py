@@ -19,6 +19,9 @@ from .guards import FINISH_AE, clear_of_stock, contour_error, finish_lines, lear
 from .segment import locate, segment_path
 
 
+TIME_LEVELS = 5  # uniform feeds the planner is asked for move times at
+
+
 class VerifyError(MtwinError):
     """The written program failed its own proof: a bug (exit 3), nothing is written."""
 
@@ -160,8 +163,11 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     per_segment_s = opts.spindle_per == "segment" and spindle_range is not None
     segs = segment_path(program, model, power0, ok, min_length=opts.min_segment, method=opts.segmentation,
                         allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
-    fast = twin.plan(program, feeds=np.where(ok, feed_range[1], rec["feed"]))
-    times = move_times(program, plan, fast)
+    # the planner's own times at a few uniform feeds over the range (acceleration, jerk and
+    # look-ahead over short blocks are in them; a formula in L/F misses them on short moves)
+    levels_f = np.geomspace(feed_range[0], feed_range[1], TIME_LEVELS)
+    times = move_times(program, plan, [(float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"])))
+                                       for F in levels_f])
 
     # ---- the limits: given, or learned per tool from the program as written
     learned = opts.force_limit is None

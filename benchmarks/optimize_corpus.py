@@ -1,0 +1,185 @@
+"""``mtwin optimize`` with default options on every real program of the corpus, checked from outside.
+
+    python3 benchmarks/optimize_corpus.py [--corpus ../shared/realdata/gcode_corpus] [--out corpus.jsonl]
+                                          [--only SUBSTRING] [--timeout 300]
+
+For each program that reads and has feed moves: optimise it as a new user would (``mtwin
+optimize part.nc -o out.nc``, nothing else), then check the answer independently of what the
+optimiser says about it:
+
+* the output cuts the same path (``mtwin verify``'s check);
+* re-simulated on a fresh twin, it is not slower than the program;
+* no feed was raised on a line whose tool the twin does not describe;
+* its largest contour error in feed moves is at most the tolerance (0.02 mm) above the
+  program's own.
+
+Prints one line per program and the distribution of time changes; ``--out`` keeps the records.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+EXTS = {".nc", ".ngc", ".tap", ".gcode", ".NC", ".TAP", ".cnc"}
+
+
+def programs(corpus: Path) -> list[Path]:
+    out = []
+    for p in sorted(corpus.rglob("*")):
+        if p.is_file() and p.suffix in EXTS and "/bad/" not in str(p):
+            out.append(p)
+    return out
+
+
+class Timeout(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise Timeout()
+
+
+def check_one(path: Path, timeout: int, tol: float = 0.02) -> dict:
+    import mtwin
+    from mtwin.cutting.library import describes
+    from mtwin.errors import MtwinError
+    from mtwin.gcode import records as R
+    from mtwin.gcode.verify import compare
+    from mtwin.motion.simulate import _program_cutting
+    from mtwin.optimize.guards import contour_error
+    from mtwin.optimize.run import OptimizeOptions, _feed_samples, optimize
+
+    rec: dict = {"program": str(path)}
+    tw = mtwin.Twin()
+    try:
+        prog = tw.load(str(path))
+    except MtwinError as exc:
+        rec.update(status="unreadable", reason=str(exc).splitlines()[0][:200])
+        return rec
+    k = prog.records["kind"]
+    feed = (k == R.LINEAR) | (k == R.ARC_CW) | (k == R.ARC_CCW)
+    if not feed.any():
+        rec.update(status="no feed moves")
+        return rec
+    rec["feed_moves"] = int(feed.sum())
+    signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(timeout)
+    t0 = time.perf_counter()
+    try:
+        res = optimize(tw, prog, OptimizeOptions())
+    except Timeout:
+        rec.update(status="timeout")
+        return rec
+    except MtwinError as exc:
+        rec.update(status="refused", reason=str(exc)[:300], seconds=time.perf_counter() - t0)
+        return rec
+    finally:
+        signal.alarm(0)
+    rec["seconds"] = time.perf_counter() - t0
+    new = tw.load(res.output, path=str(path))
+    rec["verified"] = compare(prog, new) is None
+    fresh = mtwin.Twin()
+    try:
+        before = fresh.simulate(prog)
+        after = mtwin.Twin().simulate(new)
+    except MtwinError as exc:
+        rec.update(status="re-simulation failed", reason=str(exc)[:300])
+        return rec
+    rec["before"] = before.summary.cycle_time
+    rec["after"] = after.summary.cycle_time
+    rec["change"] = after.summary.cycle_time / before.summary.cycle_time - 1.0 if before.summary.cycle_time else 0.0
+    rec["changed_lines"] = len(res.changed_lines)
+    rec["status"] = "unchanged" if res.output == bytes(prog.data) else "optimised"
+    # feeds raised on a line whose tool the twin does not describe
+    cut = _program_cutting(tw, prog)
+    undescribed = {int(t) for t in np.unique(prog.records["tool"]) if not describes(cut, int(t))}
+    raised = []
+    f_old: dict[int, float] = {}
+    for r in prog.records[feed]:
+        f_old[int(r["line"])] = max(f_old.get(int(r["line"]), 0.0), float(r["feed"]))
+    # the written program's lines shift where moves are split: compare by the text of F words
+    # on the original lines instead — every changed line group is listed by the optimiser's diff,
+    # which is recomputed here from the bytes
+    import difflib
+
+    a = bytes(prog.data).decode("latin-1").splitlines()
+    b = res.output.decode("latin-1").splitlines()
+    for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes():
+        if tag == "equal":
+            continue
+        for ln in range(i1 + 1, i2 + 1):
+            m = prog.records["line"] == ln
+            if m.any() and int(prog.records["tool"][m][0]) in undescribed:
+                raised.append(ln)
+    rec["changed_on_undescribed_tool"] = raised[:20]
+    ce_b = contour_error(before)
+    ce_a = contour_error(after)
+    rec["contour_before"] = float(np.max(ce_b[_feed_samples(before, prog)], initial=0.0))
+    rec["contour_after"] = float(np.max(ce_a[_feed_samples(after, new)], initial=0.0))
+    rec["contour_ok"] = rec["contour_after"] <= rec["contour_before"] + tol + 1e-9
+    rec["kept"] = {k: len(v) for k, v in res.kept.items()}
+    return rec
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--corpus", default=str(ROOT.parent / "shared" / "realdata" / "gcode_corpus"))
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--only", default=None)
+    ap.add_argument("--timeout", type=int, default=300)
+    a = ap.parse_args()
+    corpus = Path(a.corpus)
+    if not corpus.is_dir():
+        sys.exit(f"no corpus at {corpus}")
+    files = [p for p in programs(corpus) if a.only is None or a.only in str(p)]
+    out = open(a.out, "w") if a.out else None
+    recs = []
+    for p in files:
+        r = check_one(p, a.timeout)
+        recs.append(r)
+        rel = str(p.relative_to(corpus))
+        if r["status"] in ("optimised", "unchanged"):
+            flags = []
+            if not r["verified"]:
+                flags.append("NOT VERIFIED")
+            if r["change"] > 1e-4:
+                flags.append("SLOWER")
+            if r["changed_on_undescribed_tool"]:
+                flags.append(f"CHANGED ON UNDESCRIBED TOOL {r['changed_on_undescribed_tool'][:5]}")
+            if not r["contour_ok"]:
+                flags.append("CONTOUR WORSE")
+            print(f"{rel}: {r['status']} {r['before']:.2f} -> {r['after']:.2f} s ({100 * r['change']:+.1f} %), contour "
+                  f"{r['contour_before']:.3f} -> {r['contour_after']:.3f} mm, {r['seconds']:.1f} s "
+                  f"{' '.join(flags)}", flush=True)
+        elif r["status"] != "no feed moves":
+            print(f"{rel}: {r['status']}: {r.get('reason', '')}", flush=True)
+        if out:
+            out.write(json.dumps(r) + "\n")
+            out.flush()
+    done = [r for r in recs if r["status"] in ("optimised", "unchanged")]
+    with_feed = [r for r in recs if "feed_moves" in r]
+    ch = np.array([r["change"] for r in done]) * 100
+    print(f"\n{len(files)} files; {len(with_feed)} read with feed moves; {len(done)} written "
+          f"({sum(r['status'] == 'optimised' for r in done)} changed, {sum(r['status'] == 'unchanged' for r in done)} "
+          f"unchanged); refused {sum(r['status'] == 'refused' for r in recs)}; timeouts "
+          f"{sum(r['status'] == 'timeout' for r in recs)}; unreadable {sum(r['status'] == 'unreadable' for r in recs)}")
+    if len(ch):
+        print(f"cycle time change %: min {ch.min():+.1f}, median {np.median(ch):+.1f}, max {ch.max():+.1f}; "
+              f">= 5 % faster: {int((ch <= -5).sum())}; slower: {int((ch > 0.01).sum())}")
+        print(f"not verified: {sum(not r['verified'] for r in done)}; changed on an undescribed tool: "
+              f"{sum(bool(r['changed_on_undescribed_tool']) for r in done)}; contour worse than tolerance: "
+              f"{sum(not r['contour_ok'] for r in done)}")
+    for r in recs:
+        if r["status"] == "refused":
+            print(f"refused: {r['program']}: {r['reason'][:200]}")
+
+
+if __name__ == "__main__":
+    main()
