@@ -233,10 +233,24 @@ def test_tie_on_the_same_block_after_the_change_and_to_a_prepared_tool():
 def test_no_tie_across_motion_or_without_a_tool():
     r = scan_tool_comments(b'G20\n(1/4" FLAT ENDMILL)\nG1 X1 Y1 F10\nT1 M6\n')
     assert not r.tools and r.rejected[0].reason == "no tool selection next to it" and r.rejected[0].line == 2
+    # a program that selects no tool at all (a router's hand-changed bit): its one description
+    # is the spindle's tool, T0 to the interpreter (Vectric's "Letter A (V-Carve)")
     r = scan_tool_comments(b'G20\n(60deg. 1/2" V bit)\nG0 Z0.25\n')
-    assert not r.tools and len(r.rejected) == 1
+    assert r.tools[0].kind == "engrave" and r.tools[0].diameter_mm == pytest.approx(12.7) and not r.rejected
     r = scan_tool_comments(b"G21\n(Tool 2mm dia.)\nM06 T0\n")
     assert not r.tools and r.rejected[0].reason == "T0 is no tool"
+
+
+def test_vectric_forms():
+    # pygcode's Vectric programs: a name and a labelled diameter; an engraving bit's angle and tip
+    r = scan_tool_comments(b"G20\n(Endmill Dia. 0.250)\nG0 Z0.1\nG1 Z-0.01 F24\nM30\n")
+    t = r.tools[0]
+    assert t.kind == "flat" and t.diameter_mm == pytest.approx(6.35) and t.form == "Vectric"
+    r = scan_tool_comments(b"G20\n( TOOL=ENGRAVE {20' 0.02\" TIP DIA} )\nG0 Z0.1\nG1 Z-0.01 F24\nM30\n")
+    t = r.tools[0]
+    assert t.kind == "engrave" and t.angle_deg == 20.0 and t.diameter_mm == pytest.approx(0.508)
+    assert not t.modelled  # the Z-map cutter cannot represent a V-bit: the optimiser keeps its feeds
+    assert parse_tool_comment("Note Dia 3", True, None, 1) is None  # no tool kind named: not a tool
 
 
 def test_tool_selected_by_a_parameter():
@@ -430,7 +444,8 @@ def test_every_real_program_scans_and_every_tool_is_sane():
     for path in files:
         r = scan_tool_comments(path.read_bytes())
         for n, t in r.tools.items():
-            assert n == t.number and n > 0 and t.kind in KINDS, (path, t)
+            # T0: the one tool of a program that selects none (a router's spindle)
+            assert n == t.number and (n > 0 or set(r.tools) == {0}) and t.kind in KINDS, (path, t)
             assert 0 < t.diameter_mm <= MAX_DIAMETER_MM.get(t.kind, MAX_DIAMETER_MM["default"]), (path, t)
             if t.modelled:
                 assert to_library_tool(t) is not None, (path, t)

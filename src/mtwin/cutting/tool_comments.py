@@ -412,6 +412,10 @@ _PIPE_DIA = re.compile(r"\|\s*TOOL\s+DIA\.?\s*-\s*(?P<d>" + _NUM + r")\s*(?:\||$
 _TABLE = re.compile(r"^\s*(?P<p>\d+)\s+(?P<n>\d+)\s+[-+]?(?:\d+\.?\d*|\.\d+)\s+(?P<d>\d+\.?\d*|\.\d+)\s+(?P<name>\S.*?)\s*$")
 _NUMBERED = re.compile(r"^\s*(?:T|TOOL\s*(?:NO\.?|#)?)\s*(?P<n>\d+)(?:\s*(?:=|:|-|\bIS\b)\s*|\s+)(?P<name>\S.*?)\s*$",
                        re.I)
+# Vectric (pygcode's files): "( Endmill Dia. 0.250 )", "( TOOL=ENGRAVE {20' 0.02" TIP DIA} )"
+_NAME_DIA = re.compile(r"^\s*(?P<name>[A-Z][A-Z \-]*?)\s+DIA(?:METER|\.)?\s*[:=]?\s*(?P<d>" + _NUM + r")\s*$", re.I)
+_VECTRIC_TIP = re.compile(r"^\s*TOOL\s*=\s*(?P<name>[^{]*?)\s*\{\s*(?P<a>" + _NUM + r")\s*(?:'|°|º|DEG\.?)\s*(?P<d>"
+                          + _NUM + r")\s*(?P<unit>\"|MM|IN)?\s*TIP\s+DIA\.?\s*\}\s*$", re.I)
 _PREFIX = re.compile(r"^\s*(?:TOOL|CUTTER|BIT)\b\s*(?:[:=\-]|\bIS\b)?\s*", re.I)
 _PROSE = re.compile(r"\b(?:CUTTER|TOOL|BIT|END\s*MILL|ENDMILL)\b[^.;]{0,30}?\b(?:IS|BE)\s+(?:AN?\s+)?(?=[\d.])", re.I)
 
@@ -484,6 +488,21 @@ def parse_tool_comment(comment: str, inch: bool | None, number: int | None = Non
         name = m.group("name")
         desc = _describe(name, inch, (_number(m.group("d")), True))
         return _declared(n, desc, text, "LinuxCNC tool table", name, line)
+    m = _NAME_DIA.match(text)
+    if m and _kind_of(m.group("name")) and at_tool_change:
+        desc = _describe(m.group("name"), inch, (_number(m.group("d")), True))
+        return _declared(number, desc, text, "Vectric", m.group("name").strip(), line)
+    m = _VECTRIC_TIP.match(text)
+    if m and at_tool_change:
+        name = m.group("name").strip()
+        unit = {'"': "in", "IN": "in", "MM": "mm"}.get((m.group("unit") or "").upper())
+        dia = _to_mm(_number(m.group("d")), unit, inch)
+        if dia is None:
+            return None
+        desc = _describe(name, None, (dia, False))
+        desc.kind = desc.kind or "engrave"
+        desc.angle = _number(m.group("a"))
+        return _declared(number, desc, text, "Vectric", f"{name} tip {m.group('d')}", line)
     m = _NUMBERED.match(text)
     if m:
         n = int(m.group("n"))
@@ -707,6 +726,13 @@ def scan_tool_comments(data: bytes | str, inch: bool | None = None) -> ToolComme
                 break
         return None, "no tool selection next to it"
 
+    _no_t: list[bool] = []
+
+    def no_tool_words() -> bool:
+        if not _no_t:
+            _no_t.append(not any(re.search(r"(?<![A-Z])T\s*[#\d]", c, re.I) for c in codes))
+        return _no_t[0]
+
     found: list[DeclaredTool] = []
     rejected: list[Rejected] = []
     pycam: dict[str, str] = {}
@@ -732,6 +758,11 @@ def scan_tool_comments(data: bytes | str, inch: bool | None = None) -> ToolComme
                 continue
             if (isinstance(r, DeclaredTool) and r.number is None) or (isinstance(r, Rejected) and r.number is None):
                 n, why = tie(i)
+                if n is None and isinstance(r, DeclaredTool) and no_tool_words():
+                    # a program that selects no tool at all (a router's one spindle, changed by
+                    # hand): its description is of the tool in the spindle, T0 to the interpreter
+                    found.append(replace(r, number=0))
+                    continue
                 if n is None:
                     rejected.append(Rejected(i + 1, s, why if isinstance(r, DeclaredTool) else r.reason))
                     continue

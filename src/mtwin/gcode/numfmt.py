@@ -92,7 +92,10 @@ def detect_style(lexed: Lexed, inch_only: bool = False) -> NumberStyle:
             break
     fk = letters == ord("F")
     fnd = lexed.w_ndec[fk]
-    feed_point = bool((fnd >= 0).any())
+    # integer feeds as the program writes them: F1000 stays F1000, F1000. stays F1000. (by the
+    # majority of its whole-number F words; only decimals, then whether any has a point)
+    whole = fnd[fnd <= 0]
+    feed_point = bool((whole == 0).sum() > (whole < 0).sum()) if whole.size else bool((fnd >= 0).any())
     feed_dec = int(fnd.max()) if fnd.size and fnd.max() > 0 else 0
     return NumberStyle(coord_decimals=min(max(coord_dec, 3), 6), feed_decimals=min(feed_dec, 4), fixed=fixed,
                        leading_zero=leading_zero, trailing_point=trailing_point, feed_point=feed_point)
