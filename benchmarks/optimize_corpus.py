@@ -85,10 +85,11 @@ def check_one(path: Path, timeout: int, tol: float = 0.02) -> dict:
     rec["seconds"] = time.perf_counter() - t0
     new = tw.load(res.output, path=str(path))
     rec["verified"] = compare(prog, new) is None
-    fresh = mtwin.Twin()
     try:
-        before = fresh.simulate(prog)
-        after = mtwin.Twin().simulate(new)
+        # the program's own simulation is the optimiser's first step (a plain simulate); the
+        # output is simulated afresh, on a new twin, unless it is the program byte for byte
+        before = res.trace_before
+        after = before if res.output == bytes(prog.data) else mtwin.Twin().simulate(new)
     except MtwinError as exc:
         rec.update(status="re-simulation failed", reason=str(exc)[:300])
         return rec

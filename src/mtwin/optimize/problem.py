@@ -240,9 +240,7 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
             T = (fz * model.ta[idx] + model.tb[idx]) * model.cutting[idx]
             load_tab[:, g] = np.where(present, np.maximum.reduceat(L, b), 0.0)
             torque_tab[:, g] = np.where(present, np.maximum.reduceat(T, b), 0.0)
-    seg_chip = np.zeros(S)
-    if len(idx):
-        seg_chip = np.where(present, np.maximum.reduceat(model.chip[idx], np.minimum(bounds, len(idx) - 1)), 0.0)
+    seg_chip = _segment_percentile(st, model.chip[idx], model.length[idx] * model.cutting[idx], S, 95.0)
     w = model.length[idx] * model.cutting[idx]
     seg_len = np.bincount(st, weights=model.length[idx], minlength=S)
     mta = np.bincount(st, weights=w * model.ta[idx], minlength=S) / np.maximum(seg_len, 1e-12)
@@ -275,3 +273,25 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     return Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
                    seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, t_base, f0_var, n0[:nspin],
                    cycle_before, limits, rates, np.asarray(loss, float), seg_chip=seg_chip)
+
+
+def _segment_percentile(seg: np.ndarray, x: np.ndarray, w: np.ndarray, S: int, q: float) -> np.ndarray:
+    """Per segment, the ``q`` th percentile of ``x`` weighted by ``w`` (0 where a segment has no
+    weight).  The chip-thickness factor of a segment is taken so, like the learned level it is
+    held to: the chip a program runs at for a twentieth of a cut, not at a one-step entry."""
+    out = np.zeros(S)
+    m = w > 0
+    if not m.any():
+        return out
+    seg, x, w = seg[m], x[m], w[m]
+    o = np.lexsort((x, seg))
+    seg, x, w = seg[o], x[o], w[o]
+    starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+    ends = np.r_[starts[1:], len(seg)]
+    cw = np.cumsum(w)
+    base = np.r_[0.0, cw][starts]
+    total = cw[ends - 1] - base
+    for a, b, b0, tot in zip(starts, ends, base, total):
+        k = a + int(np.searchsorted(cw[a:b] - b0, q / 100.0 * tot, side="left"))
+        out[seg[a]] = x[min(k, b - 1)]
+    return out

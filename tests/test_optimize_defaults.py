@@ -1,0 +1,255 @@
+"""``mtwin optimize part.nc`` with default options on programs as CAM systems and people write
+them (issue 18): limits learned from the program, feeds kept where the twin does not know
+the cut, finishing passes, accuracy, estimates that hold, refusals that say why."""
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mtwin
+from conftest import REALDATA
+from mtwin.gcode.verify import compare
+from mtwin.optimize import OptimizeOptions, optimize
+from mtwin.optimize.guards import contour_error, weighted_percentile
+from mtwin.optimize.run import _feed_samples
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+def run_cli(*args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True)
+
+# a Vectric-style engraving job on a router: inch, no tool declared, no M3 (a hand-switched
+# spindle), strokes at Z-0.010" at F50 — the twin cannot know this cut
+ENGRAVE = (b"G00G20G17G90G40G49G80\nG00Z0.2000\nG00X0.0000Y0.0000\nG00X1.0000Y1.0000Z0.2000\n"
+           b"G1Z-0.0100F50.0\nG1X2.0000Y1.0000F50.0\nG1X2.0000Y2.0000\nG2X1.0000Y2.0000I-0.5000J0.0000\n"
+           b"G1X1.0000Y1.0000\nG00Z0.2000\nM30\n")
+
+
+def _changed_feed_lines(a: bytes, b: bytes) -> list[str]:
+    la, lb = a.decode().splitlines(), b.decode().splitlines()
+    return [y for x, y in zip(la, lb) if x != y] + lb[len(la):]
+
+
+def test_engraving_without_m3_or_a_tool_keeps_every_feed():
+    tw = mtwin.Twin()
+    prog = tw.load(ENGRAVE, path="engrave.tap")
+    r = optimize(tw, prog, OptimizeOptions())
+    assert r.output == ENGRAVE and not r.changed_lines
+    assert r.after.cycle_time == r.before.cycle_time
+    text = " ".join(r.warnings)
+    assert "T0 is not described" in text and "--tool" in text
+    assert r.kept and all(len(v) for v in r.kept.values())
+
+
+def test_spindle_stopped_keeps_feeds_even_with_a_described_tool():
+    prog_text = ENGRAVE.replace(b"G00Z0.2000\nG00X0", b"(Endmill Dia. 0.125)\nG00Z0.2000\nG00X0", 1)
+    tw = mtwin.Twin()
+    prog = tw.load(prog_text, path="engrave.tap")
+    r = optimize(tw, prog, OptimizeOptions())
+    assert r.output == prog_text
+    assert "spindle stopped" in r.kept and "spindle stopped" in " ".join(r.warnings)
+
+
+def test_an_unrecognised_or_unmodelled_tool_comment_keeps_its_feeds():
+    # a tool the program names but the cutting model cannot represent (a V-bit), and one it
+    # names in words nothing reads: both keep every feed, with the spindle running
+    for comment in (b"( TOOL=ENGRAVE {20' 0.02\" TIP DIA} )", b"(Bit: the sharp one from the blue box)"):
+        text = (b"G20 G90 G17 G94\n" + comment + b"\nS18000 M3\nG0 Z0.2\nG0 X1 Y1\nG1 Z-0.01 F24\n"
+                b"G1 X2 Y1 F24\nG2 X3 Y1 I0.5 J0\nG2 X1 Y1 I-1 J0\nG0 Z0.2\nM5\nM30\n")
+        tw = mtwin.Twin()
+        prog = tw.load(text, path="t.tap")
+        r = optimize(tw, prog, OptimizeOptions())
+        assert r.output == text, comment
+
+
+def test_a_declared_tool_lets_the_same_program_be_optimised():
+    text = (b"G21 G90 G17 G94\nT1 M6\nS8000 M3\n(MTWIN STOCK -10,-10,-10,80,30,0)\nG0 X-8 Y0 Z5\nG0 Z-2\n"
+            b"G1 X70 F400\nG0 Z5\nG0 X-8 Y1\nG0 Z-2\nG1 X70 F400\nG0 Z5\nM5\nM30\n")
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="slot.nc")
+    assert optimize(tw, prog, OptimizeOptions()).output == text  # T1 undescribed: kept
+    tw = mtwin.Twin().with_tools({1: "flat:6:2"})
+    r = optimize(tw, prog, OptimizeOptions())
+    assert r.output != text and r.after.cycle_time < r.before.cycle_time
+    assert compare(prog, tw.load(r.output, path="o.nc")) is None
+
+
+def _wall_program(finish_comment: bool) -> bytes:
+    # a 6 mm flat end mill: a full slot (roughing) at F300, then a 0.2 mm wall pass at F300
+    head = b"G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\n(MTWIN STOCK 0,-10,-6,60,10,0)\nT1 M6\nS8000 M3\n"
+    rough = b"(ROUGH SLOT)\nG0 X-5 Y0 Z5\nG0 Z-2\nG1 X65 F300\nG0 Z5\n"
+    fin = (b"(FINISH WALL PASS)\n" if finish_comment else b"") + b"G0 X-5 Y0.2\nG0 Z-2\nG1 X65 F300\nG0 Z5\n"
+    return head + rough + fin + b"M5\nM30\n"
+
+
+@pytest.mark.parametrize("comment", [True, False])
+def test_a_finishing_pass_keeps_its_feed_per_tooth(comment):
+    text = _wall_program(comment)
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="wall.nc")
+    r = optimize(tw, prog, OptimizeOptions())
+    src = text.decode().splitlines()
+    fin_line = src.index("G1 X65 F300", src.index("G0 X-5 Y0.2")) + 1
+    fins = [s for s in r.segments if s["finishing"]]
+    assert fins and all(s["lines"][0] <= fin_line <= s["lines"][1] for s in fins)
+    assert all(s["feed_after"] == s["feed_before"] for s in fins)
+
+    def wall_pass(out: bytes) -> str:  # the line after the wall pass's approach (splits shift lines)
+        lines = out.decode().splitlines()
+        return lines[lines.index("G0 X-5 Y0.2") + 2]
+
+    # (the pass runs on past the stock's end at X60: that air tail may be split off and raised)
+    assert re.fullmatch(r"G1 X(65|59\.9) F300", wall_pass(r.output)), wall_pass(r.output)
+    # --finish-feed optimize treats it as any cut: the light wall pass is raised
+    r2 = optimize(tw, prog, OptimizeOptions(finish_feed="optimize"))
+    assert not wall_pass(r2.output).endswith(" F300")
+
+
+def test_arc_heavy_contour_holds_its_accuracy_on_the_rewritten_program():
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / "contour.nc"))
+    r = optimize(tw, prog, OptimizeOptions())
+    assert r.after.cycle_time < r.before.cycle_time
+    for s in r.segments:
+        assert s["contour_error_after"] <= s["contour_error_before"] + 0.02 + 1e-9, s
+    # independently: the written program's largest contour error in feed moves, re-simulated
+    new = tw.load(r.output, path="out.nc")
+    after = mtwin.Twin().simulate(new)
+    before = mtwin.Twin().simulate(prog)
+    ca = float(contour_error(after)[_feed_samples(after, new)].max())
+    cb = float(contour_error(before)[_feed_samples(before, prog)].max())
+    assert ca <= cb + 0.02
+    # the tolerance binds: with it opened up the same program runs faster and less accurately
+    loose = optimize(tw, prog, OptimizeOptions(tolerance=5.0))
+    assert loose.after.cycle_time < r.after.cycle_time
+    assert any(s["limited_by"] == "accuracy (contour error)" for s in r.segments)
+
+
+def test_contour_error_matches_the_simulators_own_maximum():
+    tr = mtwin.Twin().simulate(mtwin.Twin().load(str(SAMPLES / "contour.nc")))
+    prog = mtwin.Twin().load(str(SAMPLES / "contour.nc"))
+    ce = contour_error(tr)[_feed_samples(tr, prog)]
+    assert ce.max() == pytest.approx(tr.summary.max_contour_error, rel=1e-6)
+
+
+def test_learned_limit_is_a_weighted_percentile_and_never_lowers_a_feed():
+    x = np.array([1.0, 2.0, 3.0, 100.0])
+    assert weighted_percentile(x, np.array([1.0, 1.0, 1.0, 1.0]), 95) == 100.0
+    assert weighted_percentile(x, np.array([10.0, 10.0, 79.0, 1.0]), 95) == 3.0  # 1 % at 100: a spike
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / "pocket.nc"))
+    r = optimize(tw, prog, OptimizeOptions())
+    assert r.after.cycle_time < r.before.cycle_time  # the README's promise: faster, not slower
+    for s in r.segments:
+        assert s["feed_after"] >= s["feed_before"] - 1e-9
+    lim = [x for x in r.limits if x.get("tool") == 1][0]
+    assert lim["load"] <= lim["program_peak_load"] and "learned" in lim["source"]
+
+
+def test_readme_python_api_example_gets_faster():
+    twin = mtwin.Twin.from_toml(str(SAMPLES / "machines" / "linuxcnc-sim.toml"))
+    prog = twin.load(str(SAMPLES / "contour.nc"))
+    from mtwin.optimize import GAOptions
+
+    res = optimize(twin, prog, OptimizeOptions(objective="time", method="ga", ga=GAOptions(seed=1)))
+    assert res.after.cycle_time < res.before.cycle_time
+
+
+def _raster(n_moves: int) -> bytes:
+    out = ["%", "(T1 D=6. CR=0. - FLAT END MILL, 2 FLUTES)", "G21 G90 G94 G17 G64 P0.01", "T1 M6", "S8000 M3",
+           "G0 X0 Y0 Z5", "G1 Z0 F600", "F1500"]
+    k = row = 0
+    while k < n_moves:
+        y = row * 0.5
+        for j in range(250):
+            i = j if row % 2 == 0 else 249 - j
+            x = i * 0.9
+            out.append(f"G1 X{x:.3f} Y{y:.3f} Z{-0.5 + 0.4 * math.sin(x / 7.0) * math.cos(y / 5.0):.4f}")
+            k += 1
+        row += 1
+    return ("\n".join(out + ["G0 Z5", "M30", "%"]) + "\n").encode()
+
+
+def test_estimate_within_2_percent_on_a_100000_move_program():
+    # 0.9 mm moves raised from F1500 towards the machine's maximum: acceleration, jerk and
+    # look-ahead set their times, which a formula in L/F got 4x wrong; the planner's own
+    # times at a few feeds do not
+    tw = mtwin.Twin()
+    prog = tw.load(_raster(100_000), path="raster.nc")
+    r = optimize(tw, prog, OptimizeOptions(force_limit=1000.0, finish_feed="optimize", tolerance=10.0))
+    assert r.after.cycle_time < 0.9 * r.before.cycle_time
+    assert abs(r.estimate["cycle_time"] / r.after.cycle_time - 1) < 0.02, (r.estimate, r.after.cycle_time)
+
+
+def test_refusal_with_json_names_the_limit_segment_lines_and_excess(tmp_path):
+    out = tmp_path / "o.nc"
+    p = run_cli("optimize", str(SAMPLES / "contour.nc"), "-o", str(out), "--force-limit", "5", "--json")
+    assert p.returncode == 2 and not out.exists()
+    doc = json.loads(p.stdout)
+    assert doc["written"] is False and doc["reasons"]
+    r0 = doc["reasons"][0]
+    assert r0["limit"] == "load" and r0["limit_value"] == 5.0 and r0["value"] > 5.0
+    assert r0["over_by"] == pytest.approx(r0["value"] / 5.0 - 1) and len(r0["lines"]) == 2
+    assert re.search(r"contour\.nc:\d+: .*load [\d.]+ N over its limit 5\.0 N by \d+ %", p.stderr)
+
+
+def test_cli_summary_says_faster_and_which_limits(tmp_path):
+    p = run_cli("optimize", str(SAMPLES / "pocket.nc"), "-o", str(tmp_path / "o.nc"))
+    assert p.returncode == 0, p.stderr
+    assert re.search(r"result: [\d.]+ % faster", p.stderr)
+    assert re.search(r"limits T1: load [\d.]+ N, chip thickness [\d.]+ µm \(learned", p.stderr)
+    p = run_cli("optimize", str(SAMPLES / "ga_reference.nc"), "-o", str(tmp_path / "g.nc"), "--spindle-range",
+                "1000,8000", "--force-limit", "60", "--json")
+    doc = json.loads(p.stdout)
+    assert doc["spindle"] and doc["verdict"] in ("faster", "slower", "unchanged") and doc["written"] is True
+
+
+def test_parameter_feeds_stay_and_integer_feeds_stay_integers():
+    text = (b"(T1 D=6 CR=0 - flat end mill)\n(MTWIN STOCK -10,-10,-10,60,20,0)\nG21 G90 G17 G94\n#1122 = 300\n"
+            b"T1 M6\nS6000 M3\nG0 X-10 Y0 Z5\nG0 Z-1\nG1 X20 F#1122\nG1 X40 F1000\nG1 X50 F250\nG0 Z5\nM5\nM2\n")
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="p.ngc")
+    r = optimize(tw, prog, OptimizeOptions())
+    lines = r.output.decode().splitlines()
+    assert "G1 X20 F#1122" in lines
+    changed = [ln for ln in lines if ln.startswith("G1 X50")]
+    assert changed and re.fullmatch(r"G1 X50 F\d+", changed[0]), changed  # no "F990."
+
+
+def test_air_cuts_under_a_guessed_stock_are_not_raised():
+    # a pass at Z-1 over material, then the same pass again: under a guessed stock the second
+    # pass looks like air, but the guess may be wrong — it keeps its feed
+    text = (b"G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\nT1 M6\nS8000 M3\nG0 X0 Y0 Z5\nG0 Z-1\n"
+            b"G1 X50 F300\nG1 X0 F300\nG0 Z5\nM5\nM30\n")
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="twice.nc")
+    r = optimize(tw, prog, OptimizeOptions())
+    assert "G1 X0 F300" in r.output.decode().splitlines()
+    assert "air cut under a guessed stock" in r.kept
+
+
+@pytest.mark.skipif(not (REALDATA / "gcode_corpus").is_dir(), reason=f"{REALDATA} not present (real programs "
+                    "live in ../shared)")
+@pytest.mark.parametrize("name", ["pygcode_test_files/Letter A  (V-Carve).tap", "pygcode_test_files/Cross2.tap",
+                                  "fusion360_led_floor/1092_wall_fix_only_permiter.nc",
+                                  "camotics_examples/tiny_cat_outline.ngc"])
+def test_real_programs_with_default_options(name):
+    path = REALDATA / "gcode_corpus" / name
+    tw = mtwin.Twin()
+    prog = tw.load(str(path))
+    r = optimize(tw, prog, OptimizeOptions())
+    new = tw.load(r.output, path=str(path))
+    assert compare(prog, new) is None
+    assert r.after.cycle_time <= r.before.cycle_time * (1 + 1e-6)
+    assert r.contour_error["after"] <= r.contour_error["before"] + 0.02 + 1e-9
+    if "pygcode" in name:  # routers without M3 or a tool the model can represent: nothing changes
+        assert r.output == bytes(prog.data)
