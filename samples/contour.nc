@@ -1,7 +1,6 @@
 %
 O1002 (CONTOUR)
-(mtwin sample: outside contour of a 50 x 40 mm plate with R8 corners and a circular boss cut-out,)
-(5 mm deep in one pass with a helical entry, aluminium 6061, T2 = 6 mm two-flute carbide, metric)
+(mtwin sample: outside contour of a 50 x 40 mm plate, R8 corners, a circular boss cut-out, 5 mm deep, helical entry, Al 6061, metric)
 (T2 D=6. CR=0. - FLAT END MILL, 2 FLUTES, CARBIDE)
 (MTWIN STOCK -10,-10,-12,70,60,0)
 G21 G90 G17 G94 G64 P0.01

@@ -1,7 +1,6 @@
 %
 O1001 (POCKET-ARCS)
-(mtwin sample: rectangular pocket 40 x 30 mm with R5 corners, 6 mm depth in 3 steps,)
-(aluminium 6061, T1 = 6 mm two-flute carbide flat end mill, Fanuc-style, metric)
+(mtwin sample: rectangular pocket 40 x 30 mm, R5 corners, 6 mm deep in 3 steps, Al 6061, Fanuc-style, metric)
 (T1 D=6. CR=0. - FLAT END MILL, 2 FLUTES, CARBIDE)
 (MTWIN STOCK 0,0,-20,60,50,0)
 G21 G90 G17 G40 G49 G80 G94

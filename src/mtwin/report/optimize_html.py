@@ -35,11 +35,21 @@ def optimize_html(res, program: str) -> bytes:
         return "–" if v is None else f"{v:.3f}"
 
     rows = [("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time)),
-            ("cost", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost)),
+            ("cost", "–" if b.cost is None else f"{b.cost:.3f}", "–" if a.cost is None else f"{a.cost:.3f}",
+             pct(b.cost, a.cost) if b.cost is not None and a.cost is not None else ""),
             ("peak cutting load", f"{b.peak_load:.1f} N", f"{a.peak_load:.1f} N", pct(b.peak_load, a.peak_load)),
             ("peak spindle power", f"{b.peak_power / 1000:.3f} kW", f"{a.peak_power / 1000:.3f} kW",
              pct(b.peak_power, a.peak_power)),
             ("power CV of the segment means", cv(b.power_cv), cv(a.power_cv), "")]
+    ce = res.contour_error or {}
+    if ce:
+        rows.append(("largest contour error, feed moves", f"{ce['before']:.3f} mm", f"{ce['after']:.3f} mm",
+                     f"{ce['after'] - ce['before']:+.3f} mm (tolerance {ce['tolerance']:g} mm per segment)"))
+    if res.seg_before is None and res.trace_before is not None:  # written unchanged: no segments
+        import dataclasses
+
+        none = np.full(len(res.trace_before.t), -1)
+        res = dataclasses.replace(res, seg_before=none, seg_after=none)
     limits = ", ".join(f"T{k}: {v:.0f} N" for k, v in res.force_limit.items())
     parts = [f"<h1>mtwin optimize</h1><p><b>{e(program)}</b>: objective <b>{e(res.objective)}</b> by "
              f"<b>{e(res.method)}</b>; load limit {e(limits)}. Both columns are full simulations of the twin "
@@ -48,6 +58,20 @@ def optimize_html(res, program: str) -> bytes:
              "<table><tr><th></th><th>before</th><th>after</th><th>change</th></tr>"
              + "".join(f"<tr><td>{e(r[0])}</td><td>{r[1]}</td><td>{r[2]}</td><td>{r[3]}</td></tr>" for r in rows)
              + "</table>"]
+    lim_rows = []
+    for lim in res.limits or []:
+        if lim.get("tool") is None:
+            continue
+        load = "–" if lim.get("load") is None else f"{lim['load']:.1f} N"
+        chip = "–" if not lim.get("chip_thickness") else f"{lim['chip_thickness'] * 1000:.1f} µm"
+        lim_rows.append(f"<tr><td>T{lim['tool']}</td><td>{load}</td><td>{chip}</td><td>{e(lim['source'])}</td></tr>")
+    if lim_rows:
+        parts.append("<h2>Limits</h2><table><tr><th>tool</th><th>load</th><th>chip thickness</th><th>where from</th>"
+                     "</tr>" + "".join(lim_rows) + "</table>")
+    if res.kept:
+        parts.append("<h2>Moves that kept their feeds</h2><ul>" + "".join(
+            f"<li>{e(why)}: {len(lines)} line(s), {e(', '.join(str(x) for x in lines[:20]))}"
+            f"{' …' if len(lines) > 20 else ''}</li>" for why, lines in res.kept.items()) + "</ul>")
     parts.append("<h2>Power and load over time</h2>")
     parts.append(_curves(plt, res))
     parts.append("<h2>Path feed over time</h2>")
