@@ -128,11 +128,13 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     rec = program.records
     cut = _program_cutting(twin, program)
     candidates = feed_records(program)
-    if not candidates.any():
-        raise MtwinError(f"{program.path}: no feed move whose feed can be set: G1/G2/G3 in mm/min or in/min that "
-                         f"are not plunges, canned cycles or macro-expression feeds (those keep their programmed "
-                         f"feeds)")
     warnings: list = []
+    if not candidates.any():
+        # a drilling program, plunges only, inverse-time feeds: nothing the optimiser sets; in a
+        # post-processing pipeline that is not an error — the program goes through unchanged
+        return _unchanged(program, before, opts, warnings, {}, t_start,
+                          "no feed move whose feed can be set (G1/G2/G3 in mm/min or in/min that are not plunges, "
+                          "canned cycles, synchronised or macro-expression feeds): the program is written unchanged")
     # ---- only where the twin knows the cut (a described tool, a running spindle)
     trust = trusted_records(program, cut, candidates)
     warnings += trust.warnings
@@ -287,7 +289,14 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     stock_guessed = stock is None and str(before.summary.cutting.stock_source if before.summary.cutting else
                                           "default").startswith("default")
     if stock_guessed:
+        # inside the guessed block, a move is air only because earlier cuts removed the material
+        # there, which they also do on the machine, whatever the real stock's size — provided
+        # the twin knew the tools that cut it: after a cut by an undescribed tool (an imaginary
+        # 6 mm end mill), "air" may be material the real, smaller tool left
         clear = clear_of_stock(program, cut, stock_box)
+        undescribed_cut = candidates & ~trust.ok & np.isin(rec["tool"], list(trust.undescribed))
+        first_unknown = int(np.argmax(undescribed_cut)) if undescribed_cut.any() else len(rec)
+        clear |= np.arange(len(rec)) < first_unknown
         var_clear = np.ones(prob.nvar, bool)
         np.logical_and.at(var_clear, prob.seg_var[segs.piece_seg], clear[segs.piece_rec])
         unclear = air_var & ~cut_var & ~var_clear & ~keep
@@ -295,8 +304,9 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
             keep |= unclear
             kept["air cut under a guessed stock"] = _var_lines(program, segs, prob, unclear)
             warnings.append(f"{program.path}: warning: the stock was guessed ({before.summary.cutting.stock_source}): "
-                            f"{int(unclear.sum())} air-cut segment(s) not provably clear of it keep their feeds; give "
-                            f"the stock (--stock, (MTWIN STOCK …) or cutting.stock) to let them be raised")
+                            f"{int(unclear.sum())} air-cut segment(s) after a cut by an undescribed tool, and not provably "
+                            f"clear of the stock, keep their feeds; declare the tool (--tool) or give the stock "
+                            f"(--stock, (MTWIN STOCK …) or cutting.stock) to let them be raised")
     # finishing passes keep their feed per tooth
     fin_var = np.zeros(prob.nvar, bool)
     if opts.finish_feed == "keep" and opts.objective != "air":
