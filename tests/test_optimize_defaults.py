@@ -262,3 +262,33 @@ def test_real_programs_with_default_options(name):
     assert r.contour_error["after"] <= r.contour_error["before"] + 0.02 + 1e-9
     if "pygcode" in name:  # routers without M3 or a tool the model can represent: nothing changes
         assert r.output == bytes(prog.data)
+
+
+def test_sample_to_segment_map_kernel_matches_numpy():
+    # the compiled map of trace samples to segments (long traces) against the numpy original
+    import mtwin.optimize.run as R
+
+    seen = []
+    orig = R._segment_of_samples
+
+    def both(trace, new_prog, program, segs):
+        saved = R.FAST_MAP
+        try:
+            R.FAST_MAP = 10**12
+            a = orig(trace, new_prog, program, segs)
+            R.FAST_MAP = 0
+            b = orig(trace, new_prog, program, segs)
+        finally:
+            R.FAST_MAP = saved
+        seen.append(len(a[0]))
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(np.where(a[0] >= 0, a[1], -1), np.where(b[0] >= 0, b[1], -1))
+        return a
+
+    R._segment_of_samples = both
+    try:
+        tw = mtwin.Twin()
+        optimize(tw, tw.load(str(SAMPLES / "contour.nc")), OptimizeOptions(force_limit=60.0))
+    finally:
+        R._segment_of_samples = orig
+    assert seen and min(seen) > 1000

@@ -7,6 +7,7 @@ no ``-0``.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,12 +35,8 @@ class NumberStyle:
         return max(self.feed_decimals, 1) if inch else self.feed_decimals
 
     def feed(self, v: float, inch: bool = False) -> str:
-        # the program's own number of decimals, and more when rounding to it would be more
-        # than 0.1 % off the value asked for (a slow feed written F1 or F0.12 by its post)
-        dec = self.feed_decimals_for(inch)
-        while dec < 6 and abs(round(v, dec) - v) > 1e-3 * abs(v):
-            dec += 1
-        return _fmt(v, dec, self.fixed, self.leading_zero, True, self.feed_point)
+        # an optimised hour of machining writes the same few feeds 100,000 times
+        return _feed_text(self, float(v), bool(inch))
 
 
     @staticmethod
@@ -47,6 +44,16 @@ class NumberStyle:
         # S is an integer address: a Fanuc control raises an alarm on a decimal point there
         # (as on T, M, H, D), whatever style the program's F words have
         return str(int(round(v)))
+
+
+@functools.lru_cache(maxsize=4096)
+def _feed_text(style: NumberStyle, v: float, inch: bool) -> str:
+    # the program's own number of decimals, and more when rounding to it would be more
+    # than 0.1 % off the value asked for (a slow feed written F1 or F0.12 by its post)
+    dec = style.feed_decimals_for(inch)
+    while dec < 6 and abs(round(v, dec) - v) > 1e-3 * abs(v):
+        dec += 1
+    return _fmt(v, dec, style.fixed, style.leading_zero, True, style.feed_point)
 
 
 def _fmt(v: float, dec: int, fixed: bool, leading_zero: bool, trailing_point: bool, point: bool) -> str:

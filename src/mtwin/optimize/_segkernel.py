@@ -91,3 +91,78 @@ def binary_segmentation(p: np.ndarray, w: np.ndarray, min_len: float, penalty: f
             if f:
                 heapq.heappush(heap, (-f[0], lo, hi, f[1]))
     return np.array(sorted(starts), np.int64)
+
+
+@njit
+def contour_samples(cmd, err, out):
+    """Per sample, the part of the following error ``err`` normal to the commanded direction
+    of travel (central differences of ``cmd``); 0 at the ends and where the command stands
+    still — in one pass, for the hour-long traces the optimiser re-checks every round."""
+    n = cmd.shape[0]
+    out[0] = 0.0
+    out[n - 1] = 0.0
+    for i in range(1, n - 1):
+        dx = cmd[i + 1, 0] - cmd[i - 1, 0]
+        dy = cmd[i + 1, 1] - cmd[i - 1, 1]
+        dz = cmd[i + 1, 2] - cmd[i - 1, 2]
+        dn = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if dn <= 1e-9:
+            out[i] = 0.0
+            continue
+        ux, uy, uz = dx / dn, dy / dn, dz / dn
+        ex, ey, ez = err[i, 0], err[i, 1], err[i, 2]
+        a = ex * ux + ey * uy + ez * uz
+        nx, ny, nz = ex - a * ux, ey - a * uy, ez - a * uz
+        out[i] = math.sqrt(nx * nx + ny * ny + nz * nz)
+
+
+@njit(python_limit=100_000, python_fast=20_000)
+def samples_to_pieces(idx, valid, first, span, cn, ln, co, lo, key, order, piece_rec, piece_seg, seg_out, rec_out):
+    """Segment and original record of every trace sample, by path length (see
+    ``run._segment_of_samples``): sample i of new record r lies at ``cn[r] + (i - first[r]) /
+    span[r] * ln[r]`` along the path; the original record holding that point is the last with
+    ``co[j] <= s``, and its piece the last with ``key <= r_o * 4 + t``.  Samples come in time
+    order, so both searches move forward; a step back falls back to bisection."""
+    n = idx.shape[0]
+    m = co.shape[0]
+    nlo = lo.shape[0]
+    nk = key.shape[0]
+    j = 0
+    p = -1
+    for i in range(n):
+        if not valid[i]:
+            seg_out[i] = -1
+            rec_out[i] = -1
+            continue
+        r = idx[i]
+        s = cn[r] + (i - first[r]) / span[r] * ln[r]
+        if s < co[j]:
+            a, b = 0, m  # bisection: last j with co[j] <= s
+            while a < b:
+                c = (a + b) // 2
+                if co[c] <= s:
+                    a = c + 1
+                else:
+                    b = c
+            j = a - 1 if a > 0 else 0
+        while j + 1 < m and co[j + 1] <= s:
+            j += 1
+        ro = min(max(j, 0), nlo - 1)
+        t = (s - co[ro]) / lo[ro] if lo[ro] > 0.0 else 0.0
+        q = ro * 4.0 + t
+        if p >= 0 and q < key[p]:
+            a, b = 0, nk
+            while a < b:
+                c = (a + b) // 2
+                if key[c] <= q:
+                    a = c + 1
+                else:
+                    b = c
+            p = a - 1
+        while p + 1 < nk and key[p + 1] <= q:
+            p += 1
+        rec_out[i] = ro
+        if p >= 0 and piece_rec[order[p]] == ro:
+            seg_out[i] = piece_seg[order[p]]
+        else:
+            seg_out[i] = -1

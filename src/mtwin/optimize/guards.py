@@ -27,6 +27,7 @@ from ..errors import warning_text
 from ..gcode import records as R
 
 PERCENTILE = 95.0  # of a tool's engaged steps, by length: the learned level
+LONG_TRACE = 200_000  # samples from which the compiled contour kernel pays for loading
 FINISH_AE = 0.05  # radial width of cut / diameter at or under which a pass is a finishing pass
 _FINISH = re.compile(rb"finish|finishing|\bfin\b|\bsemi-?finish", re.I)
 
@@ -157,17 +158,36 @@ def contour_error(trace) -> np.ndarray:
     """Per trace sample, the contour error (mm): the part of the following-error vector normal
     to the commanded direction of travel (central differences of the command) — the
     simulator's own definition (``max_contour_error``); 0 where the command stands still."""
-    cmd = np.stack([np.asarray(trace.signal(a + "_cmd")) for a in "xyz"], axis=1)
-    err = np.stack([np.asarray(trace.signal(a + "_err")) for a in "xyz"], axis=1)
-    d = np.zeros_like(cmd)
-    if len(cmd) > 2:
-        d[1:-1] = cmd[2:] - cmd[:-2]
-    dn = np.linalg.norm(d, axis=1)
+    cmd, err = getattr(trace, "cmd", None), getattr(trace, "err", None)
+    if cmd is not None and err is not None and len(cmd) >= LONG_TRACE and cmd.shape[1] == 3:
+        from ._segkernel import contour_samples
+
+        out = np.zeros(len(cmd))
+        if len(cmd) > 2:
+            contour_samples(np.ascontiguousarray(cmd, np.float64), np.ascontiguousarray(err, np.float64), out)
+        return out
+    cx, cy, cz = (np.asarray(trace.signal(a + "_cmd")) for a in "xyz")
+    ex, ey, ez = (np.asarray(trace.signal(a + "_err")) for a in "xyz")
+    n = len(cx)
+    out = np.zeros(n)
+    if n < 3:
+        return out
+    dx = cx[2:] - cx[:-2]
+    dy = cy[2:] - cy[:-2]
+    dz = cz[2:] - cz[:-2]
+    dn = np.sqrt(dx * dx + dy * dy + dz * dz)
     moving = dn > 1e-9
-    u = np.where(moving[:, None], d / np.maximum(dn, 1e-300)[:, None], 0.0)
-    a = np.sum(err * u, axis=1)
-    normal = err - a[:, None] * u
-    return np.where(moving, np.linalg.norm(normal, axis=1), 0.0)
+    inv = np.where(moving, 1.0 / np.where(moving, dn, 1.0), 0.0)
+    dx *= inv
+    dy *= inv
+    dz *= inv
+    e1, e2, e3 = ex[1:-1], ey[1:-1], ez[1:-1]
+    a = e1 * dx + e2 * dy + e3 * dz
+    nx = e1 - a * dx
+    ny = e2 - a * dy
+    nz = e3 - a * dz
+    out[1:-1] = np.where(moving, np.sqrt(nx * nx + ny * ny + nz * nz), 0.0)
+    return out
 
 
 def _ranges(lines: list[int], most: int = 8) -> str:

@@ -155,6 +155,25 @@ class MoveTimes:
         t = d0 + a * (d1 - d0)
         return np.where(self.length[rec] > 0, np.maximum(t, 0.0) * frac, 0.0)
 
+    def table(self, rec: np.ndarray, feeds_mm_min: np.ndarray, frac: np.ndarray | float = 1.0) -> np.ndarray:
+        """Times of the records ``rec`` at each of ``feeds_mm_min`` (one grid for all): (n, G)."""
+        ug = 60.0 / np.maximum(np.asarray(feeds_mm_min, float), 1e-9)
+        U = self.u[rec]
+        D = self.dur[rec]
+        K = U.shape[1]
+        i = np.zeros((len(rec), len(ug)), np.int64)
+        for k in range(1, K - 1):
+            i += U[:, k, None] <= ug[None, :]
+        u0 = np.take_along_axis(U, i, 1)
+        u1 = np.take_along_axis(U, i + 1, 1)
+        d0 = np.take_along_axis(D, i, 1)
+        d1 = np.take_along_axis(D, i + 1, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = np.where(u1 > u0, (ug[None, :] - u0) / (u1 - u0), 0.0)
+        t = np.maximum(d0 + np.maximum(a, 0.0) * (d1 - d0), 0.0)
+        scale = np.where(self.length[rec] > 0, 1.0, 0.0) * frac
+        return t * np.asarray(scale)[:, None]
+
 
 def move_times(program, plan, plans_at: list[tuple[float, object]]) -> MoveTimes:
     """Time models of the records from the program's own plan and plans at uniform feeds

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-GRID = 48
+GRID = 64
 
 
 @dataclass
@@ -249,11 +249,9 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     f_grid = np.geomspace(lo_f * 0.999, max(hi_f, lo_f * 1.001) * 1.001, GRID)
     frac = segs.piece_t1 - segs.piece_t0
     time_tab = np.zeros((S, GRID))
-    for g, f in enumerate(f_grid):
-        t = times.time(segs.piece_rec, np.full(len(segs.piece_rec), f), frac)
-        time_tab[:, g] = np.bincount(segs.piece_seg, weights=t, minlength=S)
-    t_base = np.bincount(segs.piece_seg, weights=times.time(segs.piece_rec, rec["feed"][segs.piece_rec], frac),
-                         minlength=S)
+    tab = times.table(segs.piece_rec, f_grid, frac)
+    for g in range(GRID):
+        time_tab[:, g] = np.bincount(segs.piece_seg, weights=tab[:, g], minlength=S)
     nvar = segs.variables
     f0_var = np.zeros(nvar)
     f0_var[segs.seg_var[segs.piece_seg[::-1]]] = rec["feed"][segs.piece_rec[::-1]]
@@ -270,9 +268,14 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     np.minimum.at(n0, seg_spin[segs.piece_seg], np.minimum(rec["spindle"][segs.piece_rec], max_speed))
     n0 = np.where(np.isfinite(n0), n0, max_speed)
     seg_force = np.array([force_of_tool(int(t), float(d)) for t, d in zip(segs.seg_tool, diam_seg)])
-    return Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
-                   seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, t_base, f0_var, n0[:nspin],
-                   cycle_before, limits, rates, np.asarray(loss, float), seg_chip=seg_chip)
+    p = Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
+                seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, np.zeros(S), f0_var, n0[:nspin],
+                cycle_before, limits, rates, np.asarray(loss, float), seg_chip=seg_chip)
+    # the segments' times at the program's feeds, read off the same tables: a candidate's time
+    # is the program's cycle plus the change the tables see, so the table's own interpolation
+    # error cancels at (and near) the program's feeds
+    p.t_base = p.seg_time(f0_var[segs.seg_var][None, :])[0]
+    return p
 
 
 def _segment_percentile(seg: np.ndarray, x: np.ndarray, w: np.ndarray, S: int, q: float) -> np.ndarray:

@@ -19,6 +19,7 @@ from .guards import FINISH_AE, clear_of_stock, contour_error, finish_lines, lear
 from .segment import locate, segment_path
 
 
+FAST_MAP = 50_000  # trace samples from which the sample-to-segment map runs as a kernel
 TIME_LEVELS = 5  # uniform feeds the planner is asked for move times at
 
 
@@ -336,6 +337,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     contour_before = contour_after = None
     by_contour = np.zeros(prob.nvar, bool)  # slowed for accuracy
     frozen = np.zeros(prob.nvar, bool)  # set back to the program's feeds for accuracy
+    c_prev = np.full(prob.nvar, np.nan)  # the last round's contour error and feed, per variable
+    f_prev = np.full(prob.nvar, np.nan)
     cap = np.full(prob.nvar, np.inf)
     while True:
         round_ += 1
@@ -346,18 +349,24 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep)
         out = rewrite(program, feeds_rec, spins_rec, splits)
         new = twin.load(out, path=program.path)
+        # the writer changed F and S words only: the tools the comments declare are the same
+        object.__setattr__(new, "_cutting_for", (tw_after.cutting, cut))
         diff = compare(program, new)  # the check of `mtwin verify`
         if diff is not None:
             raise VerifyError(f"internal error: the optimised program does not cut the same path: {diff}")
-        after = tw_after.simulate(new, stock=stock)
+        if out == bytes(program.data):
+            after = before  # nothing changed: the program's own simulation is the answer's
+        else:
+            after = tw_after.simulate(new, stock=stock)
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
         over_v = _ratios(after, segs, prob, limits, seg_after)
-        ce_after = contour_error(after)
+        if round_ == 1:
+            ce_before = contour_error(before)
+        ce_after = ce_before if after is before else contour_error(after)
         if round_ == 1:
             seg_before, rec_before = _segment_of_samples(before, program, program, segs)
             force_min = float(prob.seg_force.min()) if len(prob.seg_force) else 1.0
             base_outside = _outside_ratios(before, seg_before, rec_before, len(rec), limits, force_min)
-            ce_before = contour_error(before)
             contour_before = _per_var(ce_before, seg_before, prob)
             contour_rec_before = _per_rec(ce_before, seg_before, rec_before, program)
             own = _ratios(before, segs, prob, limits, seg_before) * 1.001
@@ -434,7 +443,29 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         # correction is squared, so a segment with a large edge term still converges
         power = 1.0 if round_ == 1 else 2.0
         with np.errstate(divide="ignore", invalid="ignore"):
-            scale = np.where(bad, scale / ratio ** power * (1 - opts.margin), scale)
+            new_scale = np.where(bad, scale / ratio ** power * (1 - opts.margin), scale)
+            # a segment that lost accuracy because it was raised: the feed where the chord from
+            # the program's (feed, contour error) to this round's reaches the tolerance — the
+            # error grows faster than linearly with the feed, so the chord's answer is on the
+            # safe side, and it converges in a round or two where a ratio would crawl
+            raised = (c_ratio > 1.0) & (f_try > prob.f0_var * 1.001) & (contour_after > contour_before + 1e-9)
+            target_c = contour_before + 0.9 * opts.tolerance
+            frac_c = np.clip((target_c - contour_before) / np.maximum(contour_after - contour_before, 1e-12), 0.0, 1.0)
+            f_new = prob.f0_var + (f_try - prob.f0_var) * frac_c
+            # from the second round, the secant through this round's and the last round's points
+            # (a segment's error often jumps as soon as it is raised at all, then grows slowly:
+            # the chord from the program's point undershoots, the last two points do not)
+            two = raised & np.isfinite(c_prev) & (c_prev > contour_after + 1e-9) & (f_prev > f_try * 1.001)
+            slope = (c_prev - contour_after) / np.maximum(f_prev - f_try, 1e-9)
+            f_sec = f_try - (contour_after - target_c) / np.maximum(slope, 1e-12)
+            f_new = np.where(two, np.clip(f_sec, prob.f0_var, f_try), f_new)
+            c_prev = np.where(raised, contour_after, np.nan)
+            f_prev = np.where(raised, f_try, np.nan)
+            secant = np.where(raised, scale * f_new / np.maximum(f_try, 1e-9), np.inf)
+            load_only = np.where(over_v > allowed, scale / (over_v / allowed) ** power * (1 - opts.margin), np.inf)
+            cand = np.minimum(secant, load_only)
+            cand = np.where(blame > 1.0, np.minimum(cand, new_scale), cand)
+            scale = np.where(raised & bad, cand, new_scale)
         feeds = _approach_feeds(prob, segs, feeds * scale, program, keep) / scale
 
     est = prob.evaluate(f_try[None, :], s_try[None, :])
@@ -527,11 +558,20 @@ def _feed_samples(trace, program) -> np.ndarray:
     return (r >= 0) & ((kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW))
 
 
+def _max_into(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
+    """``np.maximum.at(out, index, values)`` for trace samples, whose index comes in long runs
+    (a segment, a record): the maximum of every run first, then one ``at`` over the runs."""
+    if not len(index):
+        return
+    starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
+    np.maximum.at(out, index[starts], np.maximum.reduceat(values, starts))
+
+
 def _per_var(values: np.ndarray, seg_of: np.ndarray, prob) -> np.ndarray:
     """Per variable, the largest value over the samples in its segments."""
     out = np.zeros(prob.nvar)
     m = seg_of >= 0
-    np.maximum.at(out, prob.seg_var[seg_of[m]], values[m])
+    _max_into(out, prob.seg_var[seg_of[m]], values[m])
     return out
 
 
@@ -542,7 +582,7 @@ def _per_rec(values: np.ndarray, seg_of: np.ndarray, rec_of: np.ndarray, program
     out = np.zeros(len(kind))
     r = np.clip(rec_of, 0, len(kind) - 1)
     m = (seg_of < 0) & (rec_of >= 0) & ((kind[r] == R.LINEAR) | (kind[r] == R.ARC_CW) | (kind[r] == R.ARC_CCW))
-    np.maximum.at(out, rec_of[m], values[m])
+    _max_into(out, rec_of[m], values[m])
     return out
 
 
@@ -666,7 +706,7 @@ def _ratios(trace, segs, prob, limits, seg_of: np.ndarray) -> np.ndarray:
     ratio = np.maximum(load / prob.seg_force[np.maximum(seg_of, 0)], _sample_ratio(trace, limits))
     inside = seg_of >= 0
     out = np.zeros(prob.nvar)
-    np.maximum.at(out, prob.seg_var[seg_of[inside]], ratio[inside])
+    _max_into(out, prob.seg_var[seg_of[inside]], ratio[inside])
     return out
 
 
@@ -808,9 +848,26 @@ def _segment_of_samples(trace, new_prog, program, segs):
     idx = np.clip(rec_new, 0, len(Ln) - 1)
     k = np.arange(len(idx))
     last = np.full(len(Ln), -1)
-    np.maximum.at(last, idx, k)
     fi = np.full(len(Ln), len(idx))
-    np.minimum.at(fi, idx, k)
+    if len(idx):
+        # the samples of a record come in runs (in time order): first and last of every run
+        starts = np.flatnonzero(np.r_[True, idx[1:] != idx[:-1]])
+        ends = np.r_[starts[1:], len(idx)] - 1
+        np.maximum.at(last, idx[starts], ends)
+        np.minimum.at(fi, idx[starts], starts)
+    kind = new_prog.records["kind"][idx]
+    is_feed = (kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW)
+    valid = (rec_new >= 0) & is_feed
+    if len(idx) >= FAST_MAP and len(Lo):
+        from ._segkernel import samples_to_pieces
+
+        key = segs.piece_rec.astype(np.float64) * 4.0 + segs.piece_t0
+        order = np.argsort(key, kind="stable")
+        seg = np.empty(len(idx), np.int64)
+        r_out = np.empty(len(idx), np.int64)
+        samples_to_pieces.auto(len(idx), idx, valid, fi, np.maximum(last - fi, 1).astype(np.float64), cn, Ln, co,
+                               Lo, np.ascontiguousarray(key[order]), order, segs.piece_rec, segs.piece_seg, seg, r_out)
+        return seg, r_out
     span = np.maximum(last[idx] - fi[idx], 1)
     frac = (k - fi[idx]) / span
     s = cn[idx] + frac * Ln[idx]
@@ -818,9 +875,6 @@ def _segment_of_samples(trace, new_prog, program, segs):
     # a zero-length record of the new program (a dwell, a pause) maps by its own index order
     t_o = np.where(Lo[r_o] > 0, (s - co[r_o]) / np.maximum(Lo[r_o], 1e-12), 0.0)
     # only feed moves belong to segments
-    kind = new_prog.records["kind"][idx]
-    is_feed = (kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW)
-    valid = (rec_new >= 0) & is_feed
     seg = np.where(valid, locate(segs.piece_rec, segs.piece_t0, segs.piece_seg, r_o, t_o), -1)
     return seg, np.where(valid, r_o, -1)
 
@@ -843,9 +897,9 @@ def _outside_ratios(trace, seg_of, rec_of, nrec, limits, force) -> np.ndarray:
     if not m.any():
         return out
     r = rec_of[m]
-    np.maximum.at(out, r, _sample_ratio(trace, limits)[m])
+    _max_into(out, r, _sample_ratio(trace, limits)[m])
     load = np.hypot(trace.signal("fx"), trace.signal("fy"))[m]
-    np.maximum.at(out, nrec + r, load / force)
+    _max_into(out, nrec + r, load / force)
     return out
 
 
