@@ -52,7 +52,8 @@ def test_fusion_inch_bullnose_ball_face():
 def test_fusion_taper_and_kinds_the_library_cannot_model():
     t = one("T2 D=0.25 CR=0. TAPER=45deg - ZMIN=0.05 - CHAMFER MILL", inch=True)
     assert (t.kind, t.diameter_mm, t.angle_deg) == ("chamfer", 6.35, 45.0)
-    assert not t.modelled and to_library_tool(t) is None
+    # a cone: the library's vee tool, Fusion's TAPER being the half angle
+    assert t.modelled and (to_library_tool(t).type, to_library_tool(t).angle) == ("vee", 90.0)
     assert one("T4 D=3 CR=0 - ZMIN=-1 - spot drill").kind == "drill"
     assert one("T5 D=6 CR=0 - ZMIN=-9 - right hand tap").kind == "tap"
     assert one("T6 D=8 CR=0 - ZMIN=-9 - counter bore").kind == "other"
@@ -249,7 +250,7 @@ def test_vectric_forms():
     r = scan_tool_comments(b"G20\n( TOOL=ENGRAVE {20' 0.02\" TIP DIA} )\nG0 Z0.1\nG1 Z-0.01 F24\nM30\n")
     t = r.tools[0]
     assert t.kind == "engrave" and t.angle_deg == 20.0 and t.diameter_mm == pytest.approx(0.508)
-    assert not t.modelled  # the Z-map cutter cannot represent a V-bit: the optimiser keeps its feeds
+    assert t.modelled  # a cone of known angle and tip: the library's vee tool
     assert parse_tool_comment("Note Dia 3", True, None, 1) is None  # no tool kind named: not a tool
 
 
@@ -342,7 +343,8 @@ def test_to_library_tool():
 
 
 def test_kinds_the_library_cannot_model_say_so():
-    for text in ("#30 DRILL", "1/4\"-20 ROLL FORM TAP", ".2495\" REAMER", "1/4\" X 45\u00b0 CHAMFER MILL",
+    # (a V-bit or chamfer mill without an angle; a chamfer angle that could be half or whole)
+    for text in ("#30 DRILL", "1/4\"-20 ROLL FORM TAP", ".2495\" REAMER", "1/4\" X 60\u00b0 CHAMFER MILL",
                  "Tool 8 = .250 Vee bit", "1/4\" X .093\" CORNER ROUNDING E.M.", "T1 = 1/2 bull end mill"):
         t = one(text, inch=True)
         assert not t.modelled and to_library_tool(t) is None and to_tool_table(t) is None, text

@@ -37,7 +37,8 @@ SLICE_BOTTOM, SLICE_SIDE = 0, 1
 _EPS = 1e-5
 
 
-def slice_table(radius: float, nose: float, flute_length: float, grid: float):
+def slice_table(radius: float, nose: float, flute_length: float, grid: float, tip: float = 0.0,
+                half_angle: float = 0.0):
     """Edge elements of a tool: (kind, kappa, r, z_lo, z_hi, d_rho, r_query) per slice.
 
     ``r_query`` is where the stock is looked up: the radius at the slice's lower end, moved
@@ -48,10 +49,33 @@ def slice_table(radius: float, nose: float, flute_length: float, grid: float):
 
     Bottom elements (κ = 0) lie along the flat part of the end face (ρ from 0 to R − nose);
     nose slices follow the corner (bull) or the ball; the last slice is the cylinder from the
-    top of the nose to the end of the flutes."""
+    top of the nose to the end of the flutes.  A vee tool (``half_angle`` > 0: V-bit,
+    engraving bit, chamfer mill) has a flat tip of radius ``tip``, then a cone whose edge
+    stands at κ = the half angle from the axis, up to the full radius (or the flute length),
+    then the cylinder."""
     rows = []
-    flat = radius - nose
     shrink = grid / math.sqrt(2.0)
+    if half_angle > 0.0:
+        t = math.tan(half_angle)
+        if tip > 1e-12:
+            nb = max(2, min(8, int(math.ceil(tip / max(4.0 * grid, 1e-3)))))
+            d = tip / nb
+            for k in range(nb):
+                rows.append((SLICE_BOTTOM, 0.0, (k + 0.5) * d, 0.0, 0.0, d, (k + 0.5) * d))
+        cone_h = min((radius - tip) / t, flute_length)
+        nc = max(4, min(24, int(math.ceil(cone_h / max(grid, 1e-3) * 0.5))))
+        dz = cone_h / nc
+        for k in range(nc):
+            z_lo, z_hi = k * dz, (k + 1) * dz
+            r = tip + 0.5 * (z_lo + z_hi) * t
+            rq = max(0.0, tip + z_lo * t - shrink)
+            rows.append((SLICE_SIDE, half_angle, r, z_lo, z_hi, 0.0, rq))
+        if flute_length > cone_h + 1e-9:
+            rows.append((SLICE_SIDE, 0.5 * math.pi, radius, cone_h, flute_length, 0.0, radius - shrink))
+        a = np.array(rows, dtype=np.float64)
+        return (a[:, 0].astype(np.int64), a[:, 1].copy(), a[:, 2].copy(), a[:, 3].copy(), a[:, 4].copy(),
+                a[:, 5].copy(), a[:, 6].copy())
+    flat = radius - nose
     if flat > 1e-12:
         nb = max(3, min(8, int(math.ceil(flat / max(4.0 * grid, 1e-3)))))
         d = flat / nb
@@ -108,6 +132,7 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
     ap = 0.0
     cmin = 2.0
     cmax = -2.0
+    rmax = 0.0
     nsl = len(skind)
     keep = prof.shape[0] > 0  # tooth-passing resolution: keep the engaged length per slice and bin
     if keep:
@@ -183,8 +208,12 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
                     cmin = cp
                 if cp > cmax:
                     cmax = cp
+                if r > rmax:
+                    rmax = r
     q[Q_AREA] = area
-    q[Q_AE] = (cmax - cmin) * sr[nsl - 1] if cmax >= cmin else 0.0
+    # the radial width at the widest engaged side slice (the cylinder of an end mill; the cone
+    # of a vee tool at its depth, a ball's nose when only the nose cuts)
+    q[Q_AE] = (cmax - cmin) * rmax if cmax >= cmin else 0.0
     q[Q_AP] = ap
     q[Q_WMAX] = wmax
     q[Q_DX] = xx
@@ -282,8 +311,11 @@ def trig_table(nbins: int) -> np.ndarray:
 
 
 @njit
-def _bottom_profile(d, radius, nose):
-    """Height of the tool's lower surface above its tip at horizontal distance d from the axis."""
+def _bottom_profile(d, radius, nose, tip, cotb):
+    """Height of the tool's lower surface above its tip at horizontal distance d from the axis
+    (a vee tool, ``cotb`` > 0: flat to the tip radius, then the cone rising cotb per mm)."""
+    if cotb > 0.0:
+        return 0.0 if d <= tip else (d - tip) * cotb
     flat = radius - nose
     if d <= flat:
         return 0.0
@@ -294,7 +326,7 @@ def _bottom_profile(d, radius, nose):
 
 
 @njit
-def remove_line(H, x0, y0, dx, ax, ay, az, bx, by, bz, radius, nose):
+def remove_line(H, x0, y0, dx, ax, ay, az, bx, by, bz, radius, nose, tip, cotb):
     """Lower the Z-map to the swept lower surface of the tool moving from A to B (tips).
     Returns the number of cells changed."""
     ny, nx = H.shape
@@ -332,16 +364,17 @@ def remove_line(H, x0, y0, dx, ax, ay, az, bx, by, bz, radius, nose):
                 if d2 > r2:
                     continue
                 t1, t2 = 0.0, 1.0
-            if nose <= 0.0:
+            if nose <= 0.0 and cotb <= 0.0:
                 # flat bottom: the lowest tip height over the interval, at one of its ends
                 surf = min(az + mz * t1, az + mz * t2)
             elif mm == 0.0:
                 # vertical move: the lowest position, at the cell's fixed distance
-                surf = zlo + _bottom_profile(math.sqrt(d2), radius, nose)
+                surf = zlo + _bottom_profile(math.sqrt(d2), radius, nose, tip, cotb)
             elif mz == 0.0:
                 # level move: deepest where the axis passes closest
                 tb = min(max(tc, t1), t2)
-                surf = az + _bottom_profile(math.sqrt((qx - tb * mx) ** 2 + (qy - tb * my) ** 2), radius, nose)
+                surf = az + _bottom_profile(math.sqrt((qx - tb * mx) ** 2 + (qy - tb * my) ** 2), radius, nose, tip,
+                                        cotb)
             else:
                 # ramp: z(t) + b(d(t)) is convex in t (d convex, b convex increasing):
                 # golden-section search for its minimum
@@ -350,16 +383,16 @@ def remove_line(H, x0, y0, dx, ax, ay, az, bx, by, bz, radius, nose):
                     m1 = lo_t + 0.381966 * (hi_t - lo_t)
                     m2 = hi_t - 0.381966 * (hi_t - lo_t)
                     f1 = az + mz * m1 + _bottom_profile(math.sqrt((qx - m1 * mx) ** 2 + (qy - m1 * my) ** 2),
-                                                        radius, nose)
+                                                        radius, nose, tip, cotb)
                     f2 = az + mz * m2 + _bottom_profile(math.sqrt((qx - m2 * mx) ** 2 + (qy - m2 * my) ** 2),
-                                                        radius, nose)
+                                                        radius, nose, tip, cotb)
                     if f1 < f2:
                         hi_t = m2
                     else:
                         lo_t = m1
                 tb = 0.5 * (lo_t + hi_t)
                 surf = az + mz * tb + _bottom_profile(math.sqrt((qx - tb * mx) ** 2 + (qy - tb * my) ** 2),
-                                                      radius, nose)
+                                                      radius, nose, tip, cotb)
             if surf < h:
                 H[j, i] = surf
                 changed += 1
@@ -400,7 +433,8 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
     against the stock as left by earlier segments, then the segment's swept volume is removed.
 
     ``cuts[i]``: 1 feed move (engaged and removed), 0 rapid or pause (skipped here).
-    ``tools[t]``: radius, nose radius, flutes of tool index t; its slices are
+    ``tools[t]``: radius, nose radius, flutes, tip radius and cot of the half angle (vee
+    tools; 0 for the others) of tool index t; its slices are
     ``slices_start[t] .. slices_start[t+1]``.  Fills first/count per segment and the per-step
     sums and scalars; returns the number of steps and of changed cells."""
     nseg = len(kind)
@@ -439,6 +473,8 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
         radius = tools[t, 0]
         nose = tools[t, 1]
         flutes = tools[t, 2]
+        tip = tools[t, 3]
+        cotb = tools[t, 4]
         s0 = slices_start[t]
         s1 = slices_start[t + 1]
         L = length[i]
@@ -459,7 +495,7 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
         # error stays below a quarter of a cell
         if kind[i] == 0:
             cells += remove_line(H, x0, y0, dx, p0[i, 0], p0[i, 1], p0[i, 2], p1[i, 0], p1[i, 1], p1[i, 2],
-                                 radius, nose)
+                                 radius, nose, tip, cotb)
         else:
             rad = max(r0[i], r1[i])
             chord = math.sqrt(2.0 * rad * dx) if rad > 0.0 else L
@@ -467,7 +503,7 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
             segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, 0.0, pa, tg)
             for k in range(1, nc + 1):
                 segment_point_tangent(kind, p0, p1, c, e1, e2, h, r0, r1, theta, length, i, L * k / nc, pb, tg)
-                cells += remove_line(H, x0, y0, dx, pa[0], pa[1], pa[2], pb[0], pb[1], pb[2], radius, nose)
+                cells += remove_line(H, x0, y0, dx, pa[0], pa[1], pa[2], pb[0], pb[1], pb[2], radius, nose, tip, cotb)
                 for kk in range(3):
                     pa[kk] = pb[kk]
     return n, cells

@@ -204,7 +204,8 @@ def _key(plan, program, tools, tool_index, box, res, step) -> str:
         h.update(np.ascontiguousarray(plan.tip_shift[seg["rec"]]).tobytes())
     h.update(tool_index.tobytes())
     h.update(np.asarray(rec["spindle_dir"] < 0).tobytes())
-    h.update(repr((tuple((t.type, t.diameter, t.corner_radius, t.flutes, t.flute_length) for t in tools),
+    h.update(repr((tuple((t.type, t.diameter, t.corner_radius, t.flutes, t.flute_length, t.angle, t.tip_diameter)
+                         for t in tools),
                    tuple(box), res, step)).encode())
     return h.hexdigest()
 
@@ -250,11 +251,11 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     seg = plan.tip_seg  # the tool tip cuts, wherever the tool offsets put the axes
     cuts = ((seg["kind"] != PAUSE) & (seg["rapid"] == 0)).astype(np.int64)
     n_steps = int(np.sum(np.where(cuts == 1, np.maximum(1, np.ceil(seg["length"] / step)), 0)))
-    table = np.array([[t.radius, t.nose_radius, t.flutes] for t in tools], np.float64)
+    table = np.array([[t.radius, t.nose_radius, t.flutes, t.tip_radius, t.cot_half_angle] for t in tools], np.float64)
     starts = [0]
     cols = [[], [], [], [], [], [], []]
     for t in tools:
-        parts = EK.slice_table(t.radius, t.nose_radius, t.flute_length, stock.resolution)
+        parts = EK.slice_table(t.radius, t.nose_radius, t.flute_length, stock.resolution, t.tip_radius, t.half_angle)
         for c, p in zip(cols, parts):
             c.append(p)
         starts.append(starts[-1] + len(parts[0]))

@@ -29,16 +29,20 @@ from ..errors import ConfigError
 from ..params import P
 from ..params import check_value as _check
 
-TOOL_TYPES = ("flat", "ball", "bull")
+TOOL_TYPES = ("flat", "ball", "bull", "vee")
 
 
 @dataclass(frozen=True)
 class Tool:
-    type: str = P("flat", "str", "flat | ball | bull (corner radius)", "choice", TOOL_TYPES)
+    type: str = P("flat", "str", "flat | ball | bull (corner radius) | vee (V-bit, engraving or chamfer cone: "
+                                 "angle, tip_diameter)", "choice", TOOL_TYPES)
     diameter: float = P(6.0, "mm", "cutting diameter [S: reference 6 mm end mill]")
     flutes: int = P(2, "int", "number of flutes [S: reference two-flute]")
     helix: float = P(30.0, "", "helix angle, degrees [E: 30 deg typical for aluminium end mills]", "nonneg")
     corner_radius: float = P(0.0, "mm", "corner radius (bull-nose); a ball's is diameter/2", "nonneg")
+    angle: float = P(90.0, "", "included angle of a vee tool's cone, degrees (V-bit 60-90, engraving 10-30, "
+                               "chamfer 90)", "positive")
+    tip_diameter: float = P(0.0, "mm", "flat tip of a vee tool (engraving bits: 0.1-0.5 mm)", "nonneg")
     flute_length: float = P(15.0, "mm", "length of cut; deeper engagement is an error")
     stickout: float = P(25.0, "mm", "length out of the holder [E]")
     price: float = P(30.0, "", "price per tool or edge, currency units [E: 30-150 $ carbide end mill]", "nonneg")
@@ -48,6 +52,23 @@ class Tool:
     @property
     def radius(self) -> float:
         return 0.5 * self.diameter
+
+    @property
+    def tip_radius(self) -> float:
+        """A vee tool's flat tip radius (0 for the others)."""
+        return 0.5 * self.tip_diameter if self.type == "vee" else 0.0
+
+    @property
+    def cot_half_angle(self) -> float:
+        """cot of a vee tool's half angle: the cone's rise per mm of radius (0: no cone)."""
+        if self.type != "vee":
+            return 0.0
+        return 1.0 / math.tan(math.radians(0.5 * self.angle))
+
+    @property
+    def half_angle(self) -> float:
+        """A vee tool's half angle, radians (0: no cone)."""
+        return math.radians(0.5 * self.angle) if self.type == "vee" else 0.0
 
     @property
     def nose_radius(self) -> float:
@@ -122,30 +143,51 @@ def describes(cutting: Cutting, number: int) -> bool:
 
 
 def parse_tool_option(text: str) -> tuple[int, Tool]:
-    """``N=TYPE:DIAMETER[:FLUTES]`` (``--tool``), diameter in mm: ``3=flat:6.35:2``,
-    ``1=ball:10``, ``2=bull:12:4:1.5`` (a bull-nose's corner radius last)."""
-    m = re.fullmatch(r"\s*T?(\d+)\s*=\s*([A-Za-z]+)\s*:\s*([0-9.eE+-]+)(?:\s*:\s*(\d+))?(?:\s*:\s*([0-9.eE+-]+))?\s*",
-                     text)
+    """``N=TYPE:DIAMETER[:FLUTES[:MORE]]`` (``--tool``), lengths in mm: ``3=flat:6.35:2``,
+    ``1=ball:10``, ``2=bull:12:4:1.5`` (a bull-nose's corner radius), ``4=vee:6.35:2:60:0.2``
+    (a vee tool's included angle in degrees, then its tip diameter)."""
+    num = r"([0-9.eE+-]+)"
+    m = re.fullmatch(r"\s*T?(\d+)\s*=\s*([A-Za-z]+)\s*:\s*" + num + r"(?:\s*:\s*(\d+))?(?:\s*:\s*" + num
+                     + r")?(?:\s*:\s*" + num + r")?\s*", text)
     if not m:
-        raise ConfigError(f"--tool {text!r}: expected N=TYPE:DIAMETER[:FLUTES[:CORNER_RADIUS]] (mm), "
-                          f"e.g. 1=flat:6:2 or 3=bull:12:4:1.5")
+        raise ConfigError(f"--tool {text!r}: expected N=TYPE:DIAMETER[:FLUTES[:CORNER_RADIUS | :ANGLE[:TIP]]] (mm, "
+                          f"degrees), e.g. 1=flat:6:2, 3=bull:12:4:1.5 or 4=vee:6.35:2:60:0.2")
     typ = m.group(2).lower()
     if typ not in TOOL_TYPES:
         raise ConfigError(f"--tool {text!r}: type must be one of {', '.join(TOOL_TYPES)} (the shapes the cutting "
                           f"model represents), got {typ!r}")
     try:
         d = float(m.group(3))
-        cr = float(m.group(5)) if m.group(5) else 0.0
+        x5 = float(m.group(5)) if m.group(5) else None
+        x6 = float(m.group(6)) if m.group(6) else None
     except ValueError:
-        raise ConfigError(f"--tool {text!r}: the diameter and corner radius must be numbers (mm)") from None
+        raise ConfigError(f"--tool {text!r}: the sizes must be numbers (mm, degrees)") from None
     if not (0 < d < 1000 and math.isfinite(d)):
         raise ConfigError(f"--tool {text!r}: the diameter must be a positive number of mm under 1000")
     flutes = int(m.group(4)) if m.group(4) else 2
     if not 1 <= flutes <= 64:
         raise ConfigError(f"--tool {text!r}: flutes must be 1 to 64")
-    if typ == "bull" and not 0 < cr < d / 2:
-        raise ConfigError(f"--tool {text!r}: a bull-nose tool needs a corner radius between 0 and D/2 (fifth field)")
-    return int(m.group(1)), Tool(type=typ, diameter=d, flutes=flutes, corner_radius=cr if typ == "bull" else 0.0)
+    if typ == "bull":
+        if x5 is None or not 0 < x5 < d / 2 or x6 is not None:
+            raise ConfigError(f"--tool {text!r}: a bull-nose tool needs a corner radius between 0 and D/2 (fifth "
+                              f"field)")
+        return int(m.group(1)), Tool(type=typ, diameter=d, flutes=flutes, corner_radius=x5)
+    if typ == "vee":
+        angle = 90.0 if x5 is None else x5
+        tip = 0.0 if x6 is None else x6
+        _check_vee(angle, tip, d, f"--tool {text!r}")
+        return int(m.group(1)), Tool(type=typ, diameter=d, flutes=flutes, angle=angle, tip_diameter=tip)
+    if x5 is not None:
+        raise ConfigError(f"--tool {text!r}: a {typ} tool takes TYPE:DIAMETER[:FLUTES] only")
+    return int(m.group(1)), Tool(type=typ, diameter=d, flutes=flutes)
+
+
+def _check_vee(angle: float, tip: float, diameter: float, where: str) -> None:
+    if not 0 < angle < 180:
+        raise ConfigError(f"{where}: a vee tool's included angle must be between 0 and 180 degrees, got {angle:g}")
+    if not 0 <= tip < diameter:
+        raise ConfigError(f"{where}: a vee tool's tip diameter must be at least 0 and under its diameter "
+                          f"{diameter:g} mm, got {tip:g}")
 
 
 def cutting_param_names(cutting: Cutting) -> list[str]:
@@ -237,7 +279,8 @@ def for_program(cutting: Cutting, program) -> Cutting:
         if lib is not None:
             tools[t] = lib
             shape = {"flat": "flat end mill", "ball": "ball end mill", "bull": f"bull-nose end mill, corner "
-                     f"radius {lib.corner_radius:g} mm"}[lib.type]
+                     f"radius {lib.corner_radius:g} mm", "vee": f"{lib.angle:g}° vee (V-bit/engraving/chamfer), tip "
+                     f"{lib.tip_diameter:g} mm"}[lib.type]
             flutes = f"{lib.flutes} flutes" + ("" if d.flutes else " (not given: default)")
             held = "" if only is None else f" (no M6: T{only.number}, the program's one tool, is in the spindle)"
             notes.append(f"tool T{t}: {lib.diameter:g} mm {shape}, {flutes}, from the program's comment "
@@ -291,6 +334,8 @@ def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
             raise ConfigError(f"{where}: tools.{key}.corner_radius must be between 0 and diameter/2 for a bull-nose tool")
         if t.type == "flat" and t.corner_radius:
             raise ConfigError(f"{where}: tools.{key}.corner_radius is only for type = \"bull\"")
+        if t.type == "vee":
+            _check_vee(t.angle, t.tip_diameter, t.diameter, f"{where}: tools.{key}")
         tools[int(key)] = t
     if not tools:
         defaults.append("tool: every tool is a 6 mm two-flute carbide flat end mill (no [tools.*] table)")

@@ -104,6 +104,8 @@ corner-rounding, slot, dovetail, lollipop, thread mills, boring bars, counterbor
 probes ...) cannot be modelled by the flat/ball/bull Z-map cutter."""
 
 MODELLED_KINDS = ("flat", "ball", "bull", "face")
+VEE_KINDS = ("engrave", "chamfer")  # cones: the library's vee tool, when the angle is given
+ENGRAVE_BODY_MM = 3.175  # [E] an engraving bit whose comment gives only its tip: a 1/8" shank
 
 MAX_DIAMETER_MM = {"face": 320.0, "default": 80.0}
 """Plausibility bounds [E]: face mills up to ~12", any other cutter up to 80 mm."""
@@ -152,11 +154,30 @@ class DeclaredTool:
     angle_deg: float | None = None  # point / taper / V angle when given
     program_units: bool = False  # the diameter was a bare number read in the program's units
     also: tuple[int, ...] = ()  # lines of further declarations of this tool that agree
+    tip_mm: float | None = None  # a vee tool's flat tip diameter, when given
+
+    @property
+    def included_angle(self) -> float | None:
+        """A cone's included angle, degrees: Fusion's TAPER is the half angle from the axis;
+        a V-bit's or engraving bit's "60 DEG" is the included angle; a chamfer mill's name
+        may give either (see below)."""
+        if self.angle_deg is None:
+            return None
+        if self.form == "Fusion 360":
+            return 2.0 * self.angle_deg
+        if self.kind == "chamfer":
+            # "45° CHAMFER MILL" names the chamfer (half) angle, "90 DEG CHAMFER MILL" the
+            # included one: only 45°/90° read the same both ways; the rest is not guessed
+            return 90.0 if self.angle_deg in (45.0, 90.0) else None
+        return self.angle_deg
 
     @property
     def modelled(self) -> bool:
-        """True when the library's flat/ball/bull cutter can represent this tool (a bull nose
-        needs its corner radius)."""
+        """True when the library's cutters can represent this tool: flat/ball/bull (a bull nose
+        needs its corner radius), or a cone of known angle (V-bit, engraving bit, chamfer mill)."""
+        if self.kind in VEE_KINDS:
+            a = self.included_angle
+            return a is not None and 0 < a < 180
         return self.kind in MODELLED_KINDS and not (self.kind == "bull" and self.corner_radius_mm is None)
 
 
@@ -502,7 +523,8 @@ def parse_tool_comment(comment: str, inch: bool | None, number: int | None = Non
         desc = _describe(name, None, (dia, False))
         desc.kind = desc.kind or "engrave"
         desc.angle = _number(m.group("a"))
-        return _declared(number, desc, text, "Vectric", f"{name} tip {m.group('d')}", line)
+        r = _declared(number, desc, text, "Vectric", f"{name} tip {m.group('d')}", line)
+        return replace(r, tip_mm=dia) if isinstance(r, DeclaredTool) else r
     m = _NUMBERED.match(text)
     if m:
         n = int(m.group("n"))
@@ -848,6 +870,16 @@ def to_tool_table(declared: DeclaredTool, unspecified_as_flat: bool = False) -> 
     or face mill whose corner radius is not given...).  A tool whose shape is not declared
     (``unspecified``, e.g. ``(TOOL DIA. 3)``) becomes a flat end mill only if asked."""
     kind, d, cr = declared.kind, declared.diameter_mm, declared.corner_radius_mm
+    if kind in VEE_KINDS:
+        if not declared.modelled:
+            return None
+        tip = declared.tip_mm or 0.0
+        if tip >= d - 1e-9:  # only the tip is known: the cone up to a typical shank
+            d = max(ENGRAVE_BODY_MM, 2.0 * tip)
+        entry = {"type": "vee", "diameter": d, "angle": declared.included_angle, "tip_diameter": tip}
+        if declared.flutes:
+            entry["flutes"] = declared.flutes
+        return entry
     if kind == "unspecified" and unspecified_as_flat:
         kind = "flat"
     if kind in ("bull", "face"):
@@ -880,4 +912,7 @@ def to_library_tool(declared: DeclaredTool, base: Tool | None = None, unspecifie
     base = base or Tool()
     if entry["type"] != "bull":
         entry["corner_radius"] = 0.0
+    if entry["type"] != "vee":
+        entry.setdefault("angle", Tool().angle)
+        entry.setdefault("tip_diameter", 0.0)
     return replace(base, **entry)
