@@ -750,6 +750,8 @@ def _verdict(before: float, after: float) -> tuple[str, float]:
 def _print_optimize(res, prog, json_out: bool) -> None:
     b, a = res.before, res.after
     verdict, change = _verdict(b.cycle_time, a.cycle_time)
+    if verdict == "unchanged" and res.changed_lines:
+        verdict = "faster" if change < 0 else "slower" if change > 0 else "unchanged"
 
     def pct(x, y):
         return f"{(y / x - 1) * 100:+.1f} %" if x else "—"
@@ -808,8 +810,12 @@ def _print_optimize(res, prog, json_out: bool) -> None:
     for d in res.defaults:
         err.print(f"note: {d}", soft_wrap=True, highlight=False, markup=False)
     if res.segments:
+        held = ce.get("worst_segment_increase", 0.0) <= ce.get("tolerance", 0.0) + 1e-9
         err.print(f"{len(res.segments)} segments, {len(res.changed_lines)} changed line group(s); verified: same path; "
-                  f"limits and contour tolerance ({ce.get('tolerance', 0):g} mm) held on the re-simulated program "
+                  + (f"limits and contour tolerance ({ce.get('tolerance', 0):g} mm) held" if held else
+                     f"limits held, but a segment's contour error grew {ce['worst_segment_increase']:.3f} mm (over the "
+                     f"{ce.get('tolerance', 0):g} mm tolerance) where the program's own feed could not be kept")
+                  + " on the re-simulated program "
                   f"({res.rounds} round(s)); estimate {res.estimate['cycle_time']:.2f} s vs re-simulated "
                   f"{a.cycle_time:.2f} s; {res.evaluations} evaluations in {res.seconds:.1f} s", soft_wrap=True,
                   highlight=False)

@@ -2,9 +2,10 @@
 
 * **What the twin knows.**  A feed move is only raised where the twin knows the cut: its tool
   is described (the command line, the twin file's table or a comment the twin reads) and the
-  spindle runs.  Under a stock the twin only guessed, an air cut is raised only where the tool
-  is provably clear of that stock (above its top, or outside its box with the tool's own
-  radius): a guessed stock's "air" may be material the program really cuts.
+  spindle runs.  Under a stock the twin only guessed, an air cut is raised only where its
+  air is the work of earlier cuts by described tools: inside the guessed block (under its
+  top, within its box with the tool's radius).  Above the guessed top or outside the block
+  the "air" is only the guess's (a router whose Z0 is the table cuts at Z > 0).
 * **Limits learned from the program.**  Without an explicit limit, each tool's load limit
   and largest chip thickness are the levels the program already runs that tool at on the
   shop's machine: the 95th percentile (by path length) of its engaged steps at the
@@ -72,17 +73,17 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
     return Trust(ok, warnings, undescribed, stopped)
 
 
-def clear_of_stock(program, cutting, box) -> np.ndarray:
-    """Per record: is the tool provably clear of the stock box (its tip above the top, or its
-    swept XY box, grown by the tool's radius, outside the stock's)?"""
+def inside_stock(program, cutting, box) -> np.ndarray:
+    """Per record: does the tool's whole sweep lie inside the stock box (its tip never above the
+    top, its XY extent, grown by the tool's radius, within the box's)?  Under a guessed stock,
+    only such a move's "air" is the work of earlier cuts rather than of the guess."""
     rec = program.records
     n = len(rec)
     if box is None or not n:
-        return np.ones(n, bool)
+        return np.zeros(n, bool)
     x0, y0, _, x1, y1, top = (float(v) for v in box)
-    zmin = np.minimum(rec["z"], rec["sz"])
-    above = zmin > top + 1e-6
-    radius = np.array([cutting.tool(int(t)).radius for t in rec["tool"]]) if n else np.zeros(0)
+    zmax = np.maximum(rec["z"], rec["sz"])
+    radius = np.array([cutting.tool(int(t)).radius for t in rec["tool"]])
     lo_x = np.minimum(rec["x"], rec["sx"])
     hi_x = np.maximum(rec["x"], rec["sx"])
     lo_y = np.minimum(rec["y"], rec["sy"])
@@ -95,10 +96,13 @@ def clear_of_stock(program, cutting, box) -> np.ndarray:
         hi_x = np.where(arc, np.maximum(hi_x, rec["cx"] + r), hi_x)
         lo_y = np.where(arc, np.minimum(lo_y, rec["cy"] - r), lo_y)
         hi_y = np.where(arc, np.maximum(hi_y, rec["cy"] + r), hi_y)
-    outside = (hi_x + radius < x0) | (lo_x - radius > x1) | (hi_y + radius < y0) | (lo_y - radius > y1)
-    # an arc in another plane bulges in Z and out of its end points' XY box: never provably clear
+    within = (lo_x - radius >= x0 - 1e-6) & (hi_x + radius <= x1 + 1e-6) & (lo_y - radius >= y0 - 1e-6) & \
+        (hi_y + radius <= y1 + 1e-6)
+    # an arc in another plane bulges in Z: inside only if its circle stays under the top
     other_plane = arc & (rec["plane"] != R.PLANE_XY)
-    return (above | outside) & ~other_plane
+    r3 = np.hypot(np.hypot(rec["sx"] - rec["cx"], rec["sy"] - rec["cy"]), rec["sz"] - rec["cz"])
+    zmax = np.where(other_plane, np.maximum(zmax, rec["cz"] + r3), zmax)
+    return within & (zmax <= top + 1e-6)
 
 
 def learned_levels(model, fz0: np.ndarray, usable: np.ndarray) -> dict[int, tuple[float, float, float]]:

@@ -199,9 +199,21 @@ class Problem:
         out = np.where(top, math.exp(math.log(hi_f)), np.exp(lo))
         out = np.where(bottom, out, np.nan)
         if self.f_floor is not None:
-            # never under the floor (the program's own feed, when the limits are its own)
-            out = np.where(self.f_floor > 0, np.fmax(out, self.f_floor), out)
+            # never under the floor (the program's own feed per tooth, when the limits are its own)
+            fl = self.floor_feeds(spins[0])
+            out = np.where(fl > 0, np.fmax(out, fl), out)
         return out
+
+    def floor_feeds(self, spins: np.ndarray) -> np.ndarray:
+        """Per variable, the lowest feed at these spindle speeds: the program's own feed, or at
+        a lower speed than the program's (a spindle range below it) the same feed per tooth;
+        zeros without a floor."""
+        if self.f_floor is None:
+            return np.zeros(self.nvar)
+        var_spin = np.zeros(self.nvar, np.int64)
+        var_spin[self.seg_var] = self.seg_spin
+        ratio = np.minimum(1.0, np.asarray(spins, float)[var_spin] / np.maximum(self.n0_spin[var_spin], 1e-9))
+        return self.f_floor * ratio
 
 
 def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limits, rates: CostRates,

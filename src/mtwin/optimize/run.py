@@ -15,7 +15,7 @@ from ..motion.path import PAUSE
 from .model import feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
-from .guards import FINISH_AE, clear_of_stock, contour_error, finish_lines, learned_levels, trusted_records
+from .guards import FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, trusted_records
 from .segment import locate, segment_path
 
 
@@ -190,7 +190,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         prob.seg_hlim = np.array([levels[int(t)][1] if int(t) in levels else np.inf for t in prob.seg_tool])
         if opts.objective in ("time", "cost"):
             prob.f_floor = prob.f0_var.copy()  # nothing is slowed below the program's own feed
-    force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force)}
+    force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force) if not learned or int(t) in levels}
     limit_notes = _limit_notes(prob, levels, learned, opts, m)
     if spindle_range is not None:
         _runups(prob, program, plan, segs, m)
@@ -267,13 +267,18 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         feeds, spins = res.feeds, res.spins
         generations, history = res.generations, res.history
     search_seconds = time.perf_counter() - t_search
+    if learned and spindle_range is not None and opts.objective in ("time", "cost"):
+        # the program's feeds are the floor: at a lower speed they would be a larger feed per
+        # tooth than the program's own, so no tool runs below its programmed speed (a higher
+        # speed at the same feed only thins the chip; the re-simulation checks the rest)
+        spins = np.maximum(spins, np.minimum(prob.n0_spin, spindle_range[1]))
     air_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(air_var, prob.seg_var, prob.seg_air)
     cut_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(cut_var, prob.seg_var, ~prob.seg_air)
     floor = np.full(prob.nvar, feed_range[0])
     if prob.f_floor is not None:
-        floor = np.maximum(floor, prob.f_floor)
+        floor = np.maximum(floor, prob.floor_feeds(np.round(spins)))
         feeds = np.maximum(feeds, floor)
     if opts.objective in ("time", "cost"):
         # air segments at the top of the range (the load is zero there), never above it
@@ -293,21 +298,23 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         # inside the guessed block, a move is air only because earlier cuts removed the material
         # there, which they also do on the machine, whatever the real stock's size — provided
         # the twin knew the tools that cut it: after a cut by an undescribed tool (an imaginary
-        # 6 mm end mill), "air" may be material the real, smaller tool left
-        clear = clear_of_stock(program, cut, stock_box)
+        # 6 mm end mill), "air" may be material the real, smaller tool left.  Above the guessed
+        # top (Z0) or outside the block, "air" is only the guess's word: a router whose Z0 is
+        # the table cuts at Z > 0
+        inside = inside_stock(program, cut, stock_box)
         undescribed_cut = candidates & ~trust.ok & np.isin(rec["tool"], list(trust.undescribed))
         first_unknown = int(np.argmax(undescribed_cut)) if undescribed_cut.any() else len(rec)
-        clear |= np.arange(len(rec)) < first_unknown
-        var_clear = np.ones(prob.nvar, bool)
-        np.logical_and.at(var_clear, prob.seg_var[segs.piece_seg], clear[segs.piece_rec])
-        unclear = air_var & ~cut_var & ~var_clear & ~keep
+        known_air = inside & (np.arange(len(rec)) < first_unknown)
+        var_known = np.ones(prob.nvar, bool)
+        np.logical_and.at(var_known, prob.seg_var[segs.piece_seg], known_air[segs.piece_rec])
+        unclear = air_var & ~cut_var & ~var_known & ~keep
         if unclear.any():
             keep |= unclear
             kept["air cut under a guessed stock"] = _var_lines(program, segs, prob, unclear)
             warnings.append(f"{program.path}: warning: the stock was guessed ({before.summary.cutting.stock_source}): "
-                            f"{int(unclear.sum())} air-cut segment(s) after a cut by an undescribed tool, and not provably "
-                            f"clear of the stock, keep their feeds; declare the tool (--tool) or give the stock "
-                            f"(--stock, (MTWIN STOCK …) or cutting.stock) to let them be raised")
+                            f"{int(unclear.sum())} air-cut segment(s) outside or above it, or after a cut by an "
+                            f"undescribed tool, keep their feeds; give the stock (--stock, (MTWIN STOCK …) or "
+                            f"cutting.stock) or declare the tool (--tool) to let them be raised")
     # finishing passes keep their feed per tooth
     fin_var = np.zeros(prob.nvar, bool)
     if opts.finish_feed == "keep" and opts.objective != "air":
@@ -315,7 +322,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         np.logical_or.at(fin_var, prob.seg_var, fin_seg)
         fin_var &= ~keep
         if fin_var.any():
-            kept["finishing pass"] = _var_lines(program, segs, prob, fin_var)
+            kept["finishing pass (feed per tooth kept)"] = _var_lines(program, segs, prob, fin_var)
             var_spin = np.zeros(prob.nvar, np.int64)
             var_spin[prob.seg_var] = prob.seg_spin
             feeds = np.where(fin_var, prob.f0_var * np.round(spins)[var_spin] / np.maximum(prob.n0_spin[var_spin], 1e-9),
@@ -412,6 +419,9 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
             grp = c_bad.copy()
             grp[prev[c_bad & (prev >= 0)]] = True
             frozen |= grp & ~keep
+            # never above the program's feed; not raised to it either where a limit (a given load
+            # limit, the smoothing target) holds it lower — then the summary says the tolerance
+            # was not held there
             cap = np.where(grp, np.minimum(cap, prob.f0_var), cap)
             c_bad[:] = False
             c_ratio = np.where(frozen, 0.0, c_ratio)
@@ -477,10 +487,12 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     if prob.f_floor is not None and _worse(opts.objective, fig_before, fig_after):
         # learned limits promise a program no slower (no dearer) than the user's: when the
         # full twin says the answer is, the program stays as it was
+        figs = (f"{fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s" if opts.objective == "time" else
+                f"cost {fig_before.cost:.3f} -> {fig_after.cost:.3f}")
         what = "slower" if opts.objective == "time" else "dearer"
         return _unchanged(program, before, opts, warnings + [
             f"{program.path}: warning: the re-simulated answer was {what} than the program "
-            f"({fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s): the program is written unchanged"],
+            f"({figs}): the program is written unchanged"],
             kept, t_start, "", limit_notes)
     lines = segs.seg_lines(program)
     limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep)
@@ -507,7 +519,9 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
                          "peak_load_estimate": float(est["load"][0][s]),
                          "contour_error_before": float(contour_before[v]),
                          "contour_error_after": float(contour_after[v])})
-    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") else []
+    # (with learned limits the load limit is not the binding knob — the chip thickness and the
+    # program's own feeds are — so a curve over the load limit alone would mislead)
+    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") and not learned else []
     changed = _changed_lines(program.data, out)
     spindle_chosen = {}
     if spindle_range is not None:
@@ -768,6 +782,8 @@ def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarr
     np.logical_or.at(inch, prob.seg_var[segs.piece_seg], (flags & R.FL_F_INCH) != 0)
     step = np.where(inch, 2.54, 1.0)
     out = np.floor(f / step + 1e-6) * step
+    # rounding down must not take a feed asked at or above the program's own below it
+    out = np.where((out < f0) & (f >= f0), f0, out)
     return np.where(np.abs(f - f0) < 0.5 * step, f0, out)
 
 

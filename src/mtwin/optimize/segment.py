@@ -2,7 +2,7 @@
 
 The curve is the cutting power along the path (one value per engagement step, at the
 program's own F and S), the reference's "sample the path at intervals".  A segment never
-spans a rapid, a dwell or a tool change; air cuts (no material met) are segments of their
+spans a rapid, a dwell, a tool change or a change of the programmed feed; air cuts (no material met) are segments of their
 own; its boundaries fall on move ends where possible, otherwise the move is split (the
 writer's :class:`~mtwin.gcode.writer.Split`); a line that makes several moves (canned
 cycles, splines, loop bodies) stays whole, and a line run more than once (subprogram, loop)
@@ -113,7 +113,10 @@ def segment_path(program, model, power: np.ndarray, optimisable: np.ndarray, *, 
             gi = np.flatnonzero(gap)
             gap[gi[~np.array(between, bool)]] = False
         tool_change = np.diff(rec["tool"][r]) != 0
-        brk[1:] = gap | tool_change
+        # nor a change of the programmed feed: a segment's moves have one feed in the program,
+        # so "the program's own feed" (the floor of learned limits, the time base) is one number
+        feed_change = np.diff(rec["feed"][r]) != 0
+        brk[1:] = gap | tool_change | feed_change
         brk[0] = True
     stretch_starts = np.flatnonzero(brk)
     stretch_ends = np.append(stretch_starts[1:], len(order_ok))
