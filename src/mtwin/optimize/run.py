@@ -440,6 +440,24 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         bad &= ~keep
         if not bad.any() and not frozen_now:
             break
+        if round_ >= opts.max_rounds and prob.f_floor is not None:
+            if round_ == opts.max_rounds:
+                # learned limits: the segments that would not settle (and the ones run just
+                # before them) go back to the program's own feeds, and one more round checks
+                back = bad.copy()
+                prev = _previous_var(segs, prob)
+                back[prev[bad & (prev >= 0)]] = True
+                keep |= back
+                kept["would not settle (program's feed)"] = _var_lines(program, segs, prob, back)
+                allowed = np.where(back, np.maximum(allowed, _ratios(before, segs, prob, limits, seg_before) * 1.001),
+                                   allowed)
+                feeds = np.where(back, prob.f0_var, feeds)
+                scale = np.where(back, 1.0, scale)
+                continue
+            # still not: the program as it was is the answer with default options
+            return _unchanged(program, before, opts, warnings, kept, t_start,
+                              f"after {round_} rounds the re-simulated answer still broke a limit or the contour "
+                              f"tolerance: the program is written unchanged", limit_notes)
         if round_ >= opts.max_rounds:
             lines = segs.seg_lines(program)
             where = [f"lines {lines[np.flatnonzero(prob.seg_var == v)[0]][0]}-"
