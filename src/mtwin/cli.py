@@ -404,8 +404,9 @@ def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stoc
 
 PlannerOpt = typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | linuxcnc | grbl.")
 ToolOpt = typer.Option(None, "--tool", metavar="N=TYPE:DIAMETER[:FLUTES]",
-                       help="Declare a tool (mm; flat | ball | bull, e.g. 1=flat:6.35:2; a bull-nose's corner radius "
-                            "fifth): over the twin file's table and the program's comments.")
+                       help="Declare a tool (mm; flat | ball | bull | vee, e.g. 1=flat:6.35:2, 2=bull:12:4:1.5 "
+                            "(corner radius), 3=vee:6.35:2:60:0.2 (angle, tip)): over the twin file's table and the "
+                            "program's comments.")
 
 
 @app.command(short_help="Run a program through the twin: time, errors, loads.")
@@ -622,7 +623,8 @@ def optimize(
     force_limit: Optional[float] = typer.Option(None, "--force-limit",
                                                 help="Cutting-load limit, N (default: learned per tool from the "
                                                      "program — the load and chip thickness it already runs at; "
-                                                     "then no feed is lowered)."),
+                                                     "then no feed is lowered and a result that is not faster is "
+                                                     "written unchanged)."),
     feed_range: Optional[str] = typer.Option(None, "--feed-range", help="LOW,HIGH mm/min (default: 10 % of the "
                                              "lowest F up to the machine's maximum cutting feed)."),
     spindle_range: Optional[str] = typer.Option(None, "--spindle-range",
@@ -721,22 +723,43 @@ def optimize(
 
 def _run_with_progress(run_optimize, tw, prog, opts, box, generations: int):
     """Run the optimiser with a transient progress display on a terminal's stderr (the stage,
-    and the GA's generations); plain otherwise."""
+    and the GA's generations), shown once the run has taken a second; plain otherwise."""
     if not err.is_terminal:
         return run_optimize(tw, prog, opts, stock=box)
+    import threading
+
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
-                  TimeElapsedColumn(), console=err, transient=True) as bar:
-        task = bar.add_task("optimize", total=None, info="")
+    bar = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
+                   TimeElapsedColumn(), console=err, transient=True)
+    task = bar.add_task("simulating the program", total=None, info="")
+    lock = threading.Lock()
+    state = {"shown": False, "done": False}
 
-        def stage(text: str) -> None:
-            bar.update(task, description=text, total=None, completed=0, info="")
+    def show():
+        with lock:
+            if not state["done"]:
+                bar.start()
+                state["shown"] = True
 
-        def ga(g, n, b):
-            bar.update(task, description="GA", total=n, completed=g, info=f"gen {g}/{n}, fitness {b:.4f}")
+    timer = threading.Timer(1.0, show)
+    timer.daemon = True
 
+    def stage(text: str) -> None:
+        bar.update(task, description=text, total=None, completed=0, info="")
+
+    def ga(g, n, b):
+        bar.update(task, description="GA", total=n, completed=g, info=f"gen {g}/{n}, fitness {b:.4f}")
+
+    timer.start()
+    try:
         return run_optimize(tw, prog, opts, stock=box, progress=ga if generations else None, stage=stage)
+    finally:
+        timer.cancel()
+        with lock:
+            state["done"] = True
+            if state["shown"]:
+                bar.stop()
 
 
 def _verdict(before: float, after: float) -> tuple[str, float]:
