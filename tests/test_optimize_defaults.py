@@ -356,3 +356,14 @@ def test_spindle_range_with_learned_limits_keeps_the_feed_per_tooth():
     r = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
     new = tw.load(r.output, path="o.nc")
     assert new.records["spindle"][new.records["kind"] != 0].min() == 8000.0
+
+
+def test_finishing_comments_open_and_close_regions():
+    from mtwin.optimize.guards import finish_lines
+
+    text = (b"G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\nT1 M6\nS8000 M3\n(ROUGH)\nG0 X0 Y0 Z5\nG1 Z-1 F100\n"
+            b"G1 X10 F300\n(FINISH WALL PASS)\nG1 X20 F300\nG1 X30 F300\n(Finish operation: Rough)\n(Next op)\n"
+            b"G1 X40 F300\n(PROGRAM FINISHED)\nM30\n")
+    prog = mtwin.Twin().load(text, path="f.nc")
+    flag = dict(zip(prog.records["line"].tolist(), finish_lines(prog).tolist()))
+    assert flag[8] is False and flag[10] is True and flag[11] is True and flag[14] is False

@@ -30,7 +30,9 @@ from ..gcode import records as R
 PERCENTILE = 95.0  # of a tool's engaged steps, by length: the learned level
 LONG_TRACE = 200_000  # samples from which the compiled contour kernel pays for loading
 FINISH_AE = 0.05  # radial width of cut / diameter at or under which a pass is a finishing pass
-_FINISH = re.compile(rb"finish|finishing|\bfin\b|\bsemi-?finish", re.I)
+# an operation named finishing ("FINISH WALL PASS", "2D Contour finish", "semi-finish"), not
+# FreeCAD's "(Finish operation: Profile)" that closes every operation, nor "program finished"
+_FINISH = re.compile(rb"\b(?:semi-?)?finish(?:ing)?\b(?!\s*operation)|\bfin\b", re.I)
 
 
 @dataclass
