@@ -320,6 +320,17 @@ def test_sample_to_segment_map_kernel_matches_numpy():
     assert seen and min(seen) > 1000
 
 
+def test_a_straight_retract_at_feed_is_air_whatever_the_stock():
+    # up out of the slot at F200, no XY motion: it cannot cut (it stays in its own footprint)
+    text = (b"G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\nT1 M6\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z-2 F100\n"
+            b"G1 X50 F300\nG1 Z20 F200\nM5\nM30\n")
+    tw = mtwin.Twin()
+    r = optimize(tw, tw.load(text, path="retract.nc"), OptimizeOptions())
+    lines = r.output.decode().splitlines()
+    up = [ln for ln in lines if ln.startswith("G1 Z20")]
+    assert up and up[0] != "G1 Z20 F200" and "air cut under a guessed stock" not in r.kept
+
+
 def test_a_router_whose_z0_is_the_table_keeps_its_feeds():
     # no stock given, cuts at Z15 over a table at Z0: the guessed stock (top at Z0) is below
     # the cuts, whose "air" is only the guess's — they keep their feeds

@@ -305,6 +305,10 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         undescribed_cut = candidates & ~trust.ok & np.isin(rec["tool"], list(trust.undescribed))
         first_unknown = int(np.argmax(undescribed_cut)) if undescribed_cut.any() else len(rec)
         known_air = inside & (np.arange(len(rec)) < first_unknown)
+        # a straight retract (up, no XY motion) stays in the tool's own footprint, which it came
+        # down through: it cuts nothing, whatever the stock
+        known_air |= (rec["z"] > rec["sz"]) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) < 1e-6) & \
+            (rec["kind"] == R.LINEAR)
         var_known = np.ones(prob.nvar, bool)
         np.logical_and.at(var_known, prob.seg_var[segs.piece_seg], known_air[segs.piece_rec])
         unclear = air_var & ~cut_var & ~var_known & ~keep
