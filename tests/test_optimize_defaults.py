@@ -27,11 +27,10 @@ def run_cli(*args):
 
     return subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True)
 
-# a Vectric-style engraving job on a router: inch, no tool declared, no M3 (a hand-switched
-# spindle), strokes at Z-0.010" at F50 — the twin cannot know this cut
-ENGRAVE = (b"G00G20G17G90G40G49G80\nG00Z0.2000\nG00X0.0000Y0.0000\nG00X1.0000Y1.0000Z0.2000\n"
-           b"G1Z-0.0100F50.0\nG1X2.0000Y1.0000F50.0\nG1X2.0000Y2.0000\nG2X1.0000Y2.0000I-0.5000J0.0000\n"
-           b"G1X1.0000Y1.0000\nG00Z0.2000\nM30\n")
+# a Vectric-style engraving job on a router (samples/router_engrave.tap): inch, no tool
+# declared, no M3 (a hand-switched spindle), strokes at Z-0.010" at F50 — the twin cannot
+# know this cut
+ENGRAVE = (SAMPLES / "router_engrave.tap").read_bytes()
 
 
 def _changed_feed_lines(a: bytes, b: bytes) -> list[str]:
@@ -111,6 +110,19 @@ def _wall_program(finish_comment: bool) -> bytes:
     rough = b"(ROUGH SLOT)\nG0 X-5 Y0 Z5\nG0 Z-2\nG1 X65 F300\nG0 Z5\n"
     fin = (b"(FINISH WALL PASS)\n" if finish_comment else b"") + b"G0 X-5 Y0.2\nG0 Z-2\nG1 X65 F300\nG0 Z5\n"
     return head + rough + fin + b"M5\nM30\n"
+
+
+def test_the_finish_wall_sample():
+    # samples/finish_wall.nc: the slot is the program's level, the side pass is raised to it,
+    # the finishing pass keeps its feed
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / "finish_wall.nc"))
+    r = optimize(tw, prog, OptimizeOptions())
+    out = r.output.decode().splitlines()
+    after = lambda marker: out[out.index(marker) + 3]  # noqa: E731 — the cut after the approach
+    assert after("(ROUGH SLOT)").endswith("F300.") and after("(FINISH WALL PASS)").endswith("F300.")
+    side = after("(SIDE PASS)")
+    assert not side.endswith("F300.") and r.after.cycle_time < r.before.cycle_time
 
 
 @pytest.mark.parametrize("comment", [True, False])

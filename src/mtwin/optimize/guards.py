@@ -63,7 +63,8 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
         warnings.append(warning_text(program.path, lines[0], f"tool T{int(t)} is not described (no tool table entry, "
                         f"no comment the twin reads; it would be simulated as the default 6 mm end mill): its "
                         f"{int(m.sum())} feed move(s) keep their programmed feeds (lines {_ranges(lines)}); declare "
-                        f"it with --tool {int(t)}=flat:DIAMETER_MM[:FLUTES] (or ball, bull) or a [tools.{int(t)}] "
+                        f"it with --tool {int(t)}=flat:DIAMETER_MM[:FLUTES] (or ball, bull, vee:D:FLUTES:ANGLE:TIP) or a "
+                        f"[tools.{int(t)}] "
                         f"table in the twin file"))
     stopped_m = candidates & ((rec["spindle_dir"] == 0) | (rec["spindle"] <= 0))
     stopped = sorted(set(rec["line"][stopped_m & ok].tolist()))
