@@ -762,6 +762,12 @@ def _run_with_progress(run_optimize, tw, prog, opts, box, generations: int):
                 bar.stop()
 
 
+def _short_ranges(lines: list[int], most: int = 8) -> str:
+    from .optimize.guards import _ranges
+
+    return _ranges(lines, most)
+
+
 def _verdict(before: float, after: float) -> tuple[str, float]:
     """faster / slower / unchanged, and the relative change."""
     ch = after / before - 1.0 if before else 0.0
@@ -829,7 +835,19 @@ def _print_optimize(res, prog, json_out: bool) -> None:
         err.print("spindle speed chosen: " + ", ".join(f"T{k}: S{v:.0f}" for k, v in res.spindle.items()),
                   highlight=False)
     for why, lines in res.kept.items():
-        err.print(f"kept their feeds ({why}): {len(lines)} line(s)", highlight=False)
+        err.print(f"kept their feeds ({why}): {len(lines)} line(s)", highlight=False, soft_wrap=True)
+    if res.segments:
+        from collections import Counter
+
+        held = Counter(sg["limited_by"] for sg in res.segments if not sg["air"])
+        if held:
+            err.print("what held the cutting segments' feeds: " + ", ".join(f"{k} {v}" for k, v in held.most_common()),
+                      highlight=False, soft_wrap=True)
+        top = [sg for sg in res.segments if sg["air"] and sg["limited_by"] == "feed range (air cut)"]
+        if top:
+            lines = sorted({ln for sg in top for ln in range(sg["lines"][0], sg["lines"][1] + 1)})
+            err.print(f"air cuts raised to the top of the feed range, F{top[0]['feed_after']:g} mm/min: "
+                      f"{len(top)} segment(s), lines {_short_ranges(lines)}", highlight=False, soft_wrap=True)
     for d in res.defaults:
         err.print(f"note: {d}", soft_wrap=True, highlight=False, markup=False)
     if res.segments:

@@ -129,17 +129,24 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     rec = program.records
     cut = _program_cutting(twin, program)
     candidates = feed_records(program)
-    warnings: list = []
+    # the program's own simulation's warnings (a spindle speed clamped to the machine's, a
+    # travel limit…) hold for the optimiser's figures too
+    warnings: list = list(getattr(before.summary, "warnings", []) or [])
+    kfeed = (rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    never = kfeed & ~candidates & (R.move_lengths(rec) > 0)
+    never_set = {"plunges, canned cycles, parameter feeds (never set)": sorted(set(rec["line"][never].tolist()))} \
+        if never.any() else {}
     if not candidates.any():
         # a drilling program, plunges only, inverse-time feeds: nothing the optimiser sets; in a
         # post-processing pipeline that is not an error — the program goes through unchanged
-        return _unchanged(program, before, opts, warnings, {}, t_start,
+        return _unchanged(program, before, opts, warnings, dict(never_set), t_start,
                           "no feed move whose feed can be set (G1/G2/G3 in mm/min or in/min that are not plunges, "
                           "canned cycles, synchronised or macro-expression feeds): the program is written unchanged")
     # ---- only where the twin knows the cut (a described tool, a running spindle)
     trust = trusted_records(program, cut, candidates)
     warnings += trust.warnings
     kept = {f"tool T{t} not described": lines for t, lines in trust.undescribed.items()}
+    kept.update(never_set)
     if trust.stopped:
         kept["spindle stopped"] = trust.stopped
     ok = trust.ok
@@ -806,7 +813,8 @@ def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarr
     out = np.floor(f / step + 1e-6) * step
     # rounding down must not take a feed asked at or above the program's own below it
     out = np.where((out < f0) & (f >= f0), f0, out)
-    return np.where(np.abs(f - f0) < 0.5 * step, f0, out)
+    # a raise under 1 % is not worth an F word (nor a split move): the program's own
+    return np.where((np.abs(f - f0) < 0.5 * step) | ((f > f0) & (f < 1.01 * f0)), f0, out)
 
 
 def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndarray):
@@ -1007,7 +1015,12 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep) -> list:
             out.append("kept (not this objective's)")
             continue
         if prob.seg_air[s]:
-            out.append("feed range (air cut)" if f >= feed_range[1] - 1 else "kept")
+            if f >= feed_range[1] - 1:
+                out.append("feed range (air cut)")
+            elif f > prob.f0_var[prob.seg_var[s]] + 1e-9:
+                out.append("approach (the feed of the cut it enters)")
+            else:
+                out.append("kept")
             continue
         r = {name: float(e[0][s]) + 1.0 for name, e in excess.items()}  # value / (limit x margin)
         k = max(r, key=r.get)
