@@ -170,6 +170,20 @@ def warm(step: Callable[[str], None] = lambda what: None) -> None:
         twin.simulate(fanuc)
         step("cutting model, tooth resolution")
         twin.simulate(fanuc, tooth_resolution=True)
+        step("optimiser")
+        import numpy as np
+
+        from .optimize._segkernel import contour_samples, samples_to_pieces
+        from .optimize.run import OptimizeOptions, optimize
+
+        optimize(twin.with_tools({1: "flat:6:2", 2: "flat:6:2"}), fanuc, OptimizeOptions())
+        # the long-trace kernels (the optimiser runs them from 50,000 / 200,000 samples)
+        n = 4
+        contour_samples(np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n))
+        i64 = np.zeros(n, np.int64)
+        samples_to_pieces(i64, np.ones(n, bool), np.zeros(1, np.int64), np.ones(1), np.zeros(2), np.ones(1),
+                          np.zeros(2), np.ones(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                          np.zeros(1, np.int64), i64.copy(), i64.copy())
         step("measurement alignment")
         from .loop.compare import compare
         from .loop.measurement import Measurement
