@@ -116,6 +116,26 @@ def contour_samples(cmd, err, out):
         out[i] = math.sqrt(nx * nx + ny * ny + nz * nz)
 
 
+@njit
+def _last_at_or_below(sorted_values, q, start):
+    """The last index j with ``sorted_values[j] <= q`` (-1: none), searched forward from
+    ``start`` when q has not gone back, by bisection when it has."""
+    m = sorted_values.shape[0]
+    j = start
+    if j >= 0 and q < sorted_values[j]:
+        a, b = 0, m
+        while a < b:
+            c = (a + b) // 2
+            if sorted_values[c] <= q:
+                a = c + 1
+            else:
+                b = c
+        j = a - 1
+    while j + 1 < m and sorted_values[j + 1] <= q:
+        j += 1
+    return j
+
+
 @njit(python_limit=100_000, python_fast=20_000)
 def samples_to_pieces(idx, valid, first, span, cn, ln, co, lo, key, order, piece_rec, piece_seg, seg_out, rec_out):
     """Segment and original record of every trace sample, by path length (see
@@ -124,9 +144,7 @@ def samples_to_pieces(idx, valid, first, span, cn, ln, co, lo, key, order, piece
     ``co[j] <= s``, and its piece the last with ``key <= r_o * 4 + t``.  Samples come in time
     order, so both searches move forward; a step back falls back to bisection."""
     n = idx.shape[0]
-    m = co.shape[0]
     nlo = lo.shape[0]
-    nk = key.shape[0]
     j = 0
     p = -1
     for i in range(n):
@@ -136,31 +154,10 @@ def samples_to_pieces(idx, valid, first, span, cn, ln, co, lo, key, order, piece
             continue
         r = idx[i]
         s = cn[r] + (i - first[r]) / span[r] * ln[r]
-        if s < co[j]:
-            a, b = 0, m  # bisection: last j with co[j] <= s
-            while a < b:
-                c = (a + b) // 2
-                if co[c] <= s:
-                    a = c + 1
-                else:
-                    b = c
-            j = a - 1 if a > 0 else 0
-        while j + 1 < m and co[j + 1] <= s:
-            j += 1
-        ro = min(max(j, 0), nlo - 1)
+        j = max(_last_at_or_below(co, s, j), 0)
+        ro = min(j, nlo - 1)
         t = (s - co[ro]) / lo[ro] if lo[ro] > 0.0 else 0.0
-        q = ro * 4.0 + t
-        if p >= 0 and q < key[p]:
-            a, b = 0, nk
-            while a < b:
-                c = (a + b) // 2
-                if key[c] <= q:
-                    a = c + 1
-                else:
-                    b = c
-            p = a - 1
-        while p + 1 < nk and key[p + 1] <= q:
-            p += 1
+        p = _last_at_or_below(key, ro * 4.0 + t, p)
         rec_out[i] = ro
         if p >= 0 and piece_rec[order[p]] == ro:
             seg_out[i] = piece_seg[order[p]]
