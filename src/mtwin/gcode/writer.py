@@ -150,6 +150,42 @@ def _feed_word(r, feed, spindle, length, own_line=True):
     return feed / scale
 
 
+def _feed_targets(prog, st, rec, candidates, line0, new_feed, new_spindle, lengths) -> dict:
+    """Per 0-based line, the F text its moves need; a line whose moves (a canned cycle, a
+    subprogram, a repeat) were given different feeds is an error.  Per-minute feeds are worked
+    out for all moves at once and each distinct value formatted once (an hour-long program
+    rewrites 100,000 moves); per-revolution and inverse-time feeds one by one."""
+    if not len(candidates):
+        return {}
+    r = rec[candidates]
+    inch = (r["flags"] & FL_F_INCH) != 0
+    vals = np.where(inch, new_feed[candidates] / 25.4, new_feed[candidates]).astype(np.float64)
+    special = np.flatnonzero((r["feed_mode"] == FEED_PER_REV) | (r["feed_mode"] == FEED_INVERSE_TIME))
+    for k in special:
+        i = int(candidates[k])
+        vals[k] = _feed_word(rec[i], new_feed[i], new_spindle[i], lengths[i])
+    inch_text = inch & (r["feed_mode"] != FEED_INVERSE_TIME)
+    keys = np.column_stack([vals, inch_text.astype(np.float64)])
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    inv = np.asarray(inv).reshape(-1)
+    texts = [st.feed(float(v), bool(b)) for v, b in uniq]
+    # distinct values may format alike (F1000.4 and F1000.3 both "1000" at 0 decimals)
+    text_id = {t: k for k, t in enumerate(dict.fromkeys(texts))}
+    tid = np.array([text_id[t] for t in texts], np.int64)[inv]
+    lines = line0[candidates].astype(np.int64)
+    order = np.argsort(lines, kind="stable")
+    ls, ts = lines[order], tid[order]
+    clash = np.flatnonzero((ls[1:] == ls[:-1]) & (ts[1:] != ts[:-1]))
+    names = list(text_id)
+    if len(clash):
+        k = int(clash[0])
+        raise WriteError(f"{prog.path}:{int(ls[k]) + 1}: this line runs several moves (canned cycle, "
+                         f"subprogram or repeat) that were given different feeds ({names[ts[k]]} and "
+                         f"{names[ts[k + 1]]})")
+    starts = np.flatnonzero(np.r_[True, ls[1:] != ls[:-1]])
+    return {int(li): names[int(t)] for li, t in zip(ls[starts], ts[starts])}
+
+
 MIN_PIECE = 0.01  # mm: the shortest piece a split may leave (10 verify tolerances)
 
 
@@ -243,15 +279,7 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
             if len(feeds_here) == 1 and feeds_here & old_changed:
                 keep[i] = True
         candidates = candidates[keep[candidates]]
-    for i in candidates:
-        li = int(line0[i])
-        txt = st.feed(_feed_word(rec[i], new_feed[i], new_spindle[i], lengths[i]),
-                      bool(rec[i]["flags"] & FL_F_INCH) and rec[i]["feed_mode"] != FEED_INVERSE_TIME)
-        prev = f_target.get(li)
-        if prev is not None and prev != txt:
-            raise WriteError(f"{prog.path}:{li + 1}: this line runs several moves (canned cycle, "
-                             f"subprogram or repeat) that were given different feeds ({prev} and {txt})")
-        f_target[li] = txt
+    f_target = _feed_targets(prog, st, rec, candidates, line0, new_feed, new_spindle, lengths)
     for i in changed_s:
         li = int(line0[i])
         txt = st.spindle(new_spindle[i])
