@@ -61,9 +61,7 @@ class Tool:
     @property
     def cot_half_angle(self) -> float:
         """cot of a vee tool's half angle: the cone's rise per mm of radius (0: no cone)."""
-        if self.type != "vee":
-            return 0.0
-        return 1.0 / math.tan(math.radians(0.5 * self.angle))
+        return 1.0 / math.tan(self.half_angle) if self.type == "vee" else 0.0
 
     @property
     def half_angle(self) -> float:

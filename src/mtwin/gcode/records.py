@@ -12,6 +12,11 @@ import numpy as np
 RAPID, LINEAR, ARC_CW, ARC_CCW, DWELL = 0, 1, 2, 3, 4
 KIND_NAMES = ("rapid", "linear", "arc_cw", "arc_ccw", "dwell")
 
+
+def is_feed_kind(kind: np.ndarray) -> np.ndarray:
+    """Per record kind: a feed move (G1, G2, G3)."""
+    return (kind == LINEAR) | (kind == ARC_CW) | (kind == ARC_CCW)
+
 # Path-control modes
 PATH_CONTINUOUS, PATH_EXACT_PATH, PATH_EXACT_STOP = 0, 1, 2  # G64, G61, G61.1/G9
 

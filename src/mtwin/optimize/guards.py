@@ -126,13 +126,31 @@ def learned_levels(model, fz0: np.ndarray, usable: np.ndarray) -> dict[int, tupl
 
 def weighted_percentile(x: np.ndarray, w: np.ndarray, q: float) -> float:
     """The ``q`` th percentile of ``x`` weighted by ``w`` (the smallest x with at least q % of
-    the weight at or below it)."""
-    o = np.argsort(x)
-    cw = np.cumsum(w[o])
-    if cw[-1] <= 0:
+    the weight at or below it); the largest x when nothing has weight."""
+    if not (w > 0).any():
         return float(x.max())
-    i = int(np.searchsorted(cw, q / 100.0 * cw[-1], side="left"))
-    return float(x[o][min(i, len(x) - 1)])
+    return float(percentile_by_group(np.zeros(len(x), np.int64), x, w, 1, q)[0])
+
+
+def percentile_by_group(group: np.ndarray, x: np.ndarray, w: np.ndarray, n: int, q: float) -> np.ndarray:
+    """Per group 0..n-1, the ``q`` th percentile of ``x`` weighted by ``w`` (the smallest x with
+    at least q % of the group's weight at or below it); 0 where a group has no weight."""
+    out = np.zeros(n)
+    m = w > 0
+    if not m.any():
+        return out
+    group, x, w = group[m], x[m], w[m]
+    o = np.lexsort((x, group))
+    group, x, w = group[o], x[o], w[o]
+    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    ends = np.r_[starts[1:], len(group)]
+    cw = np.cumsum(w)
+    base = np.r_[0.0, cw][starts]
+    total = cw[ends - 1] - base
+    for a, b, b0, tot in zip(starts, ends, base, total):
+        k = a + int(np.searchsorted(cw[a:b] - b0, q / 100.0 * tot, side="left"))
+        out[group[a]] = x[min(k, b - 1)]
+    return out
 
 
 def finish_lines(program) -> np.ndarray:

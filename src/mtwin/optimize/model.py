@@ -140,21 +140,6 @@ class MoveTimes:
     v_cap: np.ndarray  # (records,) mm/s
     length: np.ndarray  # (records,) mm
 
-    def time(self, rec: np.ndarray, feed_mm_min: np.ndarray, frac: np.ndarray | float = 1.0) -> np.ndarray:
-        u = 60.0 / np.maximum(np.asarray(feed_mm_min, float), 1e-9)
-        U = self.u[rec]
-        D = self.dur[rec]
-        K = U.shape[1]
-        i = np.clip((U <= u[:, None]).sum(axis=1) - 1, 0, K - 2)
-        rows = np.arange(len(rec))
-        u0, u1 = U[rows, i], U[rows, i + 1]
-        d0, d1 = D[rows, i], D[rows, i + 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a = np.where(u1 > u0, (u - u0) / (u1 - u0), 0.0)
-        a = np.maximum(a, 0.0)  # faster than the fastest plan: its time
-        t = d0 + a * (d1 - d0)
-        return np.where(self.length[rec] > 0, np.maximum(t, 0.0) * frac, 0.0)
-
     def table(self, rec: np.ndarray, feeds_mm_min: np.ndarray, frac: np.ndarray | float = 1.0) -> np.ndarray:
         """Times of the records ``rec`` at each of ``feeds_mm_min`` (one grid for all): (n, G)."""
         ug = 60.0 / np.maximum(np.asarray(feeds_mm_min, float), 1e-9)
@@ -195,11 +180,10 @@ def move_times(program, plan, plans_at: list[tuple[float, object]]) -> MoveTimes
     us, ds = [60.0 / f0], [dur0]
     top = max(plans_at, key=lambda fp: fp[0])
     for F, p in plans_at:
-        _, inv, dur = per_record(p)
+        Lf, inv, dur = per_record(p)
         us.append(np.full(nrec, 60.0 / F))
         ds.append(dur)
         if p is top[1]:
-            Lf = per_record(p)[0]
             with np.errstate(divide="ignore", invalid="ignore"):
                 v_cap = np.where(inv > 0, Lf / inv, np.inf)
     U = np.stack(us, axis=1)
@@ -213,7 +197,7 @@ def feed_records(program) -> np.ndarray:
     spindle-synchronised thread or tap, not a probe, not inverse-time or per-revolution feed)."""
     rec = program.records
     k = rec["kind"]
-    ok = (k == R.LINEAR) | (k == R.ARC_CW) | (k == R.ARC_CCW)
+    ok = R.is_feed_kind(k)
     ok &= rec["feed"] > 0
     ok &= (rec["flags"] & (R.FL_SYNC | R.FL_PROBE)) == 0
     ok &= rec["feed_mode"] == R.FEED_PER_MIN

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .guards import percentile_by_group
+
 GRID = 64
 
 
@@ -210,10 +212,16 @@ class Problem:
         zeros without a floor."""
         if self.f_floor is None:
             return np.zeros(self.nvar)
-        var_spin = np.zeros(self.nvar, np.int64)
-        var_spin[self.seg_var] = self.seg_spin
-        ratio = np.minimum(1.0, np.asarray(spins, float)[var_spin] / np.maximum(self.n0_spin[var_spin], 1e-9))
+        vs = self.var_spin
+        ratio = np.minimum(1.0, np.asarray(spins, float)[vs] / np.maximum(self.n0_spin[vs], 1e-9))
         return self.f_floor * ratio
+
+    @property
+    def var_spin(self) -> np.ndarray:
+        """Per feed variable, its spindle variable (the segments sharing a line share both)."""
+        out = np.zeros(self.nvar, np.int64)
+        out[self.seg_var] = self.seg_spin
+        return out
 
 
 def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limits, rates: CostRates,
@@ -252,7 +260,9 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
             T = (fz * model.ta[idx] + model.tb[idx]) * model.cutting[idx]
             load_tab[:, g] = np.where(present, np.maximum.reduceat(L, b), 0.0)
             torque_tab[:, g] = np.where(present, np.maximum.reduceat(T, b), 0.0)
-    seg_chip = _segment_percentile(st, model.chip[idx], model.length[idx] * model.cutting[idx], S, 95.0)
+    # (its 95th percentile by length, like the learned level it is held to: the chip a program
+    # runs at for a twentieth of a cut, not at a one-step entry)
+    seg_chip = percentile_by_group(st, model.chip[idx], model.length[idx] * model.cutting[idx], S, 95.0)
     w = model.length[idx] * model.cutting[idx]
     seg_len = np.bincount(st, weights=model.length[idx], minlength=S)
     mta = np.bincount(st, weights=w * model.ta[idx], minlength=S) / np.maximum(seg_len, 1e-12)
@@ -289,24 +299,3 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     p.t_base = p.seg_time(f0_var[segs.seg_var][None, :])[0]
     return p
 
-
-def _segment_percentile(seg: np.ndarray, x: np.ndarray, w: np.ndarray, S: int, q: float) -> np.ndarray:
-    """Per segment, the ``q`` th percentile of ``x`` weighted by ``w`` (0 where a segment has no
-    weight).  The chip-thickness factor of a segment is taken so, like the learned level it is
-    held to: the chip a program runs at for a twentieth of a cut, not at a one-step entry."""
-    out = np.zeros(S)
-    m = w > 0
-    if not m.any():
-        return out
-    seg, x, w = seg[m], x[m], w[m]
-    o = np.lexsort((x, seg))
-    seg, x, w = seg[o], x[o], w[o]
-    starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
-    ends = np.r_[starts[1:], len(seg)]
-    cw = np.cumsum(w)
-    base = np.r_[0.0, cw][starts]
-    total = cw[ends - 1] - base
-    for a, b, b0, tot in zip(starts, ends, base, total):
-        k = a + int(np.searchsorted(cw[a:b] - b0, q / 100.0 * tot, side="left"))
-        out[seg[a]] = x[min(k, b - 1)]
-    return out

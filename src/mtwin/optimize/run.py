@@ -15,7 +15,8 @@ from ..motion.path import PAUSE
 from .model import feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
-from .guards import FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, trusted_records
+from .guards import (FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, percentile_by_group,
+                     trusted_records)
 from .segment import locate, segment_path
 
 
@@ -132,8 +133,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     # the program's own simulation's warnings (a spindle speed clamped to the machine's, a
     # travel limit…) hold for the optimiser's figures too
     warnings: list = list(getattr(before.summary, "warnings", []) or [])
-    kfeed = (rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
-    never = kfeed & ~candidates & (R.move_lengths(rec) > 0)
+    never = R.is_feed_kind(rec["kind"]) & ~candidates & (R.move_lengths(rec) > 0)
     never_set = {"plunges, canned cycles, parameter feeds (never set)": sorted(set(rec["line"][never].tolist()))} \
         if never.any() else {}
     if not candidates.any():
@@ -334,10 +334,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         fin_var &= ~keep
         if fin_var.any():
             kept["finishing pass (feed per tooth kept)"] = _var_lines(program, segs, prob, fin_var)
-            var_spin = np.zeros(prob.nvar, np.int64)
-            var_spin[prob.seg_var] = prob.seg_spin
-            feeds = np.where(fin_var, prob.f0_var * np.round(spins)[var_spin] / np.maximum(prob.n0_spin[var_spin], 1e-9),
-                             feeds)
+            vs = prob.var_spin
+            feeds = np.where(fin_var, prob.f0_var * np.round(spins)[vs] / np.maximum(prob.n0_spin[vs], 1e-9), feeds)
             if spindle_range is None:
                 keep |= fin_var
     feeds = _approach_feeds(prob, segs, feeds, program, keep)
@@ -358,6 +356,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     c_prev = np.full(prob.nvar, np.nan)  # the last round's contour error and feed, per variable
     f_prev = np.full(prob.nvar, np.nan)
     cap = np.full(prob.nvar, np.inf)
+    prev = _previous_var(segs, prob)  # the segment run just before each variable's first
+    ce_before = contour_error(before)
     while True:
         round_ += 1
         stage(f"writing and re-simulating (round {round_})")
@@ -378,8 +378,6 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
             after = tw_after.simulate(new, stock=stock)
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
         over_v = _ratios(after, segs, prob, limits, seg_after)
-        if round_ == 1:
-            ce_before = contour_error(before)
         ce_after = ce_before if after is before else contour_error(after)
         if round_ == 1:
             seg_before, rec_before = _segment_of_samples(before, program, program, segs)
@@ -418,7 +416,6 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         at_floor = (f_try <= floor * (1 + 1e-9)) | keep
         # a segment that cannot be slowed (kept, or at its floor) but lost accuracy lost it to
         # the faster segment run just before it, which is slowed instead
-        prev = _previous_var(segs, prob)
         for v in np.flatnonzero(at_floor & (c_ratio > 1.0)):
             if prev[v] >= 0:
                 cblame[prev[v]] = max(cblame[prev[v]], float(c_ratio[v]))
@@ -456,12 +453,10 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
                 # learned limits: the segments that would not settle (and the ones run just
                 # before them) go back to the program's own feeds, and one more round checks
                 back = bad.copy()
-                prev = _previous_var(segs, prob)
                 back[prev[bad & (prev >= 0)]] = True
                 keep |= back
                 kept["would not settle (program's feed)"] = _var_lines(program, segs, prob, back)
-                allowed = np.where(back, np.maximum(allowed, _ratios(before, segs, prob, limits, seg_before) * 1.001),
-                                   allowed)
+                allowed = np.where(back, np.maximum(allowed, own), allowed)
                 feeds = np.where(back, prob.f0_var, feeds)
                 scale = np.where(back, 1.0, scale)
                 continue
@@ -598,7 +593,7 @@ def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limi
 def _feed_samples(trace, program) -> np.ndarray:
     r = np.asarray(trace.record, np.int64)
     kind = program.records["kind"][np.clip(r, 0, len(program.records) - 1)]
-    return (r >= 0) & ((kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW))
+    return (r >= 0) & R.is_feed_kind(kind)
 
 
 def _max_into(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
@@ -624,7 +619,7 @@ def _per_rec(values: np.ndarray, seg_of: np.ndarray, rec_of: np.ndarray, program
     kind = program.records["kind"]
     out = np.zeros(len(kind))
     r = np.clip(rec_of, 0, len(kind) - 1)
-    m = (seg_of < 0) & (rec_of >= 0) & ((kind[r] == R.LINEAR) | (kind[r] == R.ARC_CW) | (kind[r] == R.ARC_CCW))
+    m = (seg_of < 0) & (rec_of >= 0) & R.is_feed_kind(kind[r])
     _max_into(out, rec_of[m], values[m])
     return out
 
@@ -659,18 +654,9 @@ def _finishing_segments(program, model, segs, prob) -> np.ndarray:
     if m.any():
         st = segs.step_seg[m]
         ratio = model.ae[m] / np.maximum(model.diameter[m], 1e-9)
-        w = model.length[m]
-        o = np.lexsort((ratio, st))
-        st, ratio, w = st[o], ratio[o], w[o]
-        starts = np.flatnonzero(np.r_[True, st[1:] != st[:-1]])
-        cw = np.cumsum(w)
-        before_w = np.r_[0.0, cw][starts]
-        ends = np.r_[starts[1:], len(st)]
-        total = cw[ends - 1] - before_w
-        for a, b, tot, b0 in zip(starts, ends, total, before_w):
-            k = a + int(np.searchsorted(cw[a:b] - b0, 0.5 * tot))
-            if ratio[min(k, b - 1)] <= FINISH_AE and not prob.seg_air[st[a]]:
-                out[st[a]] = True
+        median = percentile_by_group(st, ratio, model.length[m], segs.count, 50.0)
+        has = np.bincount(st, weights=model.length[m], minlength=segs.count) > 0
+        out |= has & (median <= FINISH_AE)
     return out & ~prob.seg_air
 
 
@@ -765,7 +751,7 @@ def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray) ->
     feeds = feeds.copy()
     last_piece = np.zeros(segs.count, np.int64)
     last_piece[segs.piece_seg] = np.arange(len(segs.piece_seg))
-    is_feed = (rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    is_feed = R.is_feed_kind(rec["kind"])
     piece_of_rec = {}
     for k, r in enumerate(segs.piece_rec):
         piece_of_rec.setdefault(int(r), k)
@@ -902,7 +888,7 @@ def _segment_of_samples(trace, new_prog, program, segs):
         np.maximum.at(last, idx[starts], ends)
         np.minimum.at(fi, idx[starts], starts)
     kind = new_prog.records["kind"][idx]
-    is_feed = (kind == R.LINEAR) | (kind == R.ARC_CW) | (kind == R.ARC_CCW)
+    is_feed = R.is_feed_kind(kind)
     valid = (rec_new >= 0) & is_feed
     if len(idx) >= FAST_MAP and len(Lo):
         from ._segkernel import samples_to_pieces
