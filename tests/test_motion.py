@@ -325,3 +325,28 @@ def test_a_tool_length_offset_moves_the_program_frame_not_the_machine():
     # before G43 the 25.5 mm tool's tip hangs at Z-25.5 of its own frame; nothing goes below
     assert tr.cmd[:, 2].min() >= -25.5 - 1e-6 and tr.act[:, 2].min() > -25.5 - 0.05
     assert tr.summary.max_torque["z"] < tw.machine.z.max_torque * 0.5
+
+
+@pytest.mark.parametrize("sample,machine", [("pocket.nc", None), ("contour.nc", None),
+                                            ("finish_wall.nc", "linuxcnc-sim.toml")])
+def test_a_plan_at_other_feeds_reuses_the_geometry_and_equals_a_fresh_plan(sample, machine):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "samples"
+    tw = Twin.from_toml(str(root / "machines" / machine)) if machine else Twin()
+    prog = tw.load((root / sample).read_bytes(), path=sample)
+    base = tw.plan(prog, keep_geometry=True)
+    assert tw.plan(prog).geometry is None  # kept only when asked (a copy of the segment table)
+    feeds = prog.records["feed"] * np.linspace(0.7, 2.3, len(prog.records))
+    fresh = tw.plan(prog, feeds=feeds)
+    reused = tw.plan(prog, feeds=feeds, like=base)
+    assert reused.geometry is base.geometry  # the feed-independent stages were not run again
+    assert fresh.geometry is not base.geometry
+    assert abs(reused.total_time - base.total_time) > 1e-3  # the feeds did change the plan
+    for name in fresh.seg.dtype.names:
+        np.testing.assert_array_equal(reused.seg[name], fresh.seg[name], err_msg=name)
+    np.testing.assert_array_equal(reused.dur, fresh.dur)
+    np.testing.assert_array_equal(reused.prof, fresh.prof)
+    # another path (a spindle speed changed) is planned in full
+    other = tw.plan(prog, spindles=prog.records["spindle"] * 0.5, like=base)
+    assert other.geometry is not base.geometry

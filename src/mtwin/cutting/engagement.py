@@ -101,7 +101,7 @@ def _tool_rows(plan, program, cutting: Cutting):
     seg = plan.seg
     nums = rec["tool"][seg["rec"]] if len(seg) else np.zeros(0, np.int32)
     cutting_seg = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
-    used = sorted(set(int(t) for t in nums[cutting_seg]))
+    used = [int(t) for t in np.unique(nums[cutting_seg])]
     table = []
     index = {}
     for t in used:
@@ -111,7 +111,13 @@ def _tool_rows(plan, program, cutting: Cutting):
         table.append(tool)
     if not table:  # no feed move: any tool row will do, none is read
         table.append(next(iter(cutting.tools.values()), None) or cutting.tool(0))
-    tool_index = np.array([index.get(int(t), 0) for t in nums], np.int64)
+    # (the row of each segment's tool; a tool that never cuts reads row 0, like no tool)
+    tool_index = np.zeros(len(nums), np.int64)
+    if used:
+        ua = np.array(used)
+        pos = np.minimum(np.searchsorted(ua, nums), len(ua) - 1)
+        found = ua[pos] == nums
+        tool_index[found] = pos[found]  # (row k holds used[k])
     return table, tool_index, tuple(used)
 
 

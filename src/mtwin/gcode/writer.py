@@ -95,6 +95,36 @@ def _point_at(r, t):
     return p
 
 
+class _WordIndex:
+    """(line, letter) -> index of the line's last word with that letter, for the letters the
+    writer edits — a sorted key array, not a dict of every word (an hour-long program has
+    hundreds of thousands)."""
+
+    def __init__(self, lx):
+        letters = np.frombuffer(b"FSXYZIJKR", np.uint8)
+        k = np.flatnonzero(np.isin(lx.w_letter, letters))
+        keys = lx.w_line[k].astype(np.int64) * 256 + lx.w_letter[k].astype(np.int64)
+        o = np.argsort(keys, kind="stable")
+        self.keys, self.word = keys[o], k[o]
+
+    def get(self, key, default=None):
+        li, letter = key
+        want = int(li) * 256 + ord(letter)
+        j = int(np.searchsorted(self.keys, want, side="right")) - 1
+        if j >= 0 and self.keys[j] == want:
+            return int(self.word[j])
+        return default
+
+    def __contains__(self, key):
+        return self.get(key) is not None
+
+    def __getitem__(self, key):
+        k = self.get(key)
+        if k is None:
+            raise KeyError(key)
+        return k
+
+
 class _Writer:
     def __init__(self, prog: Program, style: NumberStyle | None, lx=None):
         self.prog = prog
@@ -104,10 +134,7 @@ class _Writer:
         self.edits = _Edits()
         lx = self.lx
         nl = lx.n_lines
-        self.word_of = {}  # (line, letter) -> word index
-        for letter in "FSXYZIJKR":
-            for k in np.flatnonzero(lx.w_letter == ord(letter)):
-                self.word_of[(int(lx.w_line[k]), letter)] = int(k)
+        self.word_of = _WordIndex(lx)  # (line, letter) -> word index
         self.nl = nl
         data = lx.data
         self.eol = "\r\n" if b"\r\n" in data[:4096] else "\n"

@@ -47,6 +47,10 @@ class Plan:
     # (2, 3) mm: lowest and highest point of the feed moves' tool tip before corner blending
     # (the default stock's extent must not move with the feed-dependent blend trims); None: none
     feed_box: np.ndarray | None = None
+    # the feed-independent stages' output (common-frame records, tip shift, assembled segments,
+    # feed box, their warnings, the machine): a plan of the same path at other feeds starts
+    # from it (plan_program's ``like``)
+    geometry: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def tip_seg(self) -> np.ndarray:
@@ -383,8 +387,18 @@ def _filter_hold(c) -> tuple[int, float]:
     return FILTER_EXP, 5.0 * c.after_time
 
 
-def plan_program(program, machine) -> Plan:
-    """Plan a program on a machine: geometry, limits, corners, look-ahead, timing."""
+def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool = False) -> Plan:
+    """Plan a program on a machine: geometry, limits, corners, look-ahead, timing.
+
+    ``keep_geometry``: keep the feed-independent stages' output in the plan (a copy of the
+    segment table) so that ``like`` can reuse it.  ``like``: a plan of the same path (same
+    records but for their feeds) on the same machine, made with ``keep_geometry``; only the
+    limits, corners, look-ahead and timing are planned again (how the optimiser plans a
+    program at several feeds)."""
+    geom = _same_geometry(program, machine, like)
+    if geom is not None:
+        rec, shift, seg, feed_box, warnings = geom
+        return _plan_motion(rec, shift, seg, feed_box, warnings, machine, like.geometry)
     probe = (program.records["flags"] & R.FL_PROBE) != 0
     if probe.any():
         from ..errors import GCodeError, SourceLocation
@@ -408,7 +422,6 @@ def plan_program(program, machine) -> Plan:
     rec = R.in_common_frame(program.records, program.path, tool_offsets=True)
     shift = R.tip_shift(program.records, rec)
     warnings: list[str] = []
-    c = machine.controller
     motion = rec["kind"] != R.DWELL
     moves = motion_segments(rec)
     check_feeds(rec, moves, program.path)
@@ -420,6 +433,36 @@ def plan_program(program, machine) -> Plan:
         # a tool change after the last move (the tool put away before M30)
         pauses.append((len(rec) - 1, 4, CAT_TOOL, machine.timing.tool_change, end_change))
     seg = _assemble(rec, moves, pauses)
+    feed_box = _feed_box(seg, shift) if len(seg) else None
+    geometry = (program.records, rec, shift, seg.copy(), feed_box, list(warnings), machine) if keep_geometry else None
+    return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry)
+
+
+def _same_geometry(program, machine, like):
+    """``like``'s geometry with ``program``'s feeds, when ``program`` is its path at other feeds."""
+    if like is None or like.geometry is None:
+        return None
+    src, rec0, shift, seg0, feed_box, warnings, machine0 = like.geometry
+    new = program.records
+    if (machine0 is not machine and machine0 != machine) or len(new) != len(src):
+        return None
+    for name in ("kind", "flags", "sx", "sy", "sz", "x", "y", "z", "spindle", "spindle_dir", "tool", "line"):
+        if not np.array_equal(new[name], src[name]):
+            return None
+    seg = seg0.copy()  # (the later stages write limits into it)
+    moving = seg["kind"] != PAUSE
+    seg["feed"][moving] = new["feed"][seg["rec"][moving]] / 60.0
+    bad = moving & (seg["rapid"] == 0) & (seg["feed"] <= 0) & (seg["length"] > 0)
+    if bad.any():
+        i = int(seg["rec"][np.argmax(bad)])
+        check_feeds(new[i:i + 1], seg[bad][:1], program.path)
+    # (the later stages read the records' frames, flags and tolerances, not their feeds)
+    return rec0, shift, seg, feed_box, list(warnings)
+
+
+def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry) -> Plan:
+    """The feed-dependent stages: motion limits, corners, look-ahead, S-curve timing."""
+    c = machine.controller
     if len(rec):
         start = np.array([rec["sx"][0], rec["sy"][0], rec["sz"][0]])
     else:
@@ -427,7 +470,6 @@ def plan_program(program, machine) -> Plan:
     if not len(seg):
         return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), start,
                     warnings, shift)
-    feed_box = _feed_box(seg, shift)
     style = STYLE_CODES[c.style]
     if seg["kind"].size:
         canned = (rec["flags"][seg["rec"]] & R.FL_CANNED) != 0
@@ -458,7 +500,7 @@ def plan_program(program, machine) -> Plan:
     prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
-    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift, feed_box)
+    return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift, feed_box, geometry)
 
 
 def _feed_box(seg: np.ndarray, shift) -> np.ndarray | None:

@@ -87,31 +87,35 @@ def path_model(twin, program, plan, eng, kscale=None) -> PathModel:
     pos = np.clip((before[step_seg] + s_in) / np.maximum(rec_len[step_rec], 1e-12), 0.0, 1.0)
     length = seg_len[step_seg] / cnt
 
-    S = eng.sums.astype(np.float64)
-    q = eng.q.astype(np.float64)
+    S, q = eng.sums, eng.q  # (float32 step tables: only the columns used are widened)
     mat = _program_cutting(twin, program).material
     k = (mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae)
-    ax = k[0] * S[:, EK.SX_TC] + k[1] * S[:, EK.SX_RC] + k[2] * S[:, EK.SX_AC]
-    bx = k[3] * S[:, EK.SX_TE] + k[4] * S[:, EK.SX_RE] + k[5] * S[:, EK.SX_AE]
-    ay = k[0] * S[:, EK.SY_TC] + k[1] * S[:, EK.SY_RC] + k[2] * S[:, EK.SY_AC]
-    by = k[3] * S[:, EK.SY_TE] + k[4] * S[:, EK.SY_RE] + k[5] * S[:, EK.SY_AE]
-    ta = k[0] * S[:, EK.ST_TC] * 1e-3
-    tb = k[3] * S[:, EK.ST_TE] * 1e-3
+    ax = k[0] * _f64(S, EK.SX_TC) + k[1] * _f64(S, EK.SX_RC) + k[2] * _f64(S, EK.SX_AC)
+    bx = k[3] * _f64(S, EK.SX_TE) + k[4] * _f64(S, EK.SX_RE) + k[5] * _f64(S, EK.SX_AE)
+    ay = k[0] * _f64(S, EK.SY_TC) + k[1] * _f64(S, EK.SY_RC) + k[2] * _f64(S, EK.SY_AC)
+    by = k[3] * _f64(S, EK.SY_TE) + k[4] * _f64(S, EK.SY_RE) + k[5] * _f64(S, EK.SY_AE)
+    ta = k[0] * _f64(S, EK.ST_TC) * 1e-3
+    tb = k[3] * _f64(S, EK.ST_TE) * 1e-3
     if kscale is not None and len(kscale):
         for v in (ax, bx, ay, by, ta, tb):
             v *= kscale
     hand = np.where(program.records["spindle_dir"][step_rec] < 0, -1.0, 1.0)
-    dx, dy = q[:, EK.Q_DX], q[:, EK.Q_DY]
+    dx, dy = _f64(q, EK.Q_DX), _f64(q, EK.Q_DY)
     yx, yy = -dy * hand, dx * hand
     fa = np.stack([ax * dx + ay * yx, ax * dy + ay * yy], axis=1)
     fb = np.stack([bx * dx + by * yx, bx * dy + by * yy], axis=1)
-    cutting = (q[:, EK.Q_AREA] > 0.0) | (S[:, EK.ST_TE] > 0.0)
+    cutting = (_f64(q, EK.Q_AREA) > 0.0) | (_f64(S, EK.ST_TE) > 0.0)
     trow = eng.tool_index[step_seg]
     flutes = eng.tools[trow, 2]
     diameter = 2.0 * eng.tools[trow, 0]
     return PathModel(step_rec, pos, length, fa, fb, ta, tb, flutes, cutting,
                      program.records["tool"][step_rec].astype(np.int64), diameter,
-                     np.where(cutting, q[:, EK.Q_WMAX], 0.0), np.where(cutting, q[:, EK.Q_AE], 0.0))
+                     np.where(cutting, _f64(q, EK.Q_WMAX), 0.0), np.where(cutting, _f64(q, EK.Q_AE), 0.0))
+
+
+def _f64(a: np.ndarray, col: int) -> np.ndarray:
+    """One column of a float32 step table, widened."""
+    return a[:, col].astype(np.float64)
 
 
 def _within(count: np.ndarray) -> np.ndarray:
@@ -121,6 +125,9 @@ def _within(count: np.ndarray) -> np.ndarray:
         return np.zeros(0, np.int64)
     starts = np.repeat(np.cumsum(count) - count, count)
     return np.arange(n) - starts
+
+
+_TABLE_BLOCK = 8192  # records per block of MoveTimes.table
 
 
 @dataclass
@@ -143,6 +150,17 @@ class MoveTimes:
     def table(self, rec: np.ndarray, feeds_mm_min: np.ndarray, frac: np.ndarray | float = 1.0) -> np.ndarray:
         """Times of the records ``rec`` at each of ``feeds_mm_min`` (one grid for all): (n, G)."""
         ug = 60.0 / np.maximum(np.asarray(feeds_mm_min, float), 1e-9)
+        rec = np.asarray(rec)
+        frac = np.broadcast_to(np.asarray(frac, float), rec.shape)
+        out = np.empty((len(rec), len(ug)))
+        # in blocks of rows: the (rows, G) temporaries stay small and are reused, where an hour's
+        # 100,000 records at once would spend most of the time faulting in fresh pages
+        for a in range(0, len(rec), _TABLE_BLOCK):
+            b = min(a + _TABLE_BLOCK, len(rec))
+            out[a:b] = self._table(rec[a:b], ug, frac[a:b])
+        return out
+
+    def _table(self, rec: np.ndarray, ug: np.ndarray, frac: np.ndarray) -> np.ndarray:
         U = self.u[rec]
         D = self.dur[rec]
         K = U.shape[1]
@@ -157,7 +175,7 @@ class MoveTimes:
             a = np.where(u1 > u0, (ug[None, :] - u0) / (u1 - u0), 0.0)
         t = np.maximum(d0 + np.maximum(a, 0.0) * (d1 - d0), 0.0)
         scale = np.where(self.length[rec] > 0, 1.0, 0.0) * frac
-        return t * np.asarray(scale)[:, None]
+        return t * scale[:, None]
 
 
 def move_times(program, plan, plans_at: list[tuple[float, object]]) -> MoveTimes:

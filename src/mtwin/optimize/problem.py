@@ -254,12 +254,24 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     torque_tab = np.zeros((S, GRID))
     if len(idx):
         b = np.minimum(bounds, len(idx) - 1)
+        # (the steps gathered once, not once per grid point; a step that does not cut adds 0)
+        cut = model.cutting[idx]
+        ax, ay = model.fa[idx, 0] * cut, model.fa[idx, 1] * cut
+        bx, by = model.fb[idx, 0] * cut, model.fb[idx, 1] * cut
+        ta, tb = model.ta[idx] * cut, model.tb[idx] * cut
+        L, u, v = np.empty(len(idx)), np.empty(len(idx)), np.empty(len(idx))
         for g, fz in enumerate(fz_grid):
-            L = np.hypot(fz * model.fa[idx, 0] + model.fb[idx, 0], fz * model.fa[idx, 1] + model.fb[idx, 1])
-            L *= model.cutting[idx]
-            T = (fz * model.ta[idx] + model.tb[idx]) * model.cutting[idx]
-            load_tab[:, g] = np.where(present, np.maximum.reduceat(L, b), 0.0)
-            torque_tab[:, g] = np.where(present, np.maximum.reduceat(T, b), 0.0)
+            np.multiply(ax, fz, out=u)
+            u += bx
+            np.multiply(ay, fz, out=v)
+            v += by
+            np.hypot(u, v, out=L)
+            load_tab[:, g] = np.maximum.reduceat(L, b)
+            np.multiply(ta, fz, out=u)
+            u += tb
+            torque_tab[:, g] = np.maximum.reduceat(u, b)
+        load_tab[~present] = 0.0
+        torque_tab[~present] = 0.0
     # (its 95th percentile by length, like the learned level it is held to: the chip a program
     # runs at for a twentieth of a cut, not at a one-step entry)
     seg_chip = percentile_by_group(st, model.chip[idx], model.length[idx] * model.cutting[idx], S, 95.0)

@@ -120,7 +120,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     m = twin.machine
     stage = stage or (lambda text: None)
     stage("simulating the program")
-    plan = twin.plan(program)
+    plan = twin.plan(program, keep_geometry=True)  # (the plans at other feeds below reuse its geometry)
     before = simulate_plan(twin, program, plan, stock=stock)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that scale the cutting coefficients along the path (tool wear) act on the estimate too
@@ -176,7 +176,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     # the planner's own times at a few uniform feeds over the range (acceleration, jerk and
     # look-ahead over short blocks are in them; a formula in L/F misses them on short moves)
     levels_f = np.geomspace(feed_range[0], feed_range[1], TIME_LEVELS)
-    times = move_times(program, plan, [(float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"])))
+    times = move_times(program, plan, [(float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"]), like=plan))
                                        for F in levels_f])
 
     # ---- the limits: given, or learned per tool from the program as written
@@ -358,6 +358,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     cap = np.full(prob.nvar, np.inf)
     prev = _previous_var(segs, prob)  # the segment run just before each variable's first
     ce_before = contour_error(before)
+    loads_before = _Loads.of(before, limits)
     while True:
         round_ += 1
         stage(f"writing and re-simulating (round {round_})")
@@ -377,15 +378,16 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         else:
             after = tw_after.simulate(new, stock=stock)
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
-        over_v = _ratios(after, segs, prob, limits, seg_after)
+        loads_after = loads_before if after is before else _Loads.of(after, limits)
+        over_v = _ratios(loads_after, segs, prob, seg_after)
         ce_after = ce_before if after is before else contour_error(after)
         if round_ == 1:
             seg_before, rec_before = _segment_of_samples(before, program, program, segs)
             force_min = float(prob.seg_force.min()) if len(prob.seg_force) else 1.0
-            base_outside = _outside_ratios(before, seg_before, rec_before, len(rec), limits, force_min)
+            base_outside = _outside_ratios(loads_before, seg_before, rec_before, len(rec), force_min)
             contour_before = _per_var(ce_before, seg_before, prob)
             contour_rec_before = _per_rec(ce_before, seg_before, rec_before, program)
-            own = _ratios(before, segs, prob, limits, seg_before) * 1.001
+            own = _ratios(loads_before, segs, prob, seg_before) * 1.001
             if opts.objective == "air":
                 # the air objective leaves the cuts alone: a limit the program already breaks
                 # there is the program's own, and must only not get worse
@@ -398,7 +400,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         # moves outside the segments (plunges, canned cycles, rapids) keep their feeds, but a
         # faster move before them changes how they are entered: each must stay within the
         # limits, or within what it had in the program; otherwise the segment before is slowed
-        out_now = _outside_ratios(after, seg_after, rec_after, len(rec), limits, force_min)
+        out_now = _outside_ratios(loads_after, seg_after, rec_after, len(rec), force_min)
         worse = out_now > np.maximum(1.0, base_outside * 1.01)
         blame = np.zeros(prob.nvar)
         if worse.any():
@@ -503,8 +505,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         feeds = _approach_feeds(prob, segs, feeds * scale, program, keep) / scale
 
     est = prob.evaluate(f_try[None, :], s_try[None, :])
-    fig_before = _figures(before, program, segs, prob, rates, seg_before)
-    fig_after = _figures(after, new, segs, prob, rates, seg_after)
+    fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
+    fig_after = _figures(after, new, segs, prob, rates, seg_after, loads_after.load)
     contour = {"before": float(np.max(ce_before[seg_before >= 0], initial=0.0)),
                "after": float(np.max(ce_after[seg_after >= 0], initial=0.0)), "tolerance": opts.tolerance,
                "worst_segment_increase": float(np.max(contour_after - contour_before, initial=0.0))}
@@ -728,11 +730,23 @@ def _runups(prob, program, plan, segs, machine) -> None:
     prob.runup_acc = machine.spindle.acceleration
 
 
-def _ratios(trace, segs, prob, limits, seg_of: np.ndarray) -> np.ndarray:
+@dataclass
+class _Loads:
+    """Per sample of a simulated trace, worked out once: the horizontal cutting load (N) and
+    the larger of spindle power and torque over the machine's limits."""
+
+    load: np.ndarray
+    machine: np.ndarray
+
+    @classmethod
+    def of(cls, trace, limits) -> "_Loads":
+        return cls(np.hypot(trace.signal("fx"), trace.signal("fy")), _sample_ratio(trace, limits))
+
+
+def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray) -> np.ndarray:
     """Per variable, the largest ratio of load, spindle power or torque to its limit on a
     simulated trace (``seg_of``: the segment of every sample)."""
-    load = np.hypot(trace.signal("fx"), trace.signal("fy"))
-    ratio = np.maximum(load / prob.seg_force[np.maximum(seg_of, 0)], _sample_ratio(trace, limits))
+    ratio = np.maximum(loads.load / prob.seg_force[np.maximum(seg_of, 0)], loads.machine)
     inside = seg_of >= 0
     out = np.zeros(prob.nvar)
     _max_into(out, prob.seg_var[seg_of[inside]], ratio[inside])
@@ -816,12 +830,16 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
     splits = {}
     order = np.argsort(segs.piece_rec, kind="stable")
     pr = segs.piece_rec[order]
-    bounds = np.flatnonzero(np.diff(pr)) + 1
-    for grp in np.split(np.arange(len(pr)), bounds):
-        if not len(grp):
-            continue
-        r = int(pr[grp[0]])
-        idx = order[grp]
+    starts = np.flatnonzero(np.r_[True, pr[1:] != pr[:-1]]) if len(pr) else np.zeros(0, np.int64)
+    count = np.diff(np.r_[starts, len(pr)])
+    # a record in one piece (most) takes its piece's feed; only split records are walked
+    one = starts[count == 1]
+    r1, f1 = pr[one], f_piece[order[one]]
+    moved = f1 != rec["feed"][r1]
+    out[r1[moved]] = f1[moved]
+    for b, c in zip(starts[count > 1], count[count > 1]):
+        r = int(pr[b])
+        idx = order[b:b + c]
         fs = f_piece[idx]
         # merge neighbouring pieces whose feeds differ by under 1 % (the lower feed for both):
         # a split is worth its extra line only for a real change
@@ -846,13 +864,9 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
         for s in order_s:
             want[first_rec[s]] = spins[prob.seg_spin[s]]
         tool = rec["tool"]
-        cur = np.nan
-        for i in range(n):
-            if i > 0 and tool[i] != tool[i - 1]:
-                cur = np.nan
-            if not np.isnan(want[i]):
-                cur = want[i]
-            want[i] = cur
+        # (carried forward within each run of one tool: a tool change starts with none)
+        fresh = ~np.isnan(want) | np.r_[True, tool[1:] != tool[:-1]]
+        want = want[np.maximum.accumulate(np.where(fresh, np.arange(n), 0))]
         # a tool's records before its first segment: that segment's speed
         for t in np.unique(tool):
             m = np.flatnonzero(tool == t)
@@ -920,7 +934,7 @@ def _sample_ratio(trace, limits) -> np.ndarray:
                       np.asarray(trace.signal("spindle_torque")) / t_lim)
 
 
-def _outside_ratios(trace, seg_of, rec_of, nrec, limits, force) -> np.ndarray:
+def _outside_ratios(loads: _Loads, seg_of, rec_of, nrec, force) -> np.ndarray:
     """Per original record, the largest machine-limit ratio (spindle power, torque) and the
     largest cutting load over the load limit ``force``, over the samples outside the
     segments, as one array of (2 * nrec) — compared between the program and its rewrite."""
@@ -929,9 +943,8 @@ def _outside_ratios(trace, seg_of, rec_of, nrec, limits, force) -> np.ndarray:
     if not m.any():
         return out
     r = rec_of[m]
-    _max_into(out, r, _sample_ratio(trace, limits)[m])
-    load = np.hypot(trace.signal("fx"), trace.signal("fy"))[m]
-    _max_into(out, nrec + r, load / force)
+    _max_into(out, r, loads.machine[m])
+    _max_into(out, nrec + r, loads.load[m] / force)
     return out
 
 
@@ -956,8 +969,9 @@ def _blame_previous(seg_of, rec_of, worse, prob, excess) -> np.ndarray:
     return out
 
 
-def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray) -> Figures:
-    """Before/after figures of a simulated trace (``seg_of``: the segment of every sample)."""
+def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray, load: np.ndarray) -> Figures:
+    """Before/after figures of a simulated trace (``seg_of``: the segment of every sample,
+    ``load``: its horizontal cutting load)."""
     sm = trace.summary
     c = sm.cutting
     p = np.asarray(trace.signal("spindle_power"))
@@ -975,7 +989,6 @@ def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray) -> Figures:
     cv = float(np.std(means) / np.mean(means)) if len(means) > 1 and np.mean(means) > 0 else None
     # cost from the trace: time, and per tool the time in cut at its speed
     dt = float(np.median(np.diff(trace.t))) if len(trace.t) > 1 else 0.0
-    load = np.hypot(trace.signal("fx"), trace.signal("fy"))
     engaged = load > 0
     tool = prog.records["tool"][np.clip(np.asarray(trace.record, np.int64), 0, len(prog.records) - 1)]
     wear = 0.0

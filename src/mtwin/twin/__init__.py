@@ -116,15 +116,17 @@ class Twin:
         tw.engagement_cache = self.engagement_cache
         return tw
 
-    def plan(self, program, *, feeds=None, spindles=None):
+    def plan(self, program, *, feeds=None, spindles=None, like=None, keep_geometry: bool = False):
         """NCK stages: segments, limits, corners, look-ahead, timing.
 
         ``feeds`` / ``spindles``: per-record feed (mm/min) and spindle speed (rpm) replacing the
         program's, without rewriting it — how an optimiser tries F and S values; the path,
-        and so the cached engagement, stays the same."""
+        and so the cached engagement, stays the same.  ``like``: a plan of the same path (by
+        this twin, made with ``keep_geometry``) whose feed-independent stages are reused when
+        only the feeds differ."""
         from ..motion.planner import plan_program
 
-        return plan_program(_with_overrides(program, feeds, spindles), self.planned_machine)
+        return plan_program(_with_overrides(program, feeds, spindles), self.planned_machine, like, keep_geometry)
 
     @property
     def planned_machine(self):
