@@ -39,7 +39,7 @@ def test_shdr_log_with_its_quirks(tmp_path):
     assert is_mtconnect(str(p))
     m = read_mtconnect(str(p))
     assert m.meta["program"] == "PART.NC" and m.meta["runs"] == "2" and m.meta["complete"] == "yes"
-    assert m.meta["overrides"].startswith("not logged")
+    assert m.meta["overrides"] == "feed, rapid, spindle not logged: 100 % assumed"
     assert m.meta["feed_holds_s"] == "1.875-3.875"  # FEED_HOLD .. ACTIVE, from the run's start
     # Block_Number logged before ACTIVE is the run's first line; the broken record (a value
     # alone on the next line) is joined back; Program_Runtime_Seconds is not a column

@@ -165,8 +165,9 @@ def test_malformed_logs_are_clear_errors(tmp_path, log, where, what):
 
 
 def test_overrides_and_holds(tmp_path):
-    # a feed hold is taken out of its group's time; a group run at 50 % feed override is
-    # left out and listed
+    # a feed hold is taken out of its group's time; a group during which the feed override
+    # stood at 0 % (the operator held the machine) is left out and listed (any other override
+    # the twin replays: tests/test_logs_as_run.py)
     from mtwin.loop.blocks import measurement_groups
     from mtwin.loop.mtconnect import read_mtconnect
 
@@ -175,14 +176,14 @@ def test_overrides_and_holds(tmp_path):
         "2020-01-01T00:00:00.0Z|Program_Name_Running|PART.NC|Program_Status|ACTIVE|Feed_Override|100\n"
         "2020-01-01T00:00:00.2Z|Block_Number|3\n2020-01-01T00:00:01.0Z|Execution|FEED_HOLD\n"
         "2020-01-01T00:00:04.0Z|Execution|ACTIVE\n2020-01-01T00:00:04.5Z|Block_Number|4\n"
-        "2020-01-01T00:00:05.5Z|Block_Number|5|Feed_Override|50\n2020-01-01T00:00:07.0Z|Feed_Override|100\n"
+        "2020-01-01T00:00:05.5Z|Block_Number|5|Feed_Override|0\n2020-01-01T00:00:07.0Z|Feed_Override|100\n"
         "2020-01-01T00:00:07.5Z|Block_Number|6\n2020-01-01T00:00:08.5Z|Program_Status|PROGRAM_COMPLETED\n")
     m = read_mtconnect(str(tmp_path / "log.txt"))
     g = measurement_groups(mtwin.Twin().load(str(tmp_path / "PART.NC")), m)
     assert g.hold_time == pytest.approx(3.0)
     assert list(g.first_line) == [3, 4, 6]
     assert g.measured[0] == pytest.approx(4.3 - 3.0)
-    assert [x["first_line"] for x in g.excluded] == [5] and "50" in g.excluded[0]["reason"]
+    assert [x["first_line"] for x in g.excluded] == [5] and "0 % (the machine held)" in g.excluded[0]["reason"]
 
 
 # ------------------------------------------------------------------ the NIST Hurco VMX24

@@ -967,6 +967,10 @@ def _print_blocks(b: dict) -> None:
 
 AnyProgramOpt = typer.Option(False, "--any-program", help="Accept a log whose program name is not the file's "
                              "(a renamed file).")
+IgnoreItemOpt = typer.Option(None, "--ignore-item", metavar="NAME",
+                             help="A data item of an MTConnect log to read past (an unknown item is an error).")
+PartialOpt = typer.Option(False, "--partial", help="A log whose run did not finish: compare the part that ran (up "
+                          "to the last line reached) instead of refusing it.")
 
 
 @app.command(short_help="Compare the twin with a measurement: errors, and where.")
@@ -984,6 +988,8 @@ def compare(
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
                                           help="Simulate tooth-passing forces (for a dynamometer's measurement)."),
     any_program: bool = AnyProgramOpt,
+    ignore_item: Optional[list[str]] = IgnoreItemOpt,
+    partial: bool = PartialOpt,
     effect: Optional[list[str]] = EffectOpt,
     effect_file: Optional[list[str]] = EffectFileOpt,
     stock: Optional[str] = typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm."),
@@ -999,27 +1005,28 @@ def compare(
     from .loop.compare import compare as run_compare
 
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
-                                       block_delete, any_program)
+                                       block_delete, any_program, ignore_item, partial)
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     cutting = not prog.turning_line()
     trace = tw.simulate(prog, stock=box, cutting=cutting, tooth_resolution=tooth_resolution)
-    res = run_compare(trace, meas, align, xcorr_signal)
+    res = run_compare(trace, meas, align, xcorr_signal, program=prog)
     for n in res.notes:
         err.print(f"note: {n}", soft_wrap=True)
-    blocks = None
-    if meas.t is not None and meas.line is not None and (meas.line > 0).any():
-        # per-block timing: the measured line changes against the interpolator's
-        from .loop.blocks import measurement_block_timing
-
-        blocks = measurement_block_timing(prog, meas, trace)
+    blocks = res.blocks
+    if blocks is not None:
         res_blocks = blocks.as_dict(prog.data.decode("latin-1").split("\n"))
         if blocks.hold_time > 0:
             err.print(f"note: {blocks.hold_time:.1f} s of feed hold taken out of the measured times", soft_wrap=True)
+        for x in blocks.stops:
+            where = (f"line {x['line']} ({x['state']})" if "line" in x else
+                     f"{x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']})")
+            err.print(f"note: program stop at {where}: waited {x['wait']:.1f} s — the operator's time, taken out of "
+                      f"the block timing and the cycle time", soft_wrap=True)
         for x in blocks.excluded[:5]:
             err.print(f"note: lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} "
                       f"at {x['t0']:.1f}–{x['t1']:.1f} s", soft_wrap=True)
         if len(blocks.excluded) > 5:
-            err.print(f"note: {len(blocks.excluded) - 5} more block groups left out (overrides)", soft_wrap=True)
+            err.print(f"note: {len(blocks.excluded) - 5} more block groups left out (the machine held)", soft_wrap=True)
     if report:
         from .loop.journal import read_journal
         from .report.compare_html import compare_html
@@ -1028,10 +1035,7 @@ def compare(
                      [part, measurement])
         err.print(f"wrote {report}", soft_wrap=True)
     if json_out:
-        doc = res.as_dict()
-        if blocks is not None:
-            doc["blocks"] = res_blocks
-        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        sys.stdout.write(json.dumps(res.as_dict(prog.data.decode("latin-1").split("\n")), indent=2) + "\n")
         return
     from rich.table import Table
 
@@ -1065,17 +1069,26 @@ def compare(
 
 
 def _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient, block_delete,
-                 any_program=False):
-    """The twin (with its effects and --effect), the program, the measurement, the stock."""
-    from .loop.measurement import read_measurement
-
-    meas = read_measurement(measurement, maps)
+                 any_program=False, ignore_item=None, partial=False):
+    """The twin (with its effects and --effect), the program as the measurement says it ran
+    (a control's logged overrides applied; up to the last line reached with --partial), the
+    measurement, the stock."""
     tw, settings, box = _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stock)
-    prog = _load(part, settings)
-    from .loop.measurement import check_against_program
-
-    check_against_program(meas, prog, any_program)
+    prog, meas = _measured_program(_load(part, settings), measurement, maps, any_program, ignore_item, partial)
     return tw, prog, meas, box
+
+
+def _measured_program(prog, measurement, maps, any_program, ignore_item, partial):
+    """(the program as it ran, the measurement) for a measurement file of ``prog``."""
+    from .loop.asrun import as_run
+    from .loop.measurement import check_against_program, read_measurement
+
+    meas = read_measurement(measurement, maps, ignore_item or ())
+    check_against_program(meas, prog, any_program)
+    run = as_run(prog, meas, partial)
+    for n in run.notes:
+        err.print(f"note: {measurement}: {n}", soft_wrap=True, highlight=False)
+    return run.program, run.measurement
 
 
 SignalsOpt = typer.Option(None, "--signals", help="Comma-separated signals to use (default: all in both).")
@@ -1105,6 +1118,8 @@ def diagnose(
                                              "not yet in the twin)."),
     objective: str = ObjectiveOpt,
     any_program: bool = AnyProgramOpt,
+    ignore_item: Optional[list[str]] = IgnoreItemOpt,
+    partial: bool = PartialOpt,
     align: str = AlignOpt,
     maps: Optional[list[str]] = MapOpt,
     json_out: bool = typer.Option(False, "--json", help="The diagnosis as JSON on stdout."),
@@ -1124,7 +1139,7 @@ def diagnose(
     from .loop.fit import target
 
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
-                                       block_delete, any_program)
+                                       block_delete, any_program, ignore_item, partial)
     if _objective(objective, meas, None) == "timing":
         from .loop.timing import diagnose_timing, timing_case
 
@@ -1169,6 +1184,8 @@ def calibrate(
     refit: bool = typer.Option(False, "--refit", help="Fit the twin's own effects again too, together with the new ones."),
     objective: str = ObjectiveOpt,
     any_program: bool = AnyProgramOpt,
+    ignore_item: Optional[list[str]] = IgnoreItemOpt,
+    partial: bool = PartialOpt,
     signals: Optional[str] = SignalsOpt,
     align: str = AlignOpt,
     maps: Optional[list[str]] = MapOpt,
@@ -1190,14 +1207,12 @@ def calibrate(
     from .effects import parse_effect_spec
     from .loop.fit import fit, target
     from .loop.journal import calibrated_text, journal_entry, read_journal
-    from .loop.measurement import check_against_program, read_measurement
-
     if not fit_effect and not param and not refit:
         raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects), --param NAME or --refit")
     if more and len(more) % 2:
         raise MtwinError(f"more programs come in pairs PART MEASUREMENT: {more[-1]} has no measurement")
     tw, prog, meas, box = _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dialect, lenient,
-                                       block_delete, any_program)
+                                       block_delete, any_program, ignore_item, partial)
     new = [parse_effect_spec(e) for e in fit_effect or ()]
     own = {e.name for e in tw.effects}
     from .twin import Twin as _Twin
@@ -1220,8 +1235,8 @@ def calibrate(
 
         cases = [timing_case(tw, prog, meas, os.path.basename(measurement))]
         for p_i, m_i in pairs[1:]:
-            prog_i, meas_i = _load(p_i, tw.interpreter), read_measurement(m_i, maps)
-            check_against_program(meas_i, prog_i, any_program)
+            prog_i, meas_i = _measured_program(_load(p_i, tw.interpreter), m_i, maps, any_program, ignore_item,
+                                               partial)
             cases.append(timing_case(tw, prog_i, meas_i, os.path.basename(m_i)))
         res = fit_timing(tw, cases, new, tuple(param or ()))
     else:
@@ -1236,8 +1251,8 @@ def calibrate(
     if validate:
         fitted_base = tw.with_params(base) if base else tw
         tw2 = _Twin(fitted_base.machine, tw.interpreter, tw.path, fitted_base.cutting, effects)
-        meas2 = read_measurement(validate, maps)
-        check_against_program(meas2, prog, any_program)
+        prog, meas2 = _measured_program(_load(part, tw.interpreter), validate, maps, any_program, ignore_item,
+                                        partial)
         if how == "timing":
             v = summary(tw2, [timing_case(tw2, prog, meas2, validate)])
             validation = {"measurement": validate, "block_time": v["rms"], "cycle_error": v["cases"][0]["cycle_error"]}

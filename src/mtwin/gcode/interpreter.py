@@ -79,6 +79,9 @@ class Program:
     expanded: object = None  # gcode.macro.Expanded: the straight-line program that was run
     unknown_calls: tuple = ()  # lines calling a program not at hand (--lenient): not simulable
     end_tool_change: int = 0  # line of a tool change after the last move (0: none)
+    # per record, the fraction of the machine's rapid speed its rapids run at (a logged rapid
+    # override the twin replays, mtwin.loop.asrun); None: 100 %
+    rapid_scale: np.ndarray | None = None
 
     @property
     def path(self) -> str:

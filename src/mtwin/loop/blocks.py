@@ -20,11 +20,17 @@ import numpy as np
 from ..gcode import records as R
 
 _TOOL_CHANGE = re.compile(rb"M0*6(?!\d)")
+_PROGRAM_STOP = re.compile(rb"M0*[01](?![\d.])")  # M00 / M01 (M0, M1): the control may wait for the operator
 _END = re.compile(rb"M(?:0*30|0*2)(?!\d)")
 
 KINDS = ("tool change", "program end", "drilling cycle", "plunge", "small arc", "short line", "rapid", "feed",
          "other")
 NOISE_FLOOR = 0.15  # s per logged group, the same code run twice (NIST Hurco logs)
+HELD = 1.0  # %: an override below this holds the machine (its time is the operator's)
+# s: a block group at an M00/M01 that took this long waited for the operator.  Shorter ones
+# are the machine's own time (an M01 with optional stop off still takes 2-5 s on the NIST
+# Hurco plates: the spindle and coolant stopping) and stay in the block timing.
+STOP_MIN = 10.0
 
 
 @dataclass
@@ -34,8 +40,14 @@ class BlockTiming:
     measured: np.ndarray  # (groups,) s
     simulated: np.ndarray  # (groups,) s
     kind: list  # (groups,) KINDS
-    excluded: list = field(default_factory=list)  # groups left out (overrides), with the reason
+    excluded: list = field(default_factory=list)  # groups left out (the machine held at 0 % override)
     hold_time: float = 0.0  # s of feed hold taken out of the measured durations
+    stops: list = field(default_factory=list)  # dicts: program stops (M00/M01 waits, logged stop states)
+
+    @property
+    def stop_time(self) -> float:
+        """s the program stood at program stops (taken out of the block timing)."""
+        return float(sum(x["wait"] for x in self.stops))
 
     @property
     def error(self) -> np.ndarray:
@@ -62,7 +74,8 @@ class BlockTiming:
     def as_dict(self, text=None) -> dict:
         return {"groups": len(self.measured), "rms": float(np.sqrt(np.mean(self.error ** 2))) if len(self.error) else None,
                 "noise_floor_per_group": NOISE_FLOOR, "by_kind": self.by_kind(), "worst": self.worst(10, text),
-                "excluded": self.excluded, "feed_hold_s": self.hold_time}
+                "excluded": self.excluded, "feed_hold_s": self.hold_time, "program_stops": self.stops,
+                "program_stop_s": self.stop_time}
 
 
 def line_starts(t: np.ndarray, line: np.ndarray) -> dict:
@@ -131,10 +144,20 @@ class Groups:
     first_line: np.ndarray  # (groups,) the reported line
     next_line: np.ndarray  # (groups,) the next group's reported line, 0 for the last group
     last_line: np.ndarray  # (groups,)
-    measured: np.ndarray  # (groups,) s, feed-hold time taken out
+    measured: np.ndarray  # (groups,) s, feed-hold and logged stop time taken out
     kind: list
-    excluded: list  # dicts: groups left out (overrides away from 100 %), with the reason
+    excluded: list  # dicts: groups left out (the machine held at 0 % override), with the reason
     hold_time: float  # s of feed hold inside the run (taken out of the measured durations)
+    # dicts: groups at an M00/M01 (first_line, last_line, code, t0, t1, measured): their time is
+    # the operator's, not the program's — left out of the arrays above
+    stop_groups: list = field(default_factory=list)
+    # dicts: program stops the control logged (t0, t1, state), taken out of the durations
+    logged_stops: list = field(default_factory=list)
+
+    @property
+    def stop_time(self) -> float:
+        """s of logged program stops inside the run."""
+        return float(sum(x["t1"] - x["t0"] for x in self.logged_stops))
 
 
 def _overlap(a0: float, a1: float, spans) -> float:
@@ -142,18 +165,23 @@ def _overlap(a0: float, a1: float, spans) -> float:
 
 
 def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end: float | None = None,
-                    holds=(), overrides: dict | None = None) -> Groups:
+                    holds=(), overrides: dict | None = None, stops=()) -> Groups:
     """Block groups of a measurement: each reported line and the unreported ones after it,
-    with its measured duration.  ``holds``: (t0, t1) feed-hold intervals, taken out of the
-    durations they fall in; ``overrides``: signal -> % per sample (feed, spindle override):
-    a group run at anything but 100 % is left out and listed (its time is not the program's)."""
+    with its measured duration.  ``holds``: (t0, t1) feed-hold intervals and ``stops``: (t0,
+    t1, state) program stops the control logged, taken out of the durations they fall in;
+    ``overrides``: signal -> % per sample (feed, rapid, spindle override), which the twin
+    applies (:mod:`mtwin.loop.asrun`): a group during which one stood at 0 % (the operator held
+    the machine) is left out and listed.  A group at an M00 or M01 that took STOP_MIN or
+    longer is set apart (``stop_groups``): how long the control waited there is the
+    operator's time."""
     ms = line_starts(meas_t, meas_line)
     reported = sorted(ms, key=lambda ln: ms[ln])
     end = float(meas_t[-1]) if meas_end is None else float(meas_end)
     n_lines = int(program.data.count(b"\n") + 1)
     spans = tool_change_spans(program)
     text_lines = program.data.split(b"\n")
-    firsts, nexts, lasts, meas, kinds, excluded = [], [], [], [], [], []
+    firsts, nexts, lasts, meas, kinds, excluded, stop_groups = [], [], [], [], [], [], []
+    stop_spans = [(a, b) for a, b, _ in stops]
     for k, ln in enumerate(reported):
         nxt = reported[k + 1] if k + 1 < len(reported) else None
         if nxt is not None and nxt <= ln:
@@ -164,25 +192,43 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
         if why:
             excluded.append({"first_line": ln, "last_line": last, "t0": t0, "t1": t1, "reason": why})
             continue
+        d = t1 - t0 - _overlap(t0, t1, holds) - _overlap(t0, t1, stop_spans)
+        code, at = _stop_code(text_lines[ln - 1:last])
+        if code and d >= STOP_MIN:
+            stop_groups.append({"first_line": ln, "last_line": last, "next_line": nxt or 0, "code": code,
+                                "line": ln + at, "t0": t0, "t1": t1, "measured": d})
+            continue
         firsts.append(ln)
         nexts.append(nxt or 0)
         lasts.append(last)
-        meas.append(t1 - t0 - _overlap(t0, t1, holds))
+        meas.append(d)
         kinds.append(classify(program, ln, last, nxt is None, spans, text_lines))
+    logged = [{"t0": a, "t1": b, "state": st} for a, b, st in stops]
     return Groups(np.array(firsts, np.int64), np.array(nexts, np.int64), np.array(lasts, np.int64),
-                  np.array(meas, np.float64), kinds, excluded, _overlap(0.0, end, holds))
+                  np.array(meas, np.float64), kinds, excluded, _overlap(0.0, end, holds), stop_groups, logged)
+
+
+def _stop_code(text: list) -> tuple[str, int]:
+    """('M00' or 'M01', its index in ``text``) when one of the lines stops the program
+    (comments left out), else ('', 0)."""
+    for k, ln in enumerate(text):
+        m = _PROGRAM_STOP.search(re.sub(rb"\([^)]*\)|;.*", b"", ln).upper().replace(b" ", b""))
+        if m:
+            return ("M01" if m.group(0).endswith(b"1") else "M00"), k
+    return "", 0
 
 
 def _overridden(t: np.ndarray, overrides, t0: float, t1: float) -> str:
-    """Why a group's time is not the program's: an override away from 100 % while it ran."""
+    """Why a group's time is not the program's: an override at 0 % while it ran (the
+    operator held the machine; any other value the twin applies)."""
     for name, v in (overrides or {}).items():
         # the value in force at t0 and every value logged before t1
         i0 = max(int(np.searchsorted(t, t0, "right")) - 1, 0)
         i1 = max(int(np.searchsorted(t, t1, "left")), i0 + 1)
         w = v[i0:i1]
         w = w[~np.isnan(w)]
-        if len(w) and (np.abs(w - 100.0) > 0.5).any():
-            return f"{name} {w[np.argmax(np.abs(w - 100.0))]:g} %"
+        if len(w) and (w < HELD).any():
+            return f"{name} {w.min():g} % (the machine held)"
     return ""
 
 
@@ -208,52 +254,37 @@ def simulated_durations(groups: Groups, lines: np.ndarray, starts: np.ndarray, s
 
 
 def block_timing(program, meas_t: np.ndarray, meas_line: np.ndarray, sim_t: np.ndarray, sim_line: np.ndarray,
-                 meas_end: float | None = None, holds=(), overrides: dict | None = None) -> BlockTiming:
+                 meas_end: float | None = None, holds=(), overrides: dict | None = None, stops=()) -> BlockTiming:
     """Measured and simulated durations of the measurement's block groups."""
-    return _against(measured_groups(program, meas_t, meas_line, meas_end, holds, overrides), sim_t, sim_line)
+    return _against(measured_groups(program, meas_t, meas_line, meas_end, holds, overrides, stops), sim_t, sim_line)
 
 
 def _against(g: Groups, sim_t, sim_line) -> BlockTiming:
     sim_t = np.asarray(sim_t)
     lines, starts = simulated_starts(sim_t, np.asarray(sim_line))
-    sim = simulated_durations(g, lines, starts, float(sim_t[-1]) if len(sim_t) else 0.0)
+    end = float(sim_t[-1]) if len(sim_t) else 0.0
+    sim = simulated_durations(g, lines, starts, end)
     ok = np.isfinite(sim)
+    stops = [{"state": x["state"], "t0": x["t0"], "t1": x["t1"],
+              "wait": x["t1"] - x["t0"]} for x in g.logged_stops]
+    for x in g.stop_groups:
+        # the wait: what the group took beyond the twin's time for its lines
+        sg = Groups(np.array([x["first_line"]]), np.array([x["next_line"]]), np.array([x["last_line"]]),
+                    np.array([x["measured"]]), ["program stop"], [], 0.0)
+        d = float(simulated_durations(sg, lines, starts, end)[0])
+        d = d if np.isfinite(d) else 0.0
+        stops.append({"line": x["line"], "first_line": x["first_line"], "last_line": x["last_line"], "state": x["code"],
+                      "t0": x["t0"], "t1": x["t1"], "measured": x["measured"], "simulated": d,
+                      "wait": max(0.0, x["measured"] - d)})
     return BlockTiming(g.first_line[ok], g.last_line[ok], g.measured[ok], sim[ok], [k for k, o in zip(g.kind, ok) if o],
-                       g.excluded, g.hold_time)
+                       g.excluded, g.hold_time, stops)
 
 
 def measurement_groups(program, meas) -> Groups:
-    """:func:`measured_groups` of a read measurement: its end time, feed holds and override
-    columns where it has them (an MTConnect log)."""
-    extra = getattr(meas, "extra", {}) or {}
-    overrides = {k: np.asarray(extra[k], np.float64) for k in ("feed_override", "spindle_override") if k in extra}
-    for k in ("feed_override", "spindle_override"):
-        if k in meas.signals:
-            overrides[k] = meas.signals[k]
-    end, holds = run_end_and_holds(meas)
-    return measured_groups(program, meas.t, meas.line, end, holds, overrides)
-
-
-def run_end_and_holds(meas):
-    """(end of the run in s or None, feed-hold intervals) of a measurement: read from an
-    MTConnect log, or from the metadata ``mtwin import mtconnect`` wrote into its file."""
-    end = getattr(meas, "end_time", None)
-    holds = getattr(meas, "holds", None)
-    meta = meas.meta or {}
-    if end is None and meta.get("cycle_time_s"):
-        try:
-            end = float(meta["cycle_time_s"])
-        except ValueError:
-            end = None
-    if holds is None:
-        holds = []
-        for part in filter(None, (x.strip() for x in meta.get("feed_holds_s", "").split(";"))):
-            a, _, b = part.partition("-")
-            try:
-                holds.append((float(a), float(b)))
-            except ValueError:
-                pass
-    return end, holds
+    """:func:`measured_groups` of a read measurement: its end time, feed holds, logged program
+    stops and override columns where it has them (a control's log)."""
+    overrides = {k: np.asarray(v, np.float64) for k, v in meas.extra.items() if k.endswith("_override")}
+    return measured_groups(program, meas.t, meas.line, meas.end_time, meas.holds, overrides, meas.stops)
 
 
 def measurement_block_timing(program, meas, trace) -> BlockTiming:

@@ -39,17 +39,43 @@ class Comparison:
     simulated: dict = field(repr=False, default_factory=dict)  # signal -> simulated values there
     line: np.ndarray = field(repr=False, default=None)  # program line of each sample (simulation's)
     notes: list = field(default_factory=list)
+    blocks: object = None  # blocks.BlockTiming: per-block timing against a log of the executing line
 
-    def as_dict(self) -> dict:
-        return {"alignment": self.alignment, "time_offset": self.time_offset, "cycle_time": self.cycle_time,
-                "signals": self.signals, "worst_regions": self.worst_regions, "notes": self.notes,
-                "units": "signals in the measurement format's units (docs/measurement-format.md); times in s"}
+    def as_dict(self, text=None) -> dict:
+        out = {"alignment": self.alignment, "time_offset": self.time_offset, "cycle_time": self.cycle_time,
+               "signals": self.signals, "worst_regions": self.worst_regions, "notes": self.notes,
+               "units": "signals in the measurement format's units (docs/measurement-format.md); times in s"}
+        if self.blocks is not None:
+            out["blocks"] = self.blocks.as_dict(text)
+        return out
 
 
-def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, regions: int = 10) -> Comparison:
-    """Compare a full-rate simulated ``trace`` with a time-series measurement ``meas``."""
+def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, regions: int = 10,
+            program=None) -> Comparison:
+    """Compare a full-rate simulated ``trace`` with a time-series measurement ``meas``.  With
+    the ``program`` and a measurement of the executing line, also the per-block timing (and
+    the measured cycle time without feed holds and program stops)."""
     if meas.is_summary:
         return compare_summary(trace, meas, regions)
+    res = _compare_series(trace, meas, align, xcorr_signal, regions)
+    if program is not None and meas.line is not None and (meas.line > 0).any():
+        from .blocks import measurement_block_timing
+
+        b = measurement_block_timing(program, meas, trace)
+        res.blocks = b
+        if meas.end_time is not None:
+            # the run as the program made it: the operator's holds and stops taken out
+            cyc_m = float(meas.end_time) - b.hold_time - b.stop_time
+            c = res.cycle_time
+            c["measured"] = cyc_m
+            c["relative_error"] = (c["simulated"] - cyc_m) / cyc_m if cyc_m > 0 else None
+            if b.hold_time > 0 or b.stop_time > 0:
+                res.notes.append(f"measured cycle time: the run's {float(meas.end_time):.3f} s less "
+                                 f"{b.hold_time:.1f} s of feed hold and {b.stop_time:.1f} s of program stops")
+    return res
+
+
+def _compare_series(trace, meas, align, xcorr_signal, regions) -> Comparison:
     common = [s for s in meas.signals if _has(trace, s)]
     if not common:
         ignored = f"; columns not in the measurement format, ignored: {', '.join(meas.ignored)}" if meas.ignored else ""
@@ -151,10 +177,11 @@ def compare_summary(trace, meas, regions: int = 10) -> Comparison:
             continue
         m, s = np.array(measured[c]), np.array(simulated[c])
         stats_out[c] = _metrics(m, s)
-        scale = float(np.sqrt(np.mean(m * m))) or 1.0
+        total = float(np.sum((m - s) ** 2)) or 1.0
         for (first, last), a, b in zip(where[c], m, s):
+            # (each row's share of the signal's squared error: they add up to 100 %)
             worst.append({"signal": c, "first_line": first, "last_line": last, "rms": float(abs(a - b)),
-                          "samples": 1, "share": float(abs(a - b) / scale)})
+                          "samples": 1, "share": float((a - b) ** 2 / total)})
     worst.sort(key=lambda d: -d["share"])
     cycle = {"measured": None, "simulated": float(trace.summary.cycle_time), "relative_error": None}
     return Comparison("line", 0.0, cycle, stats_out, worst[:regions], measured={k: np.array(v) for k, v in measured.items()},

@@ -29,6 +29,8 @@ UNITS = {**{a: "mm" for a in ("x", "y", "z")}, **{f"{a}_cmd": "mm" for a in "xyz
          "spindle_speed": "rpm", "spindle_power": "W", "spindle_torque": "N*m", "spindle_load": "%",
          "fx": "N", "fy": "N", "fz": "N", "ae": "mm", "ap": "mm", "mrr": "mm^3/s", "h_max": "mm"}
 STATS = ("mean", "rms", "std", "max", "min", "p2p")
+#: columns of a control's log that are not signals, and their units
+LOG_COLUMNS = {"tool": "", "feed_override": "%", "rapid_override": "%", "spindle_override": "%"}
 _KNOWN = set(SIGNALS) | {"spindle_load"}
 _HEADER_UNIT = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\[([^\]]*)\])?\s*$")
 
@@ -51,6 +53,16 @@ class Measurement:
     meta: dict[str, str] = field(default_factory=dict)
     ignored: list[str] = field(default_factory=list)
     rows: list = field(default_factory=list)
+    # a control's log (an MTConnect log, or a file `mtwin import mtconnect` wrote):
+    #: columns that are not signals, per sample: ``tool``, ``feed_override``,
+    #: ``rapid_override``, ``spindle_override`` (%)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    end_time: float | None = None  #: s, the end of the run (its last record may be after the last sample)
+    holds: list = field(default_factory=list)  #: (t0, t1) s: feed holds
+    stops: list = field(default_factory=list)  #: (t0, t1, state) s: program stops the control logged
+    complete: bool | None = None  #: whether the run reached its end (None: not known)
+    runs: list = field(default_factory=list)  #: the runs of the log (mtconnect.Run)
+    source_line: np.ndarray | None = None  #: the log line of each sample
 
     @property
     def is_summary(self) -> bool:
@@ -111,15 +123,16 @@ def check_against_program(meas: Measurement, program, any_program: bool = False)
                                where)
 
 
-def read_measurement(path: str, maps=()) -> Measurement:
-    """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there)."""
+def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
+    """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there), or
+    an MTConnect log (``ignore_items``: its data items to read past)."""
     mapping = parse_maps(maps)
     name = str(path)
     if not name.endswith(".parquet") and name != "-":
         from .mtconnect import is_mtconnect, read_mtconnect
 
         if is_mtconnect(name):  # an MTConnect log (SHDR or agent XML): read directly
-            return read_mtconnect(name)
+            return read_mtconnect(name, ignore_items=ignore_items)
     if name.endswith(".parquet"):
         header, rows, meta, first_row = _read_parquet(name)
     else:
@@ -137,6 +150,13 @@ def read_measurement(path: str, maps=()) -> Measurement:
             cols.append((f"<column {j + 1}: {h.strip()}>", 1.0))
             continue
         base, unit = m.group(1), m.group(2)
+        if base.lower() in LOG_COLUMNS:
+            # a control's log as `mtwin import mtconnect` writes it: the tool and the overrides
+            if unit is not None and unit.strip() != LOG_COLUMNS[base.lower()]:
+                raise MeasurementError(f"column {base!r} is in {LOG_COLUMNS[base.lower()] or 'no unit'}, got [{unit}]",
+                                       SourceLocation(name, first_row - 1, j + 1))
+            cols.append((base.lower(), 1.0))
+            continue
         target, scale = mapping.get(base, (base.lower(), 1.0))
         if unit is not None:
             scale *= _unit_scale(unit, target, name, first_row - 1, j)
@@ -150,7 +170,7 @@ def read_measurement(path: str, maps=()) -> Measurement:
         raise MeasurementError("no time column 't' (and no first_line/last_line of a summary measurement); "
                                "--map SRC=t names another", SourceLocation(name, first_row - 1, 1))
     ignored = [c for c in names if c not in _KNOWN and c not in ("t", "line", "first_line", "last_line")
-               and _summary_base(c) is None]
+               and _summary_base(c) is None and c not in LOG_COLUMNS]
     # a column the twin does not know is kept out of the numbers: whatever it holds is fine
     data = _numbers(rows, header, name, first_row, [c not in ignored for c in names])
     if summary:
@@ -179,7 +199,35 @@ def read_measurement(path: str, maps=()) -> Measurement:
             line = np.where(np.isnan(v), -1, v).astype(np.int64)
         elif c in _KNOWN:
             signals[c] = data[:, j] * scale
-    return Measurement(name, t, signals, line, meta, ignored)
+    extra = {c: data[:, j] for j, (c, _) in enumerate(cols) if c in LOG_COLUMNS}
+    return Measurement(name, t, signals, line, meta, ignored, extra=extra, **log_fields(meta, name))
+
+
+def log_fields(meta: dict, path: str = "") -> dict:
+    """The run's end, feed holds, program stops and completeness a control's log had, from the
+    metadata `mtwin import mtconnect` writes (``cycle_time_s``, ``feed_holds_s``,
+    ``program_stops_s``, ``complete``)."""
+    out: dict = {}
+    if meta.get("cycle_time_s"):
+        try:
+            out["end_time"] = float(meta["cycle_time_s"])
+        except ValueError:
+            pass
+    holds, stops = [], []
+    for key, into in (("feed_holds_s", holds), ("program_stops_s", stops)):
+        for part in filter(None, (x.strip() for x in meta.get(key, "").split(";"))):
+            span, _, state = part.partition(" ")
+            a, _, b = span.partition("-")
+            try:
+                iv = (float(a), float(b))
+            except ValueError:
+                raise MeasurementError(f"metadata {key}: {part!r} is not an interval t0-t1 in s",
+                                       SourceLocation(path, 0, 0)) from None
+            into.append(iv if key == "feed_holds_s" else (*iv, state or "STOPPED"))
+    out["holds"], out["stops"] = holds, stops
+    if meta.get("complete") in ("yes", "no"):
+        out["complete"] = meta["complete"] == "yes"
+    return out
 
 
 def _unit_scale(unit: str, target: str, path: str, line: int, col: int) -> float:

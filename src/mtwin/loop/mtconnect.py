@@ -6,7 +6,7 @@ What a control reports is a set of data items, each logged when it changes.  The
 them into a time series sampled at every change: ``t`` (s since the program started),
 ``line`` (the program line being executed), ``feed`` (the actual path feed, converted from
 the mm/s MTConnect reports to mm/min), ``spindle_speed`` (rpm), and extra columns ``tool``,
-``feed_override`` and ``spindle_override`` (%) where the log has them.
+``feed_override``, ``rapid_override`` and ``spindle_override`` (%) where the log has them.
 
 Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
 
@@ -20,11 +20,16 @@ Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
 * program names may switch before the start: a run is named by ``Program_Name_Running`` at
   its ``Program_Status`` ACTIVE;
 * several programs (or repeats) in one log are separate runs, from ACTIVE to the next
-  PROGRAM_COMPLETED, READY, STOPPED or INTERRUPTED; ``run`` picks one (the first complete one
-  by default); an incomplete run is reported as such;
-* feed holds (``Execution`` FEED_HOLD until ACTIVE again) are listed as intervals in the
-  metadata (``feed_holds_s``); with no override item in the log, 100 % is assumed and the
-  metadata says so.
+  PROGRAM_COMPLETED or READY; ``run`` picks one (the first complete one by default); a run
+  the log ends in, or one reset to READY from a stop (aborted), is incomplete;
+* feed holds (``Execution`` FEED_HOLD until ACTIVE again) and program stops (STOPPED,
+  OPTIONAL_STOP, PROGRAM_STOPPED, INTERRUPTED until ACTIVE again: M00, M01, an operator's
+  stop) are intervals of the run, in the metadata as ``feed_holds_s`` and ``program_stops_s``;
+* overrides are read as time series (``feed_override``, ``rapid_override``,
+  ``spindle_override``, %): the standard's ``PathFeedrateOverride`` (subType PROGRAMMED or
+  RAPID) and ``RotaryVelocityOverride``, Hurco's ``Feed_Override``, ``Rapid_Override``,
+  ``Spindle_Override`` and the short names adapters use (Fovr, Rovr, Sovr); one the log does
+  not have is 100 %, and the metadata says which were not logged.
 """
 from __future__ import annotations
 
@@ -39,10 +44,18 @@ from .measurement import Measurement, MeasurementError
 
 _NAMES = ("Block_Number", "Feed_Rate", "Spindle_Speed", "Current_Tool", "Program_Status", "Execution",
           "Program_Name_Running", "Program", "Line", "PathFeedrate", "RotaryVelocity", "ToolNumber",
-          "PathFeedrateOverride", "RotaryVelocityOverride")
+          "PathFeedrateOverride", "RapidOverride", "RotaryVelocityOverride", "Feed_Override", "Rapid_Override",
+          "Spindle_Override")
 _TS = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?Z?")
-_END = {"PROGRAM_COMPLETED", "READY", "STOPPED", "INTERRUPTED", "PROGRAM_STOPPED"}
-# data item names (SHDR item names or XML element names / names) -> what they are
+# the end of a run: completed, or reset to READY (after a stop: aborted)
+_END = {"PROGRAM_COMPLETED", "READY"}
+# a program stop (M00, M01 with optional stop on, an operator's stop or interruption): the run
+# goes on when the control is ACTIVE again; READY next means it was aborted
+_STOP = {"STOPPED", "INTERRUPTED", "PROGRAM_STOPPED", "OPTIONAL_STOP", "PROGRAM_OPTIONAL_STOP"}
+# data item names (SHDR item names or XML element names / names) -> what they are; the
+# MTConnect standard's types (PathFeedrateOverride with subType PROGRAMMED or RAPID,
+# RotaryVelocityOverride, Execution), the Hurco WinMax adapter's names and the short names
+# common adapters give them (Fovr, Rovr, Sovr)
 _ITEMS = {
     "block_number": "block", "block": "block", "line": "block", "linenumber": "block",
     "feed_rate": "feed", "pathfeedrate": "feed", "path_feedrate": "feed", "actual_feed": "feed",
@@ -51,8 +64,17 @@ _ITEMS = {
     "program_status": "status", "execution": "status",
     "program_name_running": "program", "program": "program", "program_name_editing": "program_editing",
     "feed_override": "feed_ovr", "pathfeedrateoverride": "feed_ovr", "feedrate_override": "feed_ovr",
-    "spindle_override": "spindle_ovr", "rotaryvelocityoverride": "spindle_ovr",
+    "feedrateoverride": "feed_ovr", "path_feedrate_override": "feed_ovr", "feedoverride": "feed_ovr",
+    "fovr": "feed_ovr", "feed_ovr": "feed_ovr",
+    "rapid_override": "rapid_ovr", "rapidoverride": "rapid_ovr", "rapid_feed_override": "rapid_ovr",
+    "rapidfeedoverride": "rapid_ovr", "rapid_traverse_override": "rapid_ovr", "rovr": "rapid_ovr",
+    "frapidovr": "rapid_ovr", "rapid_ovr": "rapid_ovr",
+    "spindle_override": "spindle_ovr", "rotaryvelocityoverride": "spindle_ovr", "spindleoverride": "spindle_ovr",
+    "spindle_speed_override": "spindle_ovr", "rotary_velocity_override": "spindle_ovr", "sovr": "spindle_ovr",
+    "spindle_ovr": "spindle_ovr",
 }
+#: the override items, by the measurement column they become
+OVERRIDES = {"feed_ovr": "feed_override", "rapid_ovr": "rapid_override", "spindle_ovr": "spindle_override"}
 
 
 # data items a log may hold that a comparison does not use (read past, not errors); anything
@@ -92,6 +114,7 @@ class Run:
     end: int  # one past the last event
     complete: bool
     holds: list = field(default_factory=list)  # (t0, t1) s since the run's start
+    stops: list = field(default_factory=list)  # (t0, t1, state) s since the run's start
 
 
 def _seconds(ts: str, path: str, ln: int) -> float:
@@ -140,9 +163,9 @@ def read_shdr(path: str, ignore=()) -> list:
             name = pairs[k].strip()
             key = name.lower()
             if key not in _ITEMS and key not in ignore and not _UNUSED.fullmatch(key):
-                raise MeasurementError(f"unknown data item {name!r} (read: {', '.join(sorted(_NAMES))}; a log with "
-                                       f"another name for one of them needs it mapped: mtwin import mtconnect "
-                                       f"--ignore-item {name} reads past it)", SourceLocation(path, i, col))
+                raise MeasurementError(f"unknown data item {name!r} (read: {', '.join(sorted(_NAMES))}, and items "
+                                       f"known to be unused such as positions, loads and alarms): --ignore-item "
+                                       f"{name} reads past it", SourceLocation(path, i, col))
             out.append(Event(t, _ITEMS.get(key, name), pairs[k + 1].strip(), i))
             col += len(pairs[k]) + len(pairs[k + 1]) + 2
     if not out:
@@ -166,8 +189,14 @@ def read_streams(path: str) -> list:
         tag = el.tag.split("}", 1)[-1]
         name = el.attrib.get("name") or el.attrib.get("dataItemId") or tag
         kind = _ITEMS.get(name.lower()) or _ITEMS.get(tag.lower()) or name
-        if tag == "RotaryVelocity" and "override" in name.lower():
+        sub = el.attrib.get("subType", "").upper()
+        if tag == "PathFeedrateOverride":
+            # the standard's one type for three overrides, told apart by subType
+            kind = {"RAPID": "rapid_ovr", "JOG": "jog_ovr"}.get(sub, "feed_ovr")
+        elif tag == "RotaryVelocityOverride" or (tag == "RotaryVelocity" and "override" in name.lower()):
             kind = "spindle_ovr"
+        elif tag == "PathFeedrate" and sub not in ("", "ACTUAL"):
+            kind = "feed_" + sub.lower()  # the commanded or programmed feed: not the actual one
         out.append(Event(_seconds(ts, path, 0), kind, (el.text or "").strip(), 0))
     if not out:
         raise MeasurementError("no timestamped data items in the MTConnect XML", SourceLocation(path, 0, 0))
@@ -176,12 +205,15 @@ def read_streams(path: str) -> list:
 
 
 def runs(events: list) -> list:
-    """The program runs in a log: ACTIVE to the next end state."""
+    """The program runs in a log: ACTIVE to the next end state.  A feed hold (FEED_HOLD) or a
+    program stop (STOPPED, OPTIONAL_STOP, PROGRAM_STOPPED, INTERRUPTED) followed by ACTIVE is an
+    interval of the run; a stop followed by READY ends it, incomplete (aborted)."""
     out = []
     name = ""
     start = None
-    hold_t0 = None
+    paused = None  # (t0, state) of a hold or stop in progress
     holds: list = []
+    stops: list = []
     for k, e in enumerate(events):
         if e.item == "program" and e.value:
             name = e.value
@@ -189,20 +221,24 @@ def runs(events: list) -> list:
             continue
         v = e.value.upper()
         if v == "ACTIVE":
-            if hold_t0 is not None and start is not None:
-                holds.append((hold_t0 - events[start].t, e.t - events[start].t))
-                hold_t0 = None
+            if paused is not None and start is not None:
+                t0, state = paused
+                span = (t0 - events[start].t, e.t - events[start].t)
+                (holds.append(span) if state == "FEED_HOLD" else stops.append((*span, state)))
+                paused = None
                 continue
             if start is not None:  # ACTIVE again without an end: the earlier run was cut
-                out.append(Run(name, start, k, False, holds))
-            start, holds = k, []
-        elif start is not None and v == "FEED_HOLD":
-            hold_t0 = e.t
+                out.append(Run(name, start, k, False, holds, stops))
+            start, holds, stops = k, [], []
+        elif start is not None and (v == "FEED_HOLD" or v in _STOP):
+            if paused is None:
+                paused = (e.t, v)
         elif start is not None and v in _END:
-            out.append(Run(name, start, k + 1, v == "PROGRAM_COMPLETED" or v == "READY", holds))
-            start, holds = None, []
+            aborted = paused is not None and paused[1] != "FEED_HOLD"
+            out.append(Run(name, start, k + 1, not aborted, holds, stops))
+            start, holds, stops, paused = None, [], [], None
     if start is not None:
-        out.append(Run(name, start, len(events), False, holds))
+        out.append(Run(name, start, len(events), False, holds, stops))
     # the name running at the start of each run (names may switch before it); else the name
     # last loaded for editing before it
     for r in out:
@@ -245,8 +281,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     n_map = n_to_lines(program_data) if block_is == "n" and program_data is not None else None
     if block_is == "n" and n_map is None:
         raise MeasurementError("--block-is n needs the program (to map N words to lines)", SourceLocation(path, 0, 0))
-    state = {"line": -1.0, "feed": np.nan, "spindle_speed": np.nan, "tool": np.nan, "feed_override": np.nan,
-             "spindle_override": np.nan}
+    state = {"line": -1.0, "feed": np.nan, "spindle_speed": np.nan, "tool": np.nan,
+             **{col: np.nan for col in OVERRIDES.values()}}
     rows_t: list = []
     rows: list = []
     # the state before the run: the last value of each item logged before ACTIVE
@@ -268,24 +304,23 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
         raise MeasurementError("the run holds no samples", SourceLocation(path, ev[0].line, 1))
     t = np.array(rows_t)
     signals = {"feed": np.array([r["feed"] for r in rows]), "spindle_speed": np.array([r["spindle_speed"] for r in rows])}
-    extra = {k: np.array([r[k] for r in rows]) for k in ("tool", "feed_override", "spindle_override")
+    extra = {k: np.array([r[k] for r in rows]) for k in ("tool", *OVERRIDES.values())
              if not np.all(np.isnan([r[k] for r in rows]))}
     line = np.array([int(r["line"]) for r in rows], np.int64)
     end_t = ev[-1].t - t0
     meta = {"source": f"MTConnect log {path}", "program": chosen.program, "run": str(all_runs.index(chosen) + 1),
             "runs": str(len(all_runs)), "complete": "yes" if chosen.complete else "no",
             "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
-    if "feed_override" not in extra:
-        meta["overrides"] = "not logged: 100 % assumed"
+    missing = [col.split("_")[0] for col in OVERRIDES.values() if col not in extra]
+    if missing:
+        meta["overrides"] = f"{', '.join(missing)} not logged: 100 % assumed"
     if chosen.holds:
         meta["feed_holds_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.holds)
-    m = Measurement(path, t, signals, line, meta, [])
-    m.extra = extra  # type: ignore[attr-defined]
-    m.runs = all_runs  # type: ignore[attr-defined]
-    m.end_time = end_t  # type: ignore[attr-defined]
-    m.holds = list(chosen.holds)  # type: ignore[attr-defined]
-    m.source_line = np.array(src, np.int64)  # type: ignore[attr-defined]
-    return m
+    if chosen.stops:
+        meta["program_stops_s"] = "; ".join(f"{a:.3f}-{b:.3f} {st}" for a, b, st in chosen.stops)
+    return Measurement(path, t, signals, line, meta, [], extra=extra, end_time=end_t, holds=list(chosen.holds),
+                       stops=list(chosen.stops), complete=chosen.complete, runs=all_runs,
+                       source_line=np.array(src, np.int64))
 
 
 def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
@@ -307,8 +342,7 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
             pos[0] = b
         state["line"] = float(b)
         return True
-    key = {"feed": "feed", "spindle": "spindle_speed", "tool": "tool", "feed_ovr": "feed_override",
-           "spindle_ovr": "spindle_override"}.get(e.item)
+    key = {"feed": "feed", "spindle": "spindle_speed", "tool": "tool", **OVERRIDES}.get(e.item)
     if key is None:
         return False
     if v in ("", "UNAVAILABLE"):

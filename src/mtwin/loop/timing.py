@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConfigError, MtwinError
-from .blocks import NOISE_FLOOR, Groups, measurement_groups, run_end_and_holds, simulated_durations
+from .blocks import NOISE_FLOOR, Groups, measurement_groups, simulated_durations
 
 SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
 WINDOW = 10.0  # s: block groups are summed into windows of at least this much measured time…
@@ -55,7 +55,7 @@ class TimingCase:
     meas: object
     label: str
     groups: Groups
-    cycle_measured: float  # s, the run without its feed holds
+    cycle_measured: float  # s, the run without its feed holds and program stops
     window: np.ndarray = field(default=None)  # (groups,) the window each group belongs to
     wait_line: np.ndarray = field(default=None)  # lines with an in-position wait
     wait: np.ndarray = field(default=None)  # s, the wait of each of those lines at in_position = width
@@ -70,8 +70,10 @@ def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
     g = measurement_groups(program, meas)
     if len(g.measured) < 3:
         raise MtwinError(f"{meas.path}: only {len(g.measured)} block groups: too few to fit timing to")
-    end, _ = run_end_and_holds(meas)
-    cycle = (float(end) if end is not None else float(meas.t[-1] - meas.t[0])) - g.hold_time
+    end = meas.end_time
+    # (the run without its feed holds and program stops: the operator's time)
+    cycle = (float(end) if end is not None else float(meas.t[-1] - meas.t[0])) - g.hold_time - g.stop_time \
+        - sum(x["measured"] for x in g.stop_groups)
     length = min(WINDOW, max(1.0, float(np.sum(g.measured)) / WINDOWS))
     case = TimingCase(program, meas, label or meas.path, g, cycle, windows(g.measured, length))
     refresh_waits(twin, case)

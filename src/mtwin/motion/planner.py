@@ -398,7 +398,7 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     geom = _same_geometry(program, machine, like)
     if geom is not None:
         rec, shift, seg, feed_box, warnings = geom
-        return _plan_motion(rec, shift, seg, feed_box, warnings, machine, like.geometry)
+        return _plan_motion(rec, shift, seg, feed_box, warnings, machine, like.geometry, program.rapid_scale)
     probe = (program.records["flags"] & R.FL_PROBE) != 0
     if probe.any():
         from ..errors import GCodeError, SourceLocation
@@ -435,7 +435,7 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     seg = _assemble(rec, moves, pauses)
     feed_box = _feed_box(seg, shift) if len(seg) else None
     geometry = (program.records, rec, shift, seg.copy(), feed_box, list(warnings), machine) if keep_geometry else None
-    return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry)
+    return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, program.rapid_scale)
 
 
 def _same_geometry(program, machine, like):
@@ -460,8 +460,9 @@ def _same_geometry(program, machine, like):
     return rec0, shift, seg, feed_box, list(warnings)
 
 
-def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry) -> Plan:
-    """The feed-dependent stages: motion limits, corners, look-ahead, S-curve timing."""
+def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_scale=None) -> Plan:
+    """The feed-dependent stages: motion limits, corners, look-ahead, S-curve timing.
+    ``rapid_scale``: per record, the fraction of the rapid speed (a replayed rapid override)."""
     c = machine.controller
     if len(rec):
         start = np.array([rec["sx"][0], rec["sy"][0], rec["sz"][0]])
@@ -480,6 +481,10 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry) -> Plan
         seg = _naive_cam(seg, rec)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
     is_pause = seg["kind"] == PAUSE
+    if rapid_scale is not None:
+        # a rapid override scales the speed of rapids, not their acceleration
+        r = (seg["rapid"] == 1) & ~is_pause
+        seg["vmax"][r] *= np.asarray(rapid_scale, np.float64)[seg["rec"][r]]
     _, acc = _axis_limits(machine)
     filt, drain = _filter_hold(c)
     if style == K.STYLE_LINUXCNC:

@@ -1,0 +1,240 @@
+"""Real machine logs as they come (issue 19): overrides read in the Hurco and the MTConnect
+standard's names and replayed by the twin, program stops (M01 waits, logged stop states)
+found and taken out, a log that stops before the program's end refused or compared up to
+where it got (--partial).  The logs are written here from the twin's own run of a program
+with known overrides and waits, so the answers are known."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+import pytest
+
+import mtwin
+from mtwin.gcode import records as R
+from mtwin.loop.asrun import as_run
+from mtwin.loop.measurement import MeasurementError, read_measurement
+
+PROGRAM = """\
+%
+O1000(PART)
+G21 G90 G17 G94
+T1 M6
+S6000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G1 X40 F900
+G0 Z5
+G0 X400 Y300
+G1 Z-1 F300
+G1 X360 F900
+G0 Z5
+M01
+G0 X0 Y0
+G1 Z-1 F300
+G1 Y40 F600
+G0 Z5
+M30
+%
+"""
+RAPID_LINES = (10,)  # G0 X400 Y300: run at 50 % rapid override
+STOP_LINE = 14  # M01: the operator waits
+WAIT = 30.0
+BASE = datetime(2017, 2, 6, 10, 22, 28, 750000, tzinfo=timezone.utc)
+
+
+def _ts(t: float) -> str:
+    d = BASE + timedelta(seconds=float(t))
+    return d.strftime("%Y-%m-%dT%H:%M:%S.%f") + "0Z"  # 7 digits, as the Hurco logger writes
+
+
+def _truth(tw, prog):
+    """The run the log records: line 10's rapid at half speed (the program as it ran)."""
+    rec = prog.records
+    scale = np.where(np.isin(rec["line"], RAPID_LINES) & (rec["kind"] == R.RAPID), 0.5, 1.0)
+    return tw.simulate(replace(prog, rapid_scale=scale), cutting=False)
+
+
+def _log(tw, prog, names=("Block_Number", "Program_Status", "Rapid_Override", "Feed_Rate"), wait=WAIT,
+         cut_at: float | None = None, status_stop: bool = False) -> str:
+    """An SHDR log of the twin's run: every line change, the rapid override on change (50 %
+    while line 10 runs), the operator's wait at the M01, the feed in mm/s."""
+    block, status, rapid, feed = names
+    tr = _truth(tw, prog)
+    t, line = np.asarray(tr.t), np.asarray(tr.line)
+    f = np.asarray(tr.signal("feed")) / 60.0
+    out = [f"{_ts(-1.0)}|Program_Name_Running|PART.NC", f"{_ts(-0.5)}|{rapid}|100.000000",
+           f"{_ts(0.0)}|{status}|ACTIVE"]
+    shift = 0.0
+    prev = None
+    for k in np.flatnonzero(np.r_[True, line[1:] != line[:-1]]):
+        ln = int(line[k])
+        if ln <= 0 or ln == prev:
+            continue
+        tk = float(t[k]) + shift
+        if cut_at is not None and tk > cut_at:
+            return "\n".join(out) + "\n"
+        if prev is not None and prev < STOP_LINE < ln:
+            # the control shows the M01 line while it waits for the operator
+            out.append(f"{_ts(tk)}|{block}|{STOP_LINE}")
+            if wait and status_stop:
+                out.append(f"{_ts(tk + 0.01)}|{status}|OPTIONAL_STOP")
+                out.append(f"{_ts(tk + wait)}|{status}|ACTIVE")
+            shift += wait
+            tk += wait
+        if prev in RAPID_LINES:
+            out.append(f"{_ts(tk)}|{rapid}|100.000000")
+        out.append(f"{_ts(tk)}|{block}|{ln}|{feed}|{f[k]:.6f}")
+        if ln in RAPID_LINES:
+            out.append(f"{_ts(tk)}|{rapid}|50.000000")
+        prev = ln
+    out.append(f"{_ts(float(t[-1]) + shift)}|{status}|PROGRAM_COMPLETED")
+    return "\n".join(out) + "\n"
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    d = tmp_path_factory.mktemp("logs")
+    (d / "PART.NC").write_text(PROGRAM)
+    tw = mtwin.Twin()
+    prog = tw.load(str(d / "PART.NC"))
+    return d, tw, prog
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def test_a_rapid_override_of_50_percent_doubles_the_rapid_time_at_speed_in_the_twin(setup):
+    d, tw, prog = setup
+    (d / "log.txt").write_text(_log(tw, prog))
+    m = read_measurement(str(d / "log.txt"))
+    assert "rapid_override" in m.extra and m.meta["overrides"] == "feed, spindle not logged: 100 % assumed"
+    run = as_run(prog, m)
+    assert run.applied == {"rapid_override": (50.0, 100.0)}
+    full, half = tw.plan(prog), tw.plan(run.program)
+    on = np.isin(full.seg["line"], RAPID_LINES)
+    t_full, t_half = full.dur[on].sum(), half.dur[np.isin(half.seg["line"], RAPID_LINES)].sum()
+    # the same as a machine whose rapid speed is half its own (an independent route), and close
+    # to twice the time: a 500 mm rapid is mostly at speed (the ramps do not double)
+    slow = tw.with_params({f"axes.{a}.max_velocity": ax.max_velocity / 2 for a, ax in zip("xyz", tw.machine.axes)})
+    slow_plan = slow.plan(prog)
+    assert t_half == pytest.approx(slow_plan.dur[np.isin(slow_plan.seg["line"], RAPID_LINES)].sum(), rel=1e-9)
+    # closed form: the rapid runs X 360 mm (its longest axis) on a trapezoid, D/v + v/a (plus
+    # the bell filter and the in-position hold, the same at both speeds): at half the speed
+    # the time at speed doubles and the ramps halve, t(v/2) - t(v) = D/v - v/(2a)
+    x = tw.machine.x
+    v, a = x.max_velocity / 60.0, x.max_acceleration
+    assert t_half - t_full == pytest.approx(360.0 / v - v / (2 * a), abs=0.005)
+    # the other blocks are as they were
+    assert half.dur[~np.isin(half.seg["line"], RAPID_LINES)].sum() == pytest.approx(full.dur[~on].sum(), rel=1e-12)
+
+
+def test_compare_replays_the_override_and_reports_the_m01_wait(setup):
+    d, tw, prog = setup
+    (d / "log.txt").write_text(_log(tw, prog))
+    r = _cli("compare", str(d / "PART.NC"), str(d / "log.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    b = doc["blocks"]
+    # the M01 wait is a program stop, taken out; what is left is the twin's own run
+    (stop,) = b["program_stops"]
+    assert stop["line"] == STOP_LINE and stop["state"] == "M01" and stop["wait"] == pytest.approx(WAIT, abs=0.05)
+    assert all(k["kind"] != "tool change" or abs(k["error"]) < 0.05 for k in b["by_kind"])
+    assert b["rms"] < 0.02  # every logged line change, replayed at the logged override: ~exact
+    assert doc["cycle_time"]["relative_error"] == pytest.approx(0.0, abs=0.002)
+    assert "program stop at line 14 (M01): waited 30.0 s" in r.stderr
+    assert "rapid override 50–100 % applied" in r.stderr
+    # not replaying the override (the log without the item) leaves line 10 twice as slow in the log
+    no = "\n".join(x for x in _log(tw, prog).splitlines() if "Rapid_Override" not in x) + "\n"
+    (d / "plain.txt").write_text(no)
+    r2 = _cli("compare", str(d / "PART.NC"), str(d / "plain.txt"), "--json")
+    worst = json.loads(r2.stdout)["blocks"]["worst"][0]
+    assert worst["first_line"] == 10 and worst["error"] < -0.3  # the twin too fast there
+    assert "rapid, feed, spindle override not logged" in r2.stderr.replace("feed, rapid", "rapid, feed") or \
+        "override not logged: 100 % assumed" in r2.stderr
+
+
+def test_the_standard_names_and_a_logged_optional_stop(setup):
+    d, tw, prog = setup
+    text = _log(tw, prog, names=("Line", "Execution", "RapidOverride", "PathFeedrate"), status_stop=True)
+    (d / "std.txt").write_text(text)
+    m = read_measurement(str(d / "std.txt"))
+    assert m.stops and m.stops[0][2] == "OPTIONAL_STOP" and m.stops[0][1] - m.stops[0][0] == pytest.approx(WAIT - 0.01)
+    assert m.complete is True
+    r = _cli("compare", str(d / "PART.NC"), str(d / "std.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["cycle_time"]["relative_error"] == pytest.approx(0.0, abs=0.002)
+    assert doc["blocks"]["program_stop_s"] == pytest.approx(WAIT, abs=0.1)
+    # an agent's XML: PathFeedrateOverride told apart by its subType
+    xml = ['<?xml version="1.0"?>', '<MTConnectStreams xmlns="urn:mtconnect.org:MTConnectStreams:1.3"><Streams>'
+           '<DeviceStream name="m"><ComponentStream component="Path"><Samples>']
+    for ln in text.splitlines():
+        ts, item, *rest = ln.split("|")
+        for k in range(0, len(rest), 2):
+            name, value = ([item] + rest)[k], rest[k] if k == 0 else rest[k]
+        pairs = [(item, rest[0])] + [(rest[k], rest[k + 1]) for k in range(1, len(rest) - 1, 2)]
+        for name, value in pairs:
+            tag = {"RapidOverride": 'PathFeedrateOverride subType="RAPID"', "Line": "Line", "Execution": "Execution",
+                   "PathFeedrate": "PathFeedrate", "Program_Name_Running": "Program"}[name]
+            xml.append(f'<{tag} dataItemId="d" timestamp="{ts}">{value}</{tag.split()[0]}>')
+    xml.append("</Samples></ComponentStream></DeviceStream></Streams></MTConnectStreams>")
+    (d / "std.xml").write_text("\n".join(xml))
+    mx = read_measurement(str(d / "std.xml"))
+    assert "rapid_override" in mx.extra and np.nanmin(mx.extra["rapid_override"]) == 50.0
+    assert as_run(prog, mx).applied == {"rapid_override": (50.0, 100.0)}
+
+
+def test_an_imported_log_replays_the_same_overrides(setup, tmp_path):
+    d, tw, prog = setup
+    (d / "log.txt").write_text(_log(tw, prog))
+    r = _cli("import", "mtconnect", str(d / "log.txt"), "-o", str(tmp_path / "m.csv"))
+    assert r.returncode == 0, r.stderr
+    direct, imported = read_measurement(str(d / "log.txt")), read_measurement(str(tmp_path / "m.csv"))
+    assert imported.ignored == [] and set(imported.extra) == set(direct.extra)
+    a, b = as_run(prog, direct), as_run(prog, imported)
+    assert a.applied == b.applied and a.not_logged == b.not_logged
+    np.testing.assert_allclose(a.program.rapid_scale, b.program.rapid_scale, rtol=1e-9)  # (t to 1 ns in the CSV)
+    r2 = _cli("compare", str(d / "PART.NC"), str(tmp_path / "m.csv"), "--json")
+    r1 = _cli("compare", str(d / "PART.NC"), str(d / "log.txt"), "--json")
+    c1, c2 = json.loads(r1.stdout), json.loads(r2.stdout)
+    assert c1["cycle_time"]["simulated"] == pytest.approx(c2["cycle_time"]["simulated"], rel=1e-9)
+    assert c2["blocks"]["program_stops"][0]["wait"] == pytest.approx(WAIT, abs=0.05)
+
+
+def test_a_log_cut_short_is_refused_and_compared_up_to_its_end_with_partial(setup):
+    d, tw, prog = setup
+    tr = _truth(tw, prog)
+    (d / "cut.txt").write_text(_log(tw, prog, wait=0.0, cut_at=float(tr.t[-1]) * 0.5))
+    for cmd in (["compare"], ["diagnose"], ["calibrate", "--fit", "block-time", "-o", str(d / "x.toml")]):
+        r = _cli(*cmd[:1], str(d / "PART.NC"), str(d / "cut.txt"), *cmd[1:])
+        assert r.returncode == 2, (cmd, r.stderr)
+        assert "incomplete" in r.stderr and "--partial" in r.stderr
+        assert not (d / "x.toml").exists()
+    r = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--partial", "--json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    m = read_measurement(str(d / "cut.txt"))
+    last = int(m.line[m.line > 0][-1])
+    assert f"stopped at line {last}" in r.stderr
+    # the simulated cycle is the time to the end of that line, not the whole program's
+    assert doc["cycle_time"]["simulated"] < 0.75 * float(tr.t[-1])
+    assert abs(doc["cycle_time"]["relative_error"]) < 0.1
+
+
+def test_an_unknown_item_names_ignore_item_and_every_log_command_takes_it(setup):
+    d, tw, prog = setup
+    text = _log(tw, prog).replace("|Program_Status|ACTIVE", "|Program_Status|ACTIVE|Coffee_Level|3", 1)
+    (d / "odd.txt").write_text(text)
+    r = _cli("compare", str(d / "PART.NC"), str(d / "odd.txt"))
+    assert r.returncode == 2 and "--ignore-item Coffee_Level" in r.stderr and "odd.txt:3:" in r.stderr
+    for cmd in ("compare", "diagnose"):
+        r = _cli(cmd, str(d / "PART.NC"), str(d / "odd.txt"), "--ignore-item", "Coffee_Level")
+        assert r.returncode == 0, (cmd, r.stderr)
+    with pytest.raises(MeasurementError):
+        read_measurement(str(d / "odd.txt"))
