@@ -896,11 +896,13 @@ def import_mtconnect(
     except OSError as exc:
         raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
     m = read_mtconnect(log, run, block_is, data, ignore_item or ())
-    cols = {"t": m.t, "line": m.line, **m.signals, **getattr(m, "extra", {})}
+    cols = {"t": m.t, "line": m.line, **m.signals, **m.extra}
     write_columns(output, cols, m.meta)
     for k, r in enumerate(m.runs, 1):
         err.print(f"run {k}: {r.program or '(unnamed)'}, {'complete' if r.complete else 'incomplete'}"
-                  + (f", {len(r.holds)} feed hold(s)" if r.holds else ""), highlight=False)
+                  + (f", {len(r.holds)} feed hold(s)" if r.holds else "")
+                  + (f", {len(r.stops)} program stop(s) ({', '.join(st for _, _, st in r.stops)})" if r.stops else ""),
+                  highlight=False)
     err.print(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s, lines "
               f"{int(m.line[m.line > 0].min()) if (m.line > 0).any() else '-'}–{int(m.line.max())}"
               + (f"; overrides {m.meta['overrides']}" if "overrides" in m.meta else ""), highlight=False)
@@ -1078,6 +1080,20 @@ def _loop_inputs(part, measurement, maps, effect, effect_file, stock, twin, dial
     return tw, prog, meas, box
 
 
+def _print_case_notes(case) -> None:
+    """What a timing fit leaves out of a log: the operator's stops and holds."""
+    g = case.groups
+    for x in g.stop_groups:
+        err.print(f"note: {case.label}: program stop at line {x['line']} ({x['code']}): {x['measured']:.1f} s "
+                  f"(the operator's time), left out of the fit", soft_wrap=True, highlight=False)
+    for x in g.logged_stops:
+        err.print(f"note: {case.label}: program stop {x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']}), left out "
+                  f"of the fit", soft_wrap=True, highlight=False)
+    if g.hold_time > 0:
+        err.print(f"note: {case.label}: {g.hold_time:.1f} s of feed hold left out of the fit", soft_wrap=True,
+                  highlight=False)
+
+
 def _measured_program(prog, measurement, maps, any_program, ignore_item, partial):
     """(the program as it ran, the measurement) for a measurement file of ``prog``."""
     from .loop.asrun import as_run
@@ -1143,8 +1159,9 @@ def diagnose(
     if _objective(objective, meas, None) == "timing":
         from .loop.timing import diagnose_timing, timing_case
 
-        d = diagnose_timing(tw, [timing_case(tw, prog, meas, measurement)],
-                            [c.strip() for c in candidates.split(",")] if candidates else None)
+        case = timing_case(tw, prog, meas, measurement)
+        _print_case_notes(case)
+        d = diagnose_timing(tw, [case], [c.strip() for c in candidates.split(",")] if candidates else None)
         if json_out:
             sys.stdout.write(json.dumps({"objective": "timing", "timing": d}, indent=2) + "\n")
             return
@@ -1234,10 +1251,12 @@ def calibrate(
         from .loop.timing import fit_timing, summary, timing_case
 
         cases = [timing_case(tw, prog, meas, os.path.basename(measurement))]
+        _print_case_notes(cases[0])
         for p_i, m_i in pairs[1:]:
             prog_i, meas_i = _measured_program(_load(p_i, tw.interpreter), m_i, maps, any_program, ignore_item,
                                                partial)
             cases.append(timing_case(tw, prog_i, meas_i, os.path.basename(m_i)))
+            _print_case_notes(cases[-1])
         res = fit_timing(tw, cases, new, tuple(param or ()))
     else:
         if len(pairs) > 1:

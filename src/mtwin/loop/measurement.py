@@ -115,7 +115,7 @@ def check_against_program(meas: Measurement, program, any_program: bool = False)
     beyond = np.flatnonzero(meas.line > n)
     if len(beyond):
         i = int(beyond[0])
-        src = getattr(meas, "source_line", None)
+        src = meas.source_line
         where = SourceLocation(meas.path, int(src[i]) if src is not None else 0, 0 if src is None else 1)
         raise MeasurementError(f"line {int(meas.line[i])} is beyond the end of {os.path.basename(program.path or '')} "
                                f"({n} lines): the measurement is of another program"
