@@ -61,7 +61,9 @@ app = typer.Typer(
     help="mtwin: G-code optimiser built on a digital twin of a CNC machine tool.",
     context_settings={"help_option_names": ["-h", "--help"]},
 )
-err = Console(stderr=True, highlight=False)
+# piped or redirected (a CI log, a file), rich would cut tables at 80 columns, breaking file
+# names mid-word: there the width is the content's (up to a generous bound)
+err = Console(stderr=True, highlight=False, width=None if sys.stderr.isatty() else int(os.environ.get("COLUMNS", 0)) or 240)
 EXIT_INTERNAL = 3
 
 _state = {"traceback": False}
@@ -153,6 +155,10 @@ def _reports_errors(command):
             return command(*args, **kwargs)
         except typer.Exit:
             raise
+        except KeyboardInterrupt:
+            # outputs are written atomically at the end: an interrupted run leaves none behind
+            err.print("interrupted (Ctrl-C): nothing was written", highlight=False)
+            raise typer.Exit(130) from None
         except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
             _fail(exc)
 
@@ -596,7 +602,7 @@ def config_check(path: str = typer.Argument(..., help="Twin file to validate."))
     m = load_machine(path)
     load_cutting(path)
     load_effects(path)
-    err.print(f"{path}: valid ({m.name}; {m.controller.style} planner)")
+    err.print(f"{path}: valid ({m.name})")
 
 
 def _range(text: Optional[str], name: str):
@@ -795,7 +801,7 @@ def _print_optimize(res, prog, json_out: bool) -> None:
                "force_limit": res.force_limit, "force_limit_source": res.force_limit_source,
                "limits": res.limits, "kept": res.kept, "contour_error": res.contour_error,
                "spindle": {str(k): v for k, v in res.spindle.items()},
-               "defaults": res.defaults, "segments": res.segments,
+               "defaults": res.defaults, "tools": res.tools, "segments": res.segments,
                "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in res.tradeoff],
                "tradeoff_source": res.tradeoff_source,
                "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in res.changed_lines]}
@@ -808,7 +814,8 @@ def _print_optimize(res, prog, json_out: bool) -> None:
         t.add_column(col, justify="right" if col else "left")
     t.add_row("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time))
     if b.cost is not None and a.cost is not None:
-        t.add_row("cost", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost))
+        # (in the currency units of the twin file's [cost] rates)
+        t.add_row("cost (currency units)", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost))
     t.add_row("peak load", f"{b.peak_load:.1f} N", f"{a.peak_load:.1f} N", pct(b.peak_load, a.peak_load))
     t.add_row("peak spindle power", f"{b.peak_power / 1000:.2f} kW", f"{a.peak_power / 1000:.2f} kW",
               pct(b.peak_power, a.peak_power))
@@ -1052,21 +1059,24 @@ def compare(
         err.print(f"{prog.path} against {measurement}: aligned by {res.alignment}, time offset "
                   f"{res.time_offset:+.3f} s; cycle time measured {c['measured']:.3f} s, simulated "
                   f"{c['simulated']:.3f} s ({rel})", soft_wrap=True)
-    t = Table(title="signals (measured − simulated)", title_justify="left")
-    for col in ("signal", "RMS", "NRMSE", "max", "bias", "corr.", "samples"):
-        t.add_column(col, justify="right" if col != "signal" else "left", no_wrap=col == "signal")
+    from .loop.measurement import signal_unit
+
+    t = Table(title="signals (measured − simulated; RMS, max and bias in the signal's unit)", title_justify="left")
+    for col in ("signal", "unit", "RMS", "NRMSE", "max", "bias", "corr.", "samples"):
+        t.add_column(col, justify="right" if col not in ("signal", "unit") else "left", no_wrap=col == "signal")
     fmt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
     for s, m in res.signals.items():
-        t.add_row(s, fmt(m["rms"], ".4g"), fmt(m["nrmse"], ".2%"), fmt(m["max_error"], ".4g"), fmt(m["bias"], "+.4g"),
-                  fmt(m["correlation"], ".3f"), f"{m['samples']:,}")
+        t.add_row(s, signal_unit(s), fmt(m["rms"], ".4g"), fmt(m["nrmse"], ".2%"), fmt(m["max_error"], ".4g"),
+                  fmt(m["bias"], "+.4g"), fmt(m["correlation"], ".3f"), f"{m['samples']:,}")
     err.print(t)
     if res.worst_regions:
         w = Table(title="where it fails (share of each signal's squared error)", title_justify="left")
-        for col in ("signal", "lines", "RMS", "share", "samples"):
+        for col in ("signal", "unit", "lines", "RMS", "share", "samples"):
             w.add_column(col)
         for r in res.worst_regions:
             lines = str(r["first_line"]) if r["first_line"] == r["last_line"] else f"{r['first_line']}–{r['last_line']}"
-            w.add_row(r["signal"], lines, f"{r['rms']:.4g}", f"{r['share']:.1%}", f"{r['samples']:,}")
+            w.add_row(r["signal"], signal_unit(r["signal"]), lines, f"{r['rms']:.4g}", f"{r['share']:.1%}",
+                      f"{r['samples']:,}")
         err.print(w)
 
 

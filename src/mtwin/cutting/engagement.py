@@ -121,6 +121,10 @@ def _tool_rows(plan, program, cutting: Cutting):
     return table, tool_index, tuple(used)
 
 
+#: where a stock nobody gave comes from: the one wording every message uses
+GUESSED_STOCK = "guessed from the feed moves (their extent and the tool radius, top at Z0)"
+
+
 def default_stock(plan, tools) -> tuple[float, ...]:
     """XY: bounding box of the feed moves grown by the largest tool radius; top at Z0 (the usual
     CAM convention); bottom 1 mm below the deepest feed move (or at Z-1)."""
@@ -144,7 +148,7 @@ def stock_box(plan, program, cutting: Cutting, tools, box=None) -> tuple[tuple[f
         elif cutting.stock is not None:
             box, source = cutting.stock, "twin file cutting.stock"
         else:
-            box, source = default_stock(plan, tools), "default (feed moves' extent + tool radius, top at Z0)"
+            box, source = default_stock(plan, tools), GUESSED_STOCK
     res = cutting.resolution
     area = (box[3] - box[0]) * (box[4] - box[1])
     if res <= 0:

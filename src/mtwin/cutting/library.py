@@ -293,6 +293,42 @@ def for_program(cutting: Cutting, program) -> Cutting:
     return replace(cutting, program_tools=tools, defaults_used=tuple(notes + rest))
 
 
+def tools_used(cutting: Cutting, program) -> list[dict]:
+    """The tools a program's feed moves use, as data: ``number``, ``type``, ``diameter``,
+    ``flutes``, ``corner_radius`` (mm), ``angle`` and ``tip_diameter`` (vee tools), ``source``
+    (``--tool``, ``twin file``, ``program comment`` or ``default``), ``line`` and ``form`` of
+    a program comment.  Call on the cutting part of the program (``for_program``)."""
+    from ..gcode import records as R
+
+    rec = program.records
+    used = sorted(set(int(t) for t in rec["tool"][R.is_feed_kind(rec["kind"])]))
+    found = _scan(bytes(program.data)) if not cutting.tools else None
+    only = None
+    if found is not None and sorted(set(int(t) for t in rec["tool"])) == [0] and len(found.tools) == 1:
+        only = next(iter(found.tools.values()))
+    out = []
+    for t in used:
+        tool = cutting.tool(t) if (t in cutting.declared or t in cutting.tools or not cutting.tools) else None
+        if tool is None:
+            continue
+        entry = {"number": t, "type": tool.type, "diameter": tool.diameter, "flutes": tool.flutes,
+                 "corner_radius": tool.nose_radius}  # (a ball's is its radius)
+        if tool.type == "vee":
+            entry.update(angle=tool.angle, tip_diameter=tool.tip_diameter)
+        if t in cutting.declared:
+            entry.update(source="--tool", line=None)
+        elif t in cutting.tools:
+            entry.update(source="twin file", line=None)
+        elif t in cutting.program_tools:
+            d = found.tools.get(t) if only is None else only
+            entry.update(source="program comment", line=d.line if d is not None else None,
+                         form=d.form if d is not None else None)
+        else:
+            entry.update(source="default", line=None)
+        out.append(entry)
+    return out
+
+
 def _parse(cls, table, prefix, where):
     if not isinstance(table, dict):
         raise ConfigError(f"{where}: [{prefix}] must be a table")

@@ -305,7 +305,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
             warn_code = np.zeros(nwarn, np.int64)
             warn_word = np.zeros(nwarn, np.int64)
     if err != K.E_OK:
-        raise _interp_error(lexed, int(err), int(ew), int(eline), evals)
+        raise _interp_error(lexed, int(err), int(ew), int(eline), evals, settings.lenient)
     nw = min(nwarn, warn_code.size)
     warnings = _dedupe([_warning(lexed, int(warn_code[i]), int(warn_word[i])) for i in range(nw)])
     if nwarn > nw:
@@ -365,16 +365,31 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
     return GCodeWarning(loc, msg)
 
 
-def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals) -> GCodeError:
+def _has_axis_words(lexed: Lexed, li: int) -> bool:
+    """Whether 0-based line ``li`` has an X, Y or Z word (or LinuxCNC's polar @ ^)."""
+    w = lexed.w_letter[lexed.w_line == li]
+    return bool(np.isin(w, np.frombuffer(b"XYZ@^", np.uint8)).any())
+
+
+def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals, lenient: bool = False) -> GCodeError:
     if k >= 0:
         loc = lexed.word_location(k)
         w = lexed.word_text(k).strip()
     else:
         loc = SourceLocation(lexed.path, li + 1, 1)
         w = ""
+    # --lenient is offered only where it would help: it passes over an unknown G-code only on a
+    # block without axis words (with them the code may move the tool), and not at all twice
+    if lenient:
+        g_hint = " (with axis words on its block it may move the tool: not passed over, even with --lenient)"
+    elif _has_axis_words(lexed, loc.line - 1):
+        g_hint = (" (with axis words on its block it may move the tool, so --lenient does not pass over it: "
+                  "the program cannot be run as written)")
+    else:
+        g_hint = " (--lenient passes over codes that do not move the tool)"
     msgs = {
-        K.E_UNSUPPORTED_G: f"unsupported G-code {w} (use --lenient to ignore codes that do not move the tool)",
-        K.E_UNSUPPORTED_M: f"unsupported M-code {w} (use --lenient to pass it through)",
+        K.E_UNSUPPORTED_G: f"unsupported G-code {w}{g_hint}",
+        K.E_UNSUPPORTED_M: f"unsupported M-code {w}" + ("" if lenient else " (--lenient passes it over)"),
         K.E_UNSUPPORTED_WORD: f"unsupported word {w}",
         K.E_CORNER: f"{w}: a corner takes either ,C (chamfer) or ,R (radius), not both",
         K.E_POLAR16: f"{w}: G16 polar coordinates are read in G17 with an absolute radius (X) and an absolute or "

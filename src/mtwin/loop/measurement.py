@@ -69,6 +69,11 @@ class Measurement:
         return self.t is None
 
 
+def signal_unit(name: str) -> str:
+    """The unit of a signal or of a summary column (``fx_rms``: N)."""
+    return UNITS.get(name) or UNITS.get(_summary_base(name) or "", "")
+
+
 def parse_maps(maps) -> dict[str, tuple[str, float]]:
     """``SRC=DST`` or ``SRC=DST*SCALE`` -> {SRC: (DST, SCALE)}."""
     out = {}

@@ -398,7 +398,8 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     geom = _same_geometry(program, machine, like)
     if geom is not None:
         rec, shift, seg, feed_box, warnings = geom
-        return _plan_motion(rec, shift, seg, feed_box, warnings, machine, like.geometry, program.rapid_scale)
+        return _plan_motion(rec, shift, seg, feed_box, warnings, machine, like.geometry, program.rapid_scale,
+                            program.path)
     probe = (program.records["flags"] & R.FL_PROBE) != 0
     if probe.any():
         from ..errors import GCodeError, SourceLocation
@@ -435,7 +436,25 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     seg = _assemble(rec, moves, pauses)
     feed_box = _feed_box(seg, shift) if len(seg) else None
     geometry = (program.records, rec, shift, seg.copy(), feed_box, list(warnings), machine) if keep_geometry else None
-    return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, program.rapid_scale)
+    return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, program.rapid_scale, program.path)
+
+
+def _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path) -> None:
+    """A feed above the machine's maximum cutting feed runs at it, as on the control; the
+    first such line is a warning (as an S above the spindle's maximum is)."""
+    top = machine.max_cutting_feed / 60.0
+    over = ~is_pause & (seg["rapid"] == 0) & (seg["feed"] > top * (1 + 1e-9))
+    if not over.any():
+        return
+    seg["vmax"][over] = np.minimum(seg["vmax"][over], top)
+    from ..errors import warning_text
+
+    lines = np.unique(seg["line"][over])
+    i = int(np.argmax(over))
+    warnings.append(warning_text(path, int(seg["line"][i]),
+                                 f"F{seg['feed'][i] * 60.0 / (25.4 if rec['flags'][seg['rec'][i]] & R.FL_INCH else 1.0):g}"
+                                 f" is above the machine's maximum cutting feed {machine.max_cutting_feed:g} mm/min: "
+                                 f"feeds are clamped to it ({len(lines)} line(s))"))
 
 
 def _same_geometry(program, machine, like):
@@ -460,7 +479,7 @@ def _same_geometry(program, machine, like):
     return rec0, shift, seg, feed_box, list(warnings)
 
 
-def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_scale=None) -> Plan:
+def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_scale=None, path="<program>") -> Plan:
     """The feed-dependent stages: motion limits, corners, look-ahead, S-curve timing.
     ``rapid_scale``: per record, the fraction of the rapid speed (a replayed rapid override)."""
     c = machine.controller
@@ -481,6 +500,7 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
         seg = _naive_cam(seg, rec)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
     is_pause = seg["kind"] == PAUSE
+    _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path)
     if rapid_scale is not None:
         # a rapid override scales the speed of rapids, not their acceleration
         r = (seg["rapid"] == 1) & ~is_pause
@@ -509,17 +529,30 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
 
 
 def _feed_box(seg: np.ndarray, shift) -> np.ndarray | None:
-    """Extent of the feed moves' tool tip (arcs by their full circle's box)."""
+    """Extent of the feed moves' tool tip: the end points, and of an arc the points of its own
+    sweep where an axis turns (not its whole circle's box: a quarter arc of a large radius
+    would make the default stock, and its cells, many times too large)."""
     feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
     if not feed.any():
         return None
     s = seg[feed]
-    d = shift[np.clip(s["rec"], 0, len(shift) - 1)] if shift is not None and len(shift) else 0.0
+    d = shift[np.clip(s["rec"], 0, len(shift) - 1)] if shift is not None and len(shift) else np.zeros((len(s), 3))
     pts = [s["p0"] - d, s["p1"] - d]
     arcs = s["kind"] == ARC
     if arcs.any():
-        r = np.maximum(s["r0"][arcs], s["r1"][arcs])[:, None]
-        c = s["c"][arcs] - (d[arcs] if np.ndim(d) else 0.0)
-        pts += [c - r, c + r]
+        a, da = s[arcs], d[arcs]
+        th = np.maximum(a["theta"], 1e-300)
+        for k in range(3):
+            # along axis k the circle is A·cos(φ − α): its extremes at φ = α and α + π
+            alpha = np.arctan2(a["e2"][:, k], a["e1"][:, k])
+            for off in (0.0, np.pi):
+                phi = np.mod(alpha + off, 2 * np.pi)
+                inside = phi <= a["theta"]
+                if not inside.any():
+                    continue
+                f = (phi / th)[:, None]
+                r = (a["r0"] + (a["r1"] - a["r0"]) * phi / th)[:, None]
+                p = a["c"] + r * (np.cos(phi)[:, None] * a["e1"] + np.sin(phi)[:, None] * a["e2"]) + a["h"] * f - da
+                pts.append(p[inside])
     pts = np.concatenate(pts)
     return np.stack([pts.min(axis=0), pts.max(axis=0)])

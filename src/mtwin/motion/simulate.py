@@ -295,10 +295,14 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         **_error_context(cmd, err, line, segno, seg),
     )
     if eng is not None:
+        from ..cutting.library import tools_used
+
         cutting_part = _program_cutting(twin, program)
         cut_time = cstats[RK.CS_CUT_TIME]
         feed_moves = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
-        if cut_time <= 0 and feed_moves.any():
+        # (feed moves that meet the stock with the spindle stopped were named above: the stock
+        # is met, its forces are not modelled)
+        if cut_time <= 0 and feed_moves.any() and not cstats[RK.CS_SPINDLE_STOPPED_LINE]:
             b = eng.stock.box
             warnings.append(warning_text(program.path, 0,
                                          f"no feed move meets the stock (X {b[0]:g}…{b[3]:g} Y {b[1]:g}…{b[4]:g} "
@@ -316,7 +320,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             material=cutting_part.material_name,
             stock=list(eng.stock.box), stock_source=eng.stock.source, resolution=eng.stock.resolution,
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
-            defaults=list(cutting_part.defaults_used))
+            defaults=list(cutting_part.defaults_used), tools=tools_used(cutting_part, program))
     kt = np.array([ax.torque_constant for ax in machine.axes])
     trace = Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
                   force if eng is not None else None, cut if eng is not None else None, eng, record)

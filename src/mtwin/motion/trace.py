@@ -37,6 +37,7 @@ class CuttingSummary:
     engagement_steps: int
     engagement_seconds: float
     defaults: list[str]
+    tools: list = field(default_factory=list)  # dicts: cutting.library.tools_used
 
 
 @dataclass
@@ -81,6 +82,7 @@ class Summary:
                 "peak_load", "peak_load_line", "mean_load", "peak_power", "peak_power_line", "mean_cutting_power",
                 "peak_spindle_torque")})
             d["cutting"] = dict(c.__dict__)
+            d["tools"] = c.tools
         # a line 0 does not exist: "no such place" (nothing cut, no feed move) is null
         for sub in (d, d.get("cutting") or {}):
             for k, v in sub.items():

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import MtwinError
 from ..gcode import records as R
+from ..cutting.engagement import GUESSED_STOCK
 from ..motion.path import PAUSE
 from .model import feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
@@ -107,6 +108,12 @@ class OptimizeResult:
     spindle: dict = field(default_factory=dict)  # tool -> chosen S (rpm), with --spindle-range
     tradeoff_source: str = "estimated"  # the trade-off curve's times: "estimated" (fast model)
 
+    @property
+    def tools(self) -> list:
+        """The program's tools as the twin took them (cutting.library.tools_used)."""
+        c = self.trace_before.summary.cutting if self.trace_before is not None else None
+        return list(c.tools) if c is not None else []
+
 
 def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, stage=None) -> OptimizeResult:
     """Optimise ``program`` on ``twin`` (see the module and docs/optimize.md).  ``progress``:
@@ -155,7 +162,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
                           "no feed move the twin knows the cut of: the program is written unchanged")
     max_feed = m.max_cutting_feed
     if opts.feed_range is None:
-        lo = max(1.0, 0.1 * float(rec["feed"][ok].min()))
+        # (a programmed feed above the machine's maximum runs at that maximum: the range is the machine's)
+        lo = max(1.0, 0.1 * min(float(rec["feed"][ok].min()), max_feed))
         feed_range = (lo, max_feed)
     else:
         feed_range = _within_machine(opts.feed_range, max_feed, "--feed-range", "mm/min",
@@ -299,8 +307,8 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     # an air cut under a stock the twin only guessed is raised only where the tool is provably
     # clear of that stock: the guess may hold material the program really cuts
     stock_box = before.summary.cutting.stock if before.summary.cutting else None
-    stock_guessed = stock is None and str(before.summary.cutting.stock_source if before.summary.cutting else
-                                          "default").startswith("default")
+    stock_guessed = stock is None and before.summary.cutting is not None and \
+        before.summary.cutting.stock_source == GUESSED_STOCK
     if stock_guessed:
         # inside the guessed block, a move is air only because earlier cuts removed the material
         # there, which they also do on the machine, whatever the real stock's size — provided
@@ -322,7 +330,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         if unclear.any():
             keep |= unclear
             kept["air cut under a guessed stock"] = _var_lines(program, segs, prob, unclear)
-            warnings.append(f"{program.path}: warning: the stock was guessed ({before.summary.cutting.stock_source}): "
+            warnings.append(f"{program.path}: warning: the stock was {GUESSED_STOCK}: "
                             f"{int(unclear.sum())} air-cut segment(s) outside or above it, or after a cut by an "
                             f"undescribed tool, keep their feeds; give the stock (--stock, (MTWIN STOCK …) or "
                             f"cutting.stock) or declare the tool (--tool) to let them be raised")

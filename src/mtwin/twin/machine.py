@@ -11,6 +11,8 @@ reference (11 kW, 8,000 rpm spindle, Fanuc-style control).  Tags as in
 """
 from __future__ import annotations
 
+import os
+
 import dataclasses
 import math
 from dataclasses import dataclass, field, fields, replace
@@ -166,6 +168,14 @@ class Machine:
     def axes(self) -> tuple[Axis, Axis, Axis]:
         return (self.x, self.y, self.z)
 
+    def describe(self) -> str:
+        """The machine in a line, from its values: axes, spindle, control."""
+        sp = self.spindle
+        travel = "  ".join(f"{a.upper()} {ax.min_travel:g}…{ax.max_travel:g}" for a, ax in zip("xyz", self.axes))
+        rapid = min(ax.max_velocity for ax in self.axes) / 1000.0
+        return (f"3 axes ({travel} mm, rapids {rapid:g} m/min), {sp.rated_power / 1000:g} kW / {sp.max_speed:,.0f} rpm "
+                f"spindle, {self.controller.style}-style control")
+
 
 MACHINE_SECTIONS = ("machine", "controller", "axes", "spindle", "timing", "cost")
 
@@ -211,6 +221,9 @@ def machine_from_dict(raw: dict, where: str = "twin file") -> Machine:
             raise ConfigError(f"{where}: unknown axis axes.{name} (x, y, z)")
         changes[name] = _parse_into(getattr(m, name), body, f"axes.{name}", where)
     m = replace(m, hard_travel_limits=True, **changes)
+    if "name" not in changes:
+        # a file that names no machine is described by its own values, never by the default's
+        m = replace(m, name=f"{os.path.basename(str(where))}: {m.describe()}")
     validate_machine(m, where)
     return m
 
