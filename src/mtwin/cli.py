@@ -63,7 +63,7 @@ app = typer.Typer(
 )
 # piped or redirected (a CI log, a file), rich would cut tables at 80 columns, breaking file
 # names mid-word: there the width is the content's (up to a generous bound)
-err = Console(stderr=True, highlight=False, width=None if sys.stderr.isatty() else int(os.environ.get("COLUMNS", 0)) or 240)
+err = Console(stderr=True, highlight=False, width=None if sys.stderr.isatty() else 240)
 EXIT_INTERNAL = 3
 
 _state = {"traceback": False}
@@ -239,7 +239,8 @@ _SI_UNITS = {"length": "mm", "time": "s", "feed": "mm/min", "spindle": "rpm", "f
 def _print_summary(s) -> None:
     from rich.table import Table
 
-    t = Table(title=f"{s.path}", show_header=False, title_justify="left")
+    err.print(s.path, soft_wrap=True, highlight=False)  # (above the table: a long path is not wrapped)
+    t = Table(show_header=False)
     t.add_column(style="bold")
     t.add_column()
     t.add_row("lines", f"{s.lines:,}")
@@ -518,7 +519,8 @@ def _is_inch(prog) -> bool:
 def _print_simulation(path: str, s, output, inch: bool = False) -> None:
     from rich.table import Table
 
-    t = Table(title=f"{path} on {s.machine} ({s.style} planner)", show_header=False, title_justify="left")
+    err.print(f"{path} on {s.machine} ({s.style} planner)", soft_wrap=True, highlight=False)
+    t = Table(show_header=False)
     t.add_column(style="bold")
     t.add_column()
     t.add_row("cycle time", f"{s.cycle_time:,.3f} s  ({_hms(s.cycle_time)})")
@@ -539,7 +541,10 @@ def _print_simulation(path: str, s, output, inch: bool = False) -> None:
         t.add_row(f"tool T{tool}", f"cutting {d['cutting_time']:,.2f} s over {d['cutting_length']:,.1f} mm, "
                                    f"rapid {d['rapid_time']:,.2f} s")
     c = s.cutting
-    if c is not None and c.engaged_time <= 0:
+    if c is not None and c.engaged_time <= 0 and c.spindle_stopped_line:
+        t.add_row("cutting", f"not modelled: the feed moves cut the stock with the spindle stopped (line "
+                             f"{c.spindle_stopped_line}: no M3/M4 or S0)")
+    elif c is not None and c.engaged_time <= 0:
         b = c.stock
         t.add_row("cutting", f"none: no feed move meets the stock (X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  "
                              f"Z {b[2]:g}…{b[5]:g} mm, {c.stock_source})")
@@ -809,7 +814,8 @@ def _print_optimize(res, prog, json_out: bool) -> None:
         return
     from rich.table import Table
 
-    t = Table(title=f"{prog.path}: {res.objective} by {res.method}", title_justify="left")
+    err.print(f"{prog.path}: {res.objective} by {res.method}", soft_wrap=True, highlight=False)
+    t = Table()
     for col in ("", "before", "after", "change"):
         t.add_column(col, justify="right" if col else "left")
     t.add_row("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time))
@@ -1339,7 +1345,8 @@ def journal(path: str = typer.Argument(..., help="Twin file."),
         return
     from rich.table import Table
 
-    t = Table(title=f"{path}: model journal", title_justify="left")
+    err.print(f"{path}: model journal", soft_wrap=True, highlight=False)
+    t = Table()
     for col in ("#", "effects", "measurement", "RMS before → after"):
         t.add_column(col)
     for e in j:

@@ -440,9 +440,12 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
 
 
 def _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path) -> None:
-    """A feed above the machine's maximum cutting feed runs at it, as on the control; the
-    first such line is a warning (as an S above the spindle's maximum is)."""
-    top = machine.max_cutting_feed / 60.0
+    """A feed above the control's maximum cutting feed (``controller.max_cutting_feed``) runs at
+    it, as on the control; without one, a feed no path can reach (above the axes' speeds
+    together) runs at the axes' limits.  Either is a warning at its first line, as an S above
+    the spindle's maximum is."""
+    set_max = machine.controller.max_cutting_feed
+    top = (set_max if set_max > 0 else float(np.sqrt(sum(ax.max_velocity ** 2 for ax in machine.axes)))) / 60.0
     over = ~is_pause & (seg["rapid"] == 0) & (seg["feed"] > top * (1 + 1e-9))
     if not over.any():
         return
@@ -451,10 +454,12 @@ def _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path) -> None:
 
     lines = np.unique(seg["line"][over])
     i = int(np.argmax(over))
+    what = (f"the machine's maximum cutting feed {set_max:g} mm/min: feeds are clamped to it" if set_max > 0 else
+            f"what the axes can run together ({top * 60.0:,.0f} mm/min): they run at their limits")
+    inch = rec["flags"][seg["rec"][i]] & R.FL_INCH
     warnings.append(warning_text(path, int(seg["line"][i]),
-                                 f"F{seg['feed'][i] * 60.0 / (25.4 if rec['flags'][seg['rec'][i]] & R.FL_INCH else 1.0):g}"
-                                 f" is above the machine's maximum cutting feed {machine.max_cutting_feed:g} mm/min: "
-                                 f"feeds are clamped to it ({len(lines)} line(s))"))
+                                 f"F{seg['feed'][i] * 60.0 / (25.4 if inch else 1.0):g} is above {what} "
+                                 f"({len(lines)} line(s))"))
 
 
 def _same_geometry(program, machine, like):

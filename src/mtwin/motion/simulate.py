@@ -320,7 +320,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             material=cutting_part.material_name,
             stock=list(eng.stock.box), stock_source=eng.stock.source, resolution=eng.stock.resolution,
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
-            defaults=list(cutting_part.defaults_used), tools=tools_used(cutting_part, program))
+            defaults=list(cutting_part.defaults_used), tools=tools_used(cutting_part, program),
+            spindle_stopped_line=int(cstats[RK.CS_SPINDLE_STOPPED_LINE]))
     kt = np.array([ax.torque_constant for ax in machine.axes])
     trace = Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
                   force if eng is not None else None, cut if eng is not None else None, eng, record)

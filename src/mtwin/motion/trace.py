@@ -38,6 +38,7 @@ class CuttingSummary:
     engagement_seconds: float
     defaults: list[str]
     tools: list = field(default_factory=list)  # dicts: cutting.library.tools_used
+    spindle_stopped_line: int = 0  # first line where feed moves cut with the spindle stopped (0: none)
 
 
 @dataclass
