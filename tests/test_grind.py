@@ -162,6 +162,8 @@ def test_cli_design_json_gcode_report_and_simulate(tmp_path):
     assert gcode.count("G31 X-") == len(doc["stages"]) and "G04" in gcode
     page = (tmp_path / "c.html").read_text()
     assert page.count("<svg") >= 2 and "radial force" in page and "Defect map" in page
+    # the set-up the cycle was designed for (issue 19): every parameter with its value and unit
+    assert "<h2>Set-up</h2>" in page and "<td>wheel.diameter</td><td>600</td><td>mm</td>" in page
     s = _mtwin("grind", "simulate", str(tmp_path / "c.toml"), "--json", "-o", str(tmp_path / "t.csv"))
     assert s.returncode == 0, s.stderr
     sim = json.loads(s.stdout)

@@ -28,6 +28,7 @@ def grind_html(twin, result, cols: dict) -> bytes:
                    for k, s in enumerate(d.stages, 1))
     parts.append("<h2>Stages</h2><table><tr><th>stage</th><th>feed mm/min</th><th>until the gauge reads mm</th>"
                  f"<th>time s</th></tr>{rows}</table>")
+    parts.append(_setup(twin))
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), dpi=100, sharex=True)
     t = cols["t"]
     axes[0].plot(t, cols["feed_cmd"], lw=1.0, color="#888888", label="programmed")
@@ -64,6 +65,19 @@ def grind_html(twin, result, cols: dict) -> bytes:
              "text-align:right}td:first-child,th:first-child{text-align:left}svg{max-width:100%;height:auto}")
     return ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>mtwin grind</title>"
             f"<style>{style}</style></head><body>{''.join(parts)}</body></html>").encode("utf-8")
+
+
+def _setup(twin) -> str:
+    """The set-up the cycle was designed for: every parameter of the grinding twin, with its
+    unit, and which ones differ from the defaults (the reference's experiment)."""
+    from ..grind.model import PARAMS
+
+    rows = "".join(f"<tr><td>{html.escape(p.name)}</td><td>{twin[p.name]:g}</td><td>{html.escape(p.unit)}</td>"
+                   f"<td>{'' if twin[p.name] == p.default else f'(default {p.default:g})'}</td>"
+                   f"<td style='text-align:left'>{html.escape(p.doc)}</td></tr>" for p in PARAMS)
+    return ("<h2>Set-up</h2><p>Wheel, part, machine and limits the cycle was designed for (a grind file's "
+            "values; the rest the defaults: the reference's experiment).</p><table><tr><th>parameter</th>"
+            f"<th>value</th><th>unit</th><th></th><th>what it is</th></tr>{rows}</table>")
 
 
 def _limit_text(name: str, value: float) -> str:
