@@ -238,3 +238,25 @@ def test_an_unknown_item_names_ignore_item_and_every_log_command_takes_it(setup)
         assert r.returncode == 0, (cmd, r.stderr)
     with pytest.raises(MeasurementError):
         read_measurement(str(d / "odd.txt"))
+
+
+def test_an_agents_block_text_and_incremental_line_numbers_are_not_lines(tmp_path):
+    # the standard's Block is the executing block's text; LineNumber INCREMENTAL counts blocks
+    # from the start of execution — neither is the program line
+    xml = """<?xml version="1.0"?>
+<MTConnectStreams xmlns="urn:mtconnect.org:MTConnectStreams:1.7"><Streams><DeviceStream name="m">
+<ComponentStream component="Path"><Events>
+<Execution dataItemId="e" timestamp="2020-01-01T00:00:00.0Z">ACTIVE</Execution>
+<Program dataItemId="p" timestamp="2020-01-01T00:00:00.0Z">PART.NC</Program>
+<LineNumber dataItemId="l" subType="ABSOLUTE" timestamp="2020-01-01T00:00:00.1Z">3</LineNumber>
+<LineNumber dataItemId="li" subType="INCREMENTAL" timestamp="2020-01-01T00:00:00.1Z">1</LineNumber>
+<Block dataItemId="b" timestamp="2020-01-01T00:00:00.1Z">G1 X10 F600</Block>
+<LineNumber dataItemId="l" subType="ABSOLUTE" timestamp="2020-01-01T00:00:01.1Z">4</LineNumber>
+<LineNumber dataItemId="li" subType="INCREMENTAL" timestamp="2020-01-01T00:00:01.1Z">2</LineNumber>
+<Block dataItemId="b" timestamp="2020-01-01T00:00:01.1Z">G1 Y10</Block>
+<Execution dataItemId="e" timestamp="2020-01-01T00:00:02.0Z">PROGRAM_COMPLETED</Execution>
+</Events></ComponentStream></DeviceStream></Streams></MTConnectStreams>
+"""
+    (tmp_path / "a.xml").write_text(xml)
+    m = read_measurement(str(tmp_path / "a.xml"))
+    assert list(m.line) == [3, 4] and m.complete is True

@@ -57,7 +57,7 @@ _STOP = {"STOPPED", "INTERRUPTED", "PROGRAM_STOPPED", "OPTIONAL_STOP", "PROGRAM_
 # RotaryVelocityOverride, Execution), the Hurco WinMax adapter's names and the short names
 # common adapters give them (Fovr, Rovr, Sovr)
 _ITEMS = {
-    "block_number": "block", "block": "block", "line": "block", "linenumber": "block",
+    "block_number": "block", "line": "block", "linenumber": "block", "line_number": "block",
     "feed_rate": "feed", "pathfeedrate": "feed", "path_feedrate": "feed", "actual_feed": "feed",
     "spindle_speed": "spindle", "rotaryvelocity": "spindle", "spindlespeed": "spindle",
     "current_tool": "tool", "toolnumber": "tool", "tool_number": "tool",
@@ -83,7 +83,7 @@ _UNUSED = re.compile(
     r"(program_runtime_seconds|spindle_time|part_?count|avail(ability)?|e_?stop|emergency_?stop|"
     r"(controller_?)?mode|[xyzabcuvw](act|com|pos|load|temp|_?position|_?load|_?temperature)|"
     r"(path_?)?position|.*_?(load|temperature|temp|alarm|message|fault|warning|condition)|"
-    r"spindle_load|axis_?.*|door.*|coolant.*|operator.*|user.*|block_?text|block_?content|"
+    r"spindle_load|axis_?.*|door.*|coolant.*|operator.*|user.*|block|block_?text|block_?content|"
     r"program_?comment|line_?label|tool_?(life|offset|length|radius).*|work_?offset.*|"
     r"asset.*|device.*|functional_?mode|power.*|serial.*|clock.*|uptime.*|cycle_?time.*)", re.I)
 
@@ -197,6 +197,10 @@ def read_streams(path: str) -> list:
             kind = "spindle_ovr"
         elif tag == "PathFeedrate" and sub not in ("", "ACTUAL"):
             kind = "feed_" + sub.lower()  # the commanded or programmed feed: not the actual one
+        elif tag == "Block" and _ITEMS.get(name.lower()) != "block":
+            kind = "block_text"  # the standard's Block is the block's text (unless named as a number)
+        elif tag in ("LineNumber", "Line") and sub == "INCREMENTAL":
+            kind = "line_incremental"  # lines counted from the program's start of execution: not a line
         out.append(Event(_seconds(ts, path, 0), kind, (el.text or "").strip(), 0))
     if not out:
         raise MeasurementError("no timestamped data items in the MTConnect XML", SourceLocation(path, 0, 0))
