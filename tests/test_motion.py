@@ -350,3 +350,18 @@ def test_a_plan_at_other_feeds_reuses_the_geometry_and_equals_a_fresh_plan(sampl
     # another path (a spindle speed changed) is planned in full
     other = tw.plan(prog, spindles=prog.records["spindle"] * 0.5, like=base)
     assert other.geometry is not base.geometry
+
+
+def test_a_plan_like_another_program_is_planned_in_full():
+    # the feed-independent stages read more than the path's end points: arcs' centres, dwells,
+    # path modes — a program that differs in any of them is not "the same path at other feeds"
+    tw = Twin()
+    a = tw.load(b"G21 G90 G64 P0.5\nG0 X0 Y0\nG1 X10 F600\nG2 X20 Y0 R5\nG4 P1\nM30\n", path="a.nc")
+    base = tw.plan(a, keep_geometry=True)
+    for other in (b"G21 G90 G64 P0.5\nG0 X0 Y0\nG1 X10 F600\nG2 X20 Y0 R50\nG4 P1\nM30\n",
+                  b"G21 G90 G64 P0.5\nG0 X0 Y0\nG1 X10 F600\nG2 X20 Y0 R5\nG4 P5\nM30\n",
+                  b"G21 G90 G61\nG0 X0 Y0\nG1 X10 F600\nG2 X20 Y0 R5\nG4 P1\nM30\n"):
+        b = tw.load(other, path="a.nc")
+        p = tw.plan(b, like=base)
+        assert p.geometry is not base.geometry
+        assert p.total_time == pytest.approx(tw.plan(b).total_time, rel=1e-12)

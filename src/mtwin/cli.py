@@ -146,6 +146,10 @@ def _fail(exc: BaseException) -> None:
     raise typer.Exit(EXIT_INTERNAL)
 
 
+INTERRUPTED = ("interrupted (Ctrl-C): no output is left half-written (an output not yet complete was not "
+               "written; one written before the interrupt is whole)")
+
+
 def _reports_errors(command):
     """Turn every exception of a command into a message and an exit code (see ``_fail``)."""
 
@@ -156,8 +160,8 @@ def _reports_errors(command):
         except typer.Exit:
             raise
         except KeyboardInterrupt:
-            # outputs are written atomically at the end: an interrupted run leaves none behind
-            err.print("interrupted (Ctrl-C): nothing was written", highlight=False)
+            # every output is written atomically: an interrupted run leaves none half-written
+            err.print(INTERRUPTED, highlight=False)
             raise typer.Exit(130) from None
         except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
             _fail(exc)
@@ -1100,7 +1104,7 @@ def _print_case_notes(case) -> None:
     """What a timing fit leaves out of a log: the operator's stops and holds."""
     g = case.groups
     for x in g.stop_groups:
-        err.print(f"note: {case.label}: program stop at line {x['line']} ({x['code']}): {x['measured']:.1f} s "
+        err.print(f"note: {case.label}: program stop at line {x['line']} ({x['state']}): waited {x['wait']:.1f} s "
                   f"(the operator's time), left out of the fit", soft_wrap=True, highlight=False)
     for x in g.logged_stops:
         err.print(f"note: {case.label}: program stop {x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']}), left out "
@@ -1491,8 +1495,8 @@ def main() -> None:
         sys.argv = [a for a in sys.argv if a != "--traceback"]
     try:
         app()
-    except KeyboardInterrupt:  # pragma: no cover
-        err.print("interrupted")
+    except KeyboardInterrupt:  # pragma: no cover (an interrupt before a command started)
+        err.print(INTERRUPTED, highlight=False)
         sys.exit(130)
 
 

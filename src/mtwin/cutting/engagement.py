@@ -103,12 +103,9 @@ def _tool_rows(plan, program, cutting: Cutting):
     cutting_seg = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
     used = [int(t) for t in np.unique(nums[cutting_seg])]
     table = []
-    index = {}
     for t in used:
         where_i = int(np.nonzero(cutting_seg & (nums == t))[0][0])
-        tool = cutting.tool(t, f"{program.path}:{int(seg['line'][where_i])}: ")
-        index[t] = len(table)
-        table.append(tool)
+        table.append(cutting.tool(t, f"{program.path}:{int(seg['line'][where_i])}: "))
     if not table:  # no feed move: any tool row will do, none is read
         table.append(next(iter(cutting.tools.values()), None) or cutting.tool(0))
     # (the row of each segment's tool; a tool that never cuts reads row 0, like no tool)

@@ -82,6 +82,8 @@ class Program:
     # per record, the fraction of the machine's rapid speed its rapids run at (a logged rapid
     # override the twin replays, mtwin.loop.asrun); None: 100 %
     rapid_scale: np.ndarray | None = None
+    # per record, the factor on the spindle speed (a logged spindle override); None: 1
+    spindle_scale: np.ndarray | None = None
 
     @property
     def path(self) -> str:

@@ -10,9 +10,10 @@ group gives the group the time it took.  Feed override scales the feed of feed m
 override the speed of rapids, spindle override the speed.  A record the log never reached
 runs at the last value logged.
 
-Mapping time to records goes by line: records are taken in program order and matched to the
-reported line at or before theirs, which holds for programs that run top to bottom
-(subprogram loops and repeats get the override of their line's first run).
+Records are matched to the log's block groups in execution order (``record_groups``): a
+record entering the line the next group reports starts that group, so loops, repeats and
+subprograms stored below M30 get the override of the run they were in.  A log that names no
+program line gets each override's mean over the whole run, and says so.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..errors import SourceLocation
 from ..gcode import records as R
-from .blocks import HELD, line_starts
+from .blocks import HELD
 from .measurement import MeasurementError
 
 #: override column -> what it scales
@@ -38,6 +39,7 @@ class AsRun:
     applied: dict = field(default_factory=dict)  # override column -> (lowest, highest) % applied
     not_logged: list = field(default_factory=list)  # override columns a control's log did not have
     partial_to: int = 0  # the last line compared (--partial), 0: the whole program
+    whole_run: bool = False  # the log names no line: each override's mean over the run applied to all
 
     @property
     def notes(self) -> list:
@@ -45,6 +47,9 @@ class AsRun:
         for k, (lo, hi) in self.applied.items():
             what = f"{lo:g} %" if abs(hi - lo) < 0.05 else f"{lo:g}–{hi:g} %"
             out.append(f"{k.replace('_', ' ')} {what} applied to the {SCALES[k]} of the blocks it was in force for")
+        if self.whole_run and self.applied:
+            out.append("the log names no program line: each override's mean over the whole run is applied to every "
+                       "block")
         if self.not_logged:
             out.append(f"{', '.join(k.split('_')[0] for k in self.not_logged)} override not logged: 100 % assumed "
                        f"(values calibrated from this run are effective: they include any override the operator set)")
@@ -53,31 +58,41 @@ class AsRun:
                        f"up to the start of that line (cycle times to the moment it was reached)")
         return out
 
-    def as_dict(self) -> dict:
-        return {"overrides_applied": {k: list(v) for k, v in self.applied.items()}, "overrides_not_logged":
-                self.not_logged, "partial_to_line": self.partial_to or None}
 
 
 def as_run(program, meas, partial: bool = False) -> AsRun:
     """The program as ``meas`` (a control's log) says it ran; ``partial``: a run the log does
-    not finish is compared up to its last line (else it is an error)."""
+    not finish is compared up to the moment its last line was reached (else it is an error)."""
     if meas.t is None:
         return AsRun(program, meas)
     out = AsRun(program, meas)
+    has_lines = meas.line is not None and bool((meas.line > 0).any())
+    group = record_groups(program.records["line"], meas) if has_lines else None
     if meas.complete is False:
         last = _last_line(meas)
         if not partial:
             raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
                                    f"{program.path or 'the program'} (a logger that stopped, or the run was aborted) — "
                                    f"compare the part that ran with --partial", SourceLocation(meas.path, 0, 0))
-        # both sides up to the moment the last line was reached: how long the control ran it
-        # before the log stops is not known
-        t_last = line_starts(meas.t, meas.line)[last]
-        program = _before(program, last)
+        if not has_lines:
+            raise MeasurementError("the run in the log is incomplete and the log names no program line, so where it "
+                                   "stopped is not known: --partial cannot cut the program there",
+                                   SourceLocation(meas.path, 0, 0))
+        # both sides up to the moment the last line was entered (its last entry, in execution
+        # order): how long the control ran it before the log stops is not known
+        g_t0, g_line = transitions(meas.t, meas.line)
+        t_last = float(g_t0[-1])
+        cut = _cut(program.records["line"], group, len(g_t0) - 1, int(g_line[-1]))
+        if cut == 0 or not (program.records["kind"][:cut] != R.DWELL).any():
+            raise MeasurementError(f"the run in the log stops at line {last}, before the program's first move: there "
+                                   f"is nothing to compare", SourceLocation(meas.path, 0, 0))
+        program = replace(program, records=program.records[:cut].copy(), end_tool_change=0)
+        group = group[:cut]
         keep = meas.t <= t_last
         meas = replace(meas, t=meas.t[keep], line=np.where(meas.t[keep] < t_last, meas.line[keep], -1),
                        signals={k: v[keep] for k, v in meas.signals.items()},
-                       extra={k: v[keep] for k, v in meas.extra.items()}, end_time=float(t_last),
+                       extra={k: v[keep] for k, v in meas.extra.items()}, end_time=t_last,
+                       holds=_clip(meas.holds, t_last), stops=_clip(meas.stops, t_last),
                        source_line=None if meas.source_line is None else meas.source_line[keep])
         out.measurement = meas
         out.partial_to = last
@@ -85,13 +100,22 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
     if meas.meta.get("source", "").startswith("MTConnect") or "overrides" in meas.meta or "block_is" in meas.meta:
         out.not_logged = [k for k in SCALES if k not in logged or np.isnan(logged[k]).all()]
     active = {k: v for k, v in logged.items() if not np.isnan(v).all() and (np.abs(v[~np.isnan(v)] - 100.0) > 1e-9).any()}
-    if not active or meas.line is None or not (meas.line > 0).any():
+    if not active:
         out.program = program
         return out
     rec = program.records
-    t0, t1 = _record_spans(rec["line"], meas)
-    new = rec.copy()
+    end = meas.end_time if meas.end_time is not None else float(meas.t[-1])
+    if group is not None:
+        g_t0, _ = transitions(meas.t, meas.line)
+        g_t1 = np.concatenate([g_t0[1:], [end]])
+        t0 = np.where(group >= 0, g_t0[np.maximum(group, 0)], float(meas.t[0]))
+        t1 = np.where(group >= 0, g_t1[np.maximum(group, 0)], g_t0[0] if len(g_t0) else end)
+    else:
+        # no program line in the log: the whole run's mean, for every record (and said so)
+        t0, t1 = np.full(len(rec), float(meas.t[0])), np.full(len(rec), end)
+        out.whole_run = True
     moving = rec["kind"] != R.DWELL
+    new = rec.copy()
     for k, v in active.items():
         f = np.clip(_time_mean(meas.t, v, t0, t1), HELD, None) / 100.0
         if k == "feed_override":
@@ -99,14 +123,15 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
             new["feed"] = np.where(m, rec["feed"] * f, rec["feed"])
             used = f[m]
         elif k == "spindle_override":
-            new["spindle"] = rec["spindle"] * f
+            # (the speed the spindle is driven to, not a new S: the control does not wait for
+            # the spindle when only the override turns, so the plan gets no run-up pause)
+            program = replace(program, spindle_scale=f)
             used = f[rec["spindle"] > 0]
         else:
+            program = replace(program, rapid_scale=np.where(rec["kind"] == R.RAPID, f, 1.0))
             used = f[rec["kind"] == R.RAPID]
         if len(used):
             out.applied[k] = (round(100.0 * float(used.min()), 1), round(100.0 * float(used.max()), 1))
-        if k == "rapid_override":
-            program = replace(program, rapid_scale=np.where(rec["kind"] == R.RAPID, f, 1.0))
     out.program = replace(program, records=new)
     return out
 
@@ -116,34 +141,58 @@ def _last_line(meas) -> int:
     return int(meas.line[ok][-1]) if ok.any() else 0
 
 
-def _before(program, last: int):
-    """The program's records before the first record of line ``last`` or after it."""
-    rec = program.records
-    keep = rec["line"] < last
-    if keep.all():
-        return program
-    k = int(np.argmin(keep))  # the run is cut where the program first reaches that line
-    return replace(program, records=rec[:k].copy(), end_tool_change=0)
+def _clip(spans: list, t: float) -> list:
+    """Intervals (t0, t1, …) cut back to end at ``t``."""
+    return [(a, min(b, t), *rest) for a, b, *rest in spans if a < t]
 
 
-def _record_spans(lines: np.ndarray, meas):
-    """Per record (by its line), the measured (start, end) of the block group it ran in: the
-    reported line at or before its own, to the next reported line's first time."""
-    starts = line_starts(meas.t, meas.line)
-    rep = np.array(sorted(starts), np.int64)
-    rt = np.array([starts[int(x)] for x in rep], np.float64)
-    if not len(rep):
-        t = np.full(len(lines), float(meas.t[0]))
-        return t, t
-    # times in line order: a reported line's group ends where the next (by line) begins
-    end = meas.end_time if meas.end_time is not None else float(meas.t[-1])
-    nxt = np.concatenate([rt[1:], [end]])
-    k = np.searchsorted(rep, lines, side="right") - 1
-    before = k < 0
-    k = np.maximum(k, 0)
-    t0 = np.where(before, float(meas.t[0]), rt[k])
-    t1 = np.where(before, rt[0], np.maximum(nxt[k], rt[k]))
-    return t0, t1
+def transitions(t: np.ndarray, line: np.ndarray):
+    """(times, lines) of the log's block groups in time order: every change of the reported
+    line (a line reported again later — a loop, a subprogram called twice — is a new group)."""
+    ok = line > 0
+    tt, ll = t[ok], line[ok]
+    start = np.flatnonzero(np.r_[True, ll[1:] != ll[:-1]]) if len(ll) else np.zeros(0, np.int64)
+    return tt[start], ll[start].astype(np.int64)
+
+
+def record_groups(lines: np.ndarray, meas) -> np.ndarray:
+    """Per record (in execution order), the index of the log's block group it ran in (-1:
+    before the first), matching the records to the groups in step: a record that enters the
+    line the next group reports starts that group; groups whose line no record has (a
+    comment, an M-code line) are passed over; a record on a line the log did not report stays
+    in the group before it."""
+    _, g_line = transitions(meas.t, meas.line)
+    has = set(np.unique(lines).tolist())
+    out = np.full(len(lines), -1, np.int64)
+    g = -1
+    prev = None
+    for i, ln in enumerate(lines.tolist()):
+        if ln != prev:
+            j = g + 1
+            while j < len(g_line) and g_line[j] not in has:
+                j += 1
+            if j < len(g_line) and g_line[j] == ln:
+                g = j
+        out[i] = g
+        prev = ln
+    return out
+
+
+def _cut(lines: np.ndarray, group: np.ndarray, last_group: int, last_line: int) -> int:
+    """The first record of the last group the log reached (the run stopped there); when that
+    group's line has no record, the first record past the group before it."""
+    at = np.flatnonzero(group == last_group)
+    if len(at):
+        return int(at[0])
+    before = np.flatnonzero(group == last_group - 1) if last_group > 0 else np.zeros(0, np.int64)
+    if not len(before):
+        return 0
+    # the records of the group before run on until the program passes the last line (or jumps)
+    start = int(before[0])
+    for i in range(start + 1, len(lines)):
+        if lines[i] >= last_line or lines[i] < lines[i - 1]:
+            return i
+    return len(lines)
 
 
 def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

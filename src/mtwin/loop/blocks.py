@@ -11,7 +11,7 @@ group; errors are meaningful summed over many groups, which is what the table by
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import re
 
@@ -148,16 +148,52 @@ class Groups:
     kind: list
     excluded: list  # dicts: groups left out (the machine held at 0 % override), with the reason
     hold_time: float  # s of feed hold inside the run (taken out of the measured durations)
-    # dicts: groups at an M00/M01 (first_line, last_line, code, t0, t1, measured): their time is
-    # the operator's, not the program's — left out of the arrays above
-    stop_groups: list = field(default_factory=list)
     # dicts: program stops the control logged (t0, t1, state), taken out of the durations
     logged_stops: list = field(default_factory=list)
+    code: list = field(default_factory=list)  # (groups,) "M00" / "M01" for a group at a program stop, else ""
+    stop_line: list = field(default_factory=list)  # (groups,) the line of that M00/M01
+    t0: np.ndarray | None = None  # (groups,) s, when the group began
+    # dicts: groups at an M00/M01 that waited for the operator (set_apart_stops): line, state,
+    # measured, simulated, wait — left out of the arrays above
+    stop_groups: list = field(default_factory=list)
 
     @property
     def stop_time(self) -> float:
         """s of logged program stops inside the run."""
         return float(sum(x["t1"] - x["t0"] for x in self.logged_stops))
+
+    @property
+    def wait_time(self) -> float:
+        """s the set-apart M00/M01 groups waited beyond the twin's time for their lines."""
+        return float(sum(x["wait"] for x in self.stop_groups))
+
+    def take(self, keep: np.ndarray) -> "Groups":
+        """The groups where ``keep`` is true (the rest of the fields as they are)."""
+        keep = np.asarray(keep, bool)
+        pick = (lambda seq: [x for x, k in zip(seq, keep) if k])
+        return replace(self, first_line=self.first_line[keep], next_line=self.next_line[keep],
+                       last_line=self.last_line[keep], measured=self.measured[keep], kind=pick(self.kind),
+                       code=pick(self.code), stop_line=pick(self.stop_line),
+                       t0=None if self.t0 is None else self.t0[keep])
+
+
+def set_apart_stops(g: Groups, simulated: np.ndarray) -> Groups:
+    """The groups without those at an M00/M01 that took STOP_MIN longer than the twin does for
+    their lines (the control waited for the operator there), which go to ``stop_groups`` with
+    their wait.  Judged against the simulation, not the measured time alone: an M01 with
+    optional stop off, or beside a tool change the twin times wrongly, stays in."""
+    sim = np.where(np.isfinite(simulated), simulated, 0.0)
+    wait = g.measured - sim
+    stop = np.array([bool(c) for c in g.code], bool) & (wait >= STOP_MIN) if len(g.code) else \
+        np.zeros(len(g.measured), bool)
+    if not stop.any():
+        return g
+    out = g.take(~stop)
+    out.stop_groups = list(g.stop_groups) + [
+        {"line": g.stop_line[i], "first_line": int(g.first_line[i]), "last_line": int(g.last_line[i]),
+         "state": g.code[i], "t0": float(g.t0[i]) if g.t0 is not None else None, "measured": float(g.measured[i]),
+         "simulated": float(sim[i]), "wait": float(wait[i])} for i in np.flatnonzero(stop)]
+    return out
 
 
 def _overlap(a0: float, a1: float, spans) -> float:
@@ -171,16 +207,15 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     t1, state) program stops the control logged, taken out of the durations they fall in;
     ``overrides``: signal -> % per sample (feed, rapid, spindle override), which the twin
     applies (:mod:`mtwin.loop.asrun`): a group during which one stood at 0 % (the operator held
-    the machine) is left out and listed.  A group at an M00 or M01 that took STOP_MIN or
-    longer is set apart (``stop_groups``): how long the control waited there is the
-    operator's time."""
+    the machine) is left out and listed.  A group at an M00 or M01 has its ``code``: against a
+    simulation, :func:`set_apart_stops` sets those that waited for the operator apart."""
     ms = line_starts(meas_t, meas_line)
     reported = sorted(ms, key=lambda ln: ms[ln])
     end = float(meas_t[-1]) if meas_end is None else float(meas_end)
     n_lines = int(program.data.count(b"\n") + 1)
     spans = tool_change_spans(program)
     text_lines = program.data.split(b"\n")
-    firsts, nexts, lasts, meas, kinds, excluded, stop_groups = [], [], [], [], [], [], []
+    firsts, nexts, lasts, meas, kinds, excluded, codes, at_lines, starts = [], [], [], [], [], [], [], [], []
     stop_spans = [(a, b) for a, b, _ in stops]
     for k, ln in enumerate(reported):
         nxt = reported[k + 1] if k + 1 < len(reported) else None
@@ -194,18 +229,18 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
             continue
         d = t1 - t0 - _overlap(t0, t1, holds) - _overlap(t0, t1, stop_spans)
         code, at = _stop_code(text_lines[ln - 1:last])
-        if code and d >= STOP_MIN:
-            stop_groups.append({"first_line": ln, "last_line": last, "next_line": nxt or 0, "code": code,
-                                "line": ln + at, "t0": t0, "t1": t1, "measured": d})
-            continue
+        codes.append(code)
+        at_lines.append(ln + at)
+        starts.append(t0)
         firsts.append(ln)
         nexts.append(nxt or 0)
         lasts.append(last)
         meas.append(d)
         kinds.append(classify(program, ln, last, nxt is None, spans, text_lines))
-    logged = [{"t0": a, "t1": b, "state": st} for a, b, st in stops]
+    logged = [{"t0": a, "t1": min(b, end), "state": st} for a, b, st in stops if a < end]
     return Groups(np.array(firsts, np.int64), np.array(nexts, np.int64), np.array(lasts, np.int64),
-                  np.array(meas, np.float64), kinds, excluded, _overlap(0.0, end, holds), stop_groups, logged)
+                  np.array(meas, np.float64), kinds, excluded, _overlap(0.0, end, holds), logged, codes, at_lines,
+                  np.array(starts, np.float64))
 
 
 def _stop_code(text: list) -> tuple[str, int]:
@@ -264,20 +299,14 @@ def _against(g: Groups, sim_t, sim_line) -> BlockTiming:
     lines, starts = simulated_starts(sim_t, np.asarray(sim_line))
     end = float(sim_t[-1]) if len(sim_t) else 0.0
     sim = simulated_durations(g, lines, starts, end)
+    kept = set_apart_stops(g, sim)
+    if kept is not g:
+        sim = simulated_durations(kept, lines, starts, end)
     ok = np.isfinite(sim)
-    stops = [{"state": x["state"], "t0": x["t0"], "t1": x["t1"],
-              "wait": x["t1"] - x["t0"]} for x in g.logged_stops]
-    for x in g.stop_groups:
-        # the wait: what the group took beyond the twin's time for its lines
-        sg = Groups(np.array([x["first_line"]]), np.array([x["next_line"]]), np.array([x["last_line"]]),
-                    np.array([x["measured"]]), ["program stop"], [], 0.0)
-        d = float(simulated_durations(sg, lines, starts, end)[0])
-        d = d if np.isfinite(d) else 0.0
-        stops.append({"line": x["line"], "first_line": x["first_line"], "last_line": x["last_line"], "state": x["code"],
-                      "t0": x["t0"], "t1": x["t1"], "measured": x["measured"], "simulated": d,
-                      "wait": max(0.0, x["measured"] - d)})
-    return BlockTiming(g.first_line[ok], g.last_line[ok], g.measured[ok], sim[ok], [k for k, o in zip(g.kind, ok) if o],
-                       g.excluded, g.hold_time, stops)
+    stops = [{"state": x["state"], "t0": x["t0"], "t1": x["t1"], "wait": x["t1"] - x["t0"]} for x in g.logged_stops]
+    stops += kept.stop_groups
+    return BlockTiming(kept.first_line[ok], kept.last_line[ok], kept.measured[ok], sim[ok],
+                       [k for k, o in zip(kept.kind, ok) if o], g.excluded, g.hold_time, stops)
 
 
 def measurement_groups(program, meas) -> Groups:

@@ -155,7 +155,9 @@ def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
             cols.append((f"<column {j + 1}: {h.strip()}>", 1.0))
             continue
         base, unit = m.group(1), m.group(2)
-        if base.lower() in LOG_COLUMNS:
+        # (a 'tool' column is a control log's only in a file `import mtconnect` wrote; elsewhere
+        # it may hold anything, and is kept out like any column the twin does not know)
+        if base.lower() in LOG_COLUMNS and (base.lower() != "tool" or "block_is" in meta):
             # a control's log as `mtwin import mtconnect` writes it: the tool and the overrides
             if unit is not None and unit.strip() != LOG_COLUMNS[base.lower()]:
                 raise MeasurementError(f"column {base!r} is in {LOG_COLUMNS[base.lower()] or 'no unit'}, got [{unit}]",

@@ -220,6 +220,10 @@ def runs(events: list) -> list:
     stops: list = []
     for k, e in enumerate(events):
         if e.item == "program" and e.value:
+            if start is not None and paused is not None and name and e.value != name:
+                # another program loaded while this one stood stopped: this run was abandoned
+                out.append(Run(name, start, k, False, holds, stops))
+                start, holds, stops, paused = None, [], [], None
             name = e.value
         if e.item != "status":
             continue
@@ -235,8 +239,8 @@ def runs(events: list) -> list:
                 out.append(Run(name, start, k, False, holds, stops))
             start, holds, stops = k, [], []
         elif start is not None and (v == "FEED_HOLD" or v in _STOP):
-            if paused is None:
-                paused = (e.t, v)
+            # (the pause began at the first of them; a stop after a feed hold makes it a stop)
+            paused = (e.t, v) if paused is None else (paused[0], v if v in _STOP else paused[1])
         elif start is not None and v in _END:
             aborted = paused is not None and paused[1] != "FEED_HOLD"
             out.append(Run(name, start, k + 1, not aborted, holds, stops))

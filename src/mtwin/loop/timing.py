@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConfigError, MtwinError
-from .blocks import NOISE_FLOOR, Groups, measurement_groups, simulated_durations
+from .blocks import NOISE_FLOOR, Groups, measurement_groups, set_apart_stops, simulated_durations
 
 SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
 WINDOW = 10.0  # s: block groups are summed into windows of at least this much measured time…
@@ -68,15 +68,18 @@ def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
         raise MtwinError(f"{meas.path}: a timing fit needs a measurement that logs the executing line "
                          f"(a 'line' column, or an MTConnect log's Block_Number)")
     g = measurement_groups(program, meas)
+    end = float(meas.end_time) if meas.end_time is not None else float(meas.t[-1] - meas.t[0])
+    case = TimingCase(program, meas, label or meas.path, g, end, np.zeros(len(g.measured), np.int64))
+    refresh_waits(twin, case)
+    # groups at an M00/M01 where the control waited for the operator (measured against this
+    # twin's time for their lines) are left out of the fit, and their waits out of the cycle
+    g = set_apart_stops(g, evaluate(twin, case)[0])
     if len(g.measured) < 3:
         raise MtwinError(f"{meas.path}: only {len(g.measured)} block groups: too few to fit timing to")
-    end = meas.end_time
-    # (the run without its feed holds and program stops: the operator's time)
-    cycle = (float(end) if end is not None else float(meas.t[-1] - meas.t[0])) - g.hold_time - g.stop_time \
-        - sum(x["measured"] for x in g.stop_groups)
     length = min(WINDOW, max(1.0, float(np.sum(g.measured)) / WINDOWS))
-    case = TimingCase(program, meas, label or meas.path, g, cycle, windows(g.measured, length))
-    refresh_waits(twin, case)
+    case.groups, case.window = g, windows(g.measured, length)
+    # (the run as the program made it: the feed holds, logged stops and operator waits taken out)
+    case.cycle_measured = end - g.hold_time - g.stop_time - g.wait_time
     return case
 
 

@@ -435,11 +435,12 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
         pauses.append((len(rec) - 1, 4, CAT_TOOL, machine.timing.tool_change, end_change))
     seg = _assemble(rec, moves, pauses)
     feed_box = _feed_box(seg, shift) if len(seg) else None
-    geometry = (program.records, rec, shift, seg.copy(), feed_box, list(warnings), machine) if keep_geometry else None
+    geometry = (program.records, rec, shift, seg.copy(), feed_box, list(warnings), machine, program.lexed,
+                end_change) if keep_geometry else None
     return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, program.rapid_scale, program.path)
 
 
-def _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path) -> None:
+def _clamp_cutting_feed(seg, is_pause, machine, warnings, path) -> None:
     """A feed above the control's maximum cutting feed (``controller.max_cutting_feed``) runs at
     it, as on the control; without one, a feed no path can reach (above the axes' speeds
     together) runs at the axes' limits.  Either is a warning at its first line, as an S above
@@ -456,9 +457,9 @@ def _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path) -> None:
     i = int(np.argmax(over))
     what = (f"the machine's maximum cutting feed {set_max:g} mm/min: feeds are clamped to it" if set_max > 0 else
             f"what the axes can run together ({top * 60.0:,.0f} mm/min): they run at their limits")
-    inch = rec["flags"][seg["rec"][i]] & R.FL_INCH
+    # (the feed as it runs, mm/min: an F per revolution or in inverse time is not the F word)
     warnings.append(warning_text(path, int(seg["line"][i]),
-                                 f"F{seg['feed'][i] * 60.0 / (25.4 if inch else 1.0):g} is above {what} "
+                                 f"the feed of this line, {seg['feed'][i] * 60.0:,.6g} mm/min, is above {what} "
                                  f"({len(lines)} line(s))"))
 
 
@@ -466,12 +467,14 @@ def _same_geometry(program, machine, like):
     """``like``'s geometry with ``program``'s feeds, when ``program`` is its path at other feeds."""
     if like is None or like.geometry is None:
         return None
-    src, rec0, shift, seg0, feed_box, warnings, machine0 = like.geometry
+    src, rec0, shift, seg0, feed_box, warnings, machine0, lexed, end_change = like.geometry
     new = program.records
-    if (machine0 is not machine and machine0 != machine) or len(new) != len(src):
+    if (machine0 is not machine and machine0 != machine) or len(new) != len(src) or lexed is not program.lexed \
+            or end_change != getattr(program, "end_tool_change", 0):
         return None
-    for name in ("kind", "flags", "sx", "sy", "sz", "x", "y", "z", "spindle", "spindle_dir", "tool", "line"):
-        if not np.array_equal(new[name], src[name]):
+    # every field the feed-independent stages read: all but the feeds
+    for name in new.dtype.names:
+        if name not in ("feed", "feed_word") and not np.array_equal(new[name], src[name]):
             return None
     seg = seg0.copy()  # (the later stages write limits into it)
     moving = seg["kind"] != PAUSE
@@ -505,7 +508,7 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
         seg = _naive_cam(seg, rec)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
     is_pause = seg["kind"] == PAUSE
-    _clamp_cutting_feed(seg, is_pause, rec, machine, warnings, path)
+    _clamp_cutting_feed(seg, is_pause, machine, warnings, path)
     if rapid_scale is not None:
         # a rapid override scales the speed of rapids, not their acceleration
         r = (seg["rapid"] == 1) & ~is_pause

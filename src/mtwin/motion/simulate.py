@@ -83,7 +83,8 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     hand = np.ones(nseg)
     if len(seg):
         r = rec[seg["rec"]]
-        spin_cmd[:] = r["spindle_dir"] * np.minimum(r["spindle"], m.spindle.max_speed)
+        speed = r["spindle"] if program.spindle_scale is None else r["spindle"] * program.spindle_scale[seg["rec"]]
+        spin_cmd[:] = r["spindle_dir"] * np.minimum(speed, m.spindle.max_speed)
         hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
     cut = _program_cutting(twin, program) if enabled else twin.cutting
     curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
