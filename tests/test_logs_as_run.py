@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import mtwin
+import mtwin.loop.journal
 from mtwin.gcode import records as R
 from mtwin.loop.asrun import as_run
 from mtwin.loop.measurement import MeasurementError, read_measurement
@@ -390,3 +391,14 @@ def test_runs_a_stop_after_a_hold_aborts_and_another_program_starts_a_new_run(tm
     (tmp_path / "r.txt").write_text(log)
     rs = runs(read_shdr(str(tmp_path / "r.txt")))
     assert [(r.program, r.complete) for r in rs] == [("A.NC", False), ("B.NC", False), ("C.NC", True)]
+
+
+def test_values_calibrated_from_a_log_without_overrides_are_labelled_effective(setup, tmp_path):
+    d, tw, prog = setup
+    plain = "\n".join(x for x in _log(tw, prog).splitlines() if "Rapid_Override" not in x) + "\n"
+    (d / "plain2.txt").write_text(plain)
+    r = _cli("calibrate", str(d / "PART.NC"), str(d / "plain2.txt"), "--fit", "block-time", "-o",
+             str(tmp_path / "t.toml"))
+    assert r.returncode == 0, r.stderr
+    (entry,) = mtwin.loop.journal.read_journal(str(tmp_path / "t.toml"))
+    assert any("not logged" in n and "effective" in n for n in entry["notes"])

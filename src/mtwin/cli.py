@@ -1303,7 +1303,11 @@ def calibrate(
     previous = read_journal(twin) if twin else []
     source = _P(twin).read_text(encoding="utf-8") if twin else ""
     label = "; ".join(os.path.basename(m) for _, m in pairs) if len(pairs) > 1 else measurement
-    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, label, res, validation), previous,
+    # a control's log that did not log its overrides: the values fitted to it are effective ones
+    logs = [meas] + ([c.meas for c in cases[1:]] if how == "timing" else [])
+    notes = [f"{os.path.basename(m.path)}: overrides {m.meta['overrides']}; the fitted values are effective (they "
+             f"include any override the operator set)" for m in logs if "not logged" in m.meta.get("overrides", "")]
+    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, label, res, validation, notes), previous,
                            base, tw)
     write_output(text.encode(), output, [p for pair in pairs for p in pair])
     if json_out:

@@ -154,7 +154,8 @@ def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]
     return "\n\n".join(p for p in parts if p) + "\n"
 
 
-def journal_entry(iteration: int, measurement: str, fit, validation: dict | None = None) -> dict:
+def journal_entry(iteration: int, measurement: str, fit, validation: dict | None = None,
+                  notes: list | None = None) -> dict:
     e = {"iteration": iteration, "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
          "measurement": measurement, "effects": [x.name for x in fit.effects],
          "params": {k: v for k, v in fit.params.items()},
@@ -168,4 +169,6 @@ def journal_entry(iteration: int, measurement: str, fit, validation: dict | None
         e["block_rms_after"] = fit.after["rms"]
     if validation:
         e["validation"] = validation
+    if notes:
+        e["notes"] = list(notes)
     return e
