@@ -121,6 +121,8 @@ class Cutting:
     # tools declared on the command line (``--tool N=TYPE:DIAMETER[:FLUTES]``): over the
     # twin file's table and the program's comments
     declared: dict[int, Tool] = field(default_factory=dict)
+    # where each program tool's description was read: number -> (comment line, form); see for_program
+    program_tool_lines: dict[int, tuple] = field(default_factory=dict)
 
     def tool(self, number: int, where: str = "") -> Tool:
         if number in self.declared:
@@ -267,6 +269,7 @@ def for_program(cutting: Cutting, program) -> Cutting:
         # no M6 at all (a router's single spindle): the one tool the program declares and
         # selects with a bare T word is the one in the spindle
         only = next(iter(found.tools.values()))
+    lines = {}
     for t in used:
         if t in cutting.declared:
             lib = cutting.declared[t]
@@ -276,6 +279,7 @@ def for_program(cutting: Cutting, program) -> Cutting:
         lib = to_library_tool(d) if d is not None else None
         if lib is not None:
             tools[t] = lib
+            lines[t] = (d.line, d.form)
             shape = {"flat": "flat end mill", "ball": "ball end mill", "bull": f"bull-nose end mill, corner "
                      f"radius {lib.corner_radius:g} mm", "vee": f"{lib.angle:g}° vee (V-bit/engraving/chamfer), tip "
                      f"{lib.tip_diameter:g} mm"}[lib.type]
@@ -290,7 +294,7 @@ def for_program(cutting: Cutting, program) -> Cutting:
             notes.append(f"tool T{t}: no description in the program or the twin file: the default 6 mm "
                          f"two-flute carbide flat end mill")
     rest = [d for d in cutting.defaults_used if not d.startswith("tool:")]
-    return replace(cutting, program_tools=tools, defaults_used=tuple(notes + rest))
+    return replace(cutting, program_tools=tools, defaults_used=tuple(notes + rest), program_tool_lines=lines)
 
 
 def tools_used(cutting: Cutting, program) -> list[dict]:
@@ -302,10 +306,6 @@ def tools_used(cutting: Cutting, program) -> list[dict]:
 
     rec = program.records
     used = sorted(set(int(t) for t in rec["tool"][R.is_feed_kind(rec["kind"])]))
-    found = _scan(bytes(program.data)) if not cutting.tools else None
-    only = None
-    if found is not None and sorted(set(int(t) for t in rec["tool"])) == [0] and len(found.tools) == 1:
-        only = next(iter(found.tools.values()))
     out = []
     for t in used:
         tool = cutting.tool(t) if (t in cutting.declared or t in cutting.tools or not cutting.tools) else None
@@ -320,9 +320,8 @@ def tools_used(cutting: Cutting, program) -> list[dict]:
         elif t in cutting.tools:
             entry.update(source="twin file", line=None)
         elif t in cutting.program_tools:
-            d = found.tools.get(t) if only is None else only
-            entry.update(source="program comment", line=d.line if d is not None else None,
-                         form=d.form if d is not None else None)
+            line, form = cutting.program_tool_lines.get(t, (None, None))
+            entry.update(source="program comment", line=line, form=form)
         else:
             entry.update(source="default", line=None)
         out.append(entry)
