@@ -128,15 +128,35 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     stage = stage or (lambda text: None)
     stage("simulating the program")
     plan = twin.plan(program, keep_geometry=True)  # (the plans at other feeds below reuse its geometry)
+    rec = program.records
+    cut = _program_cutting(twin, program)
+    candidates = feed_records(program)
+    trust = trusted_records(program, cut, candidates)  # only where the twin knows the cut
+    ok = trust.ok
+    max_feed = m.max_cutting_feed
+    range_warnings: list = []
+    if opts.feed_range is None:
+        # (a programmed feed above the machine's maximum runs at that maximum: the range is the machine's)
+        lo = max(1.0, 0.1 * min(float(rec["feed"][ok].min()), max_feed)) if ok.any() else 1.0
+        feed_range = (lo, max_feed)
+    else:
+        feed_range = _within_machine(opts.feed_range, max_feed, "--feed-range", "mm/min",
+                                     "the machine's maximum cutting feed", program.path, range_warnings)
+    times_job = None
+    if ok.any():
+        # the planner's own times at a few uniform feeds over the range (acceleration, jerk and
+        # look-ahead over short blocks are in them; a formula in L/F misses them on short moves),
+        # planned in a second thread while the program's simulation runs: the kernels of both
+        # release the GIL, and the plans need only the path
+        levels_f = np.geomspace(feed_range[0], feed_range[1], TIME_LEVELS)
+        times_job = _background(lambda: move_times(program, plan, [
+            (float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"]), like=plan)) for F in levels_f]))
     before = simulate_plan(twin, program, plan, stock=stock)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that scale the cutting coefficients along the path (tool wear) act on the estimate too
     resolved = [(e, e.resolved()) for e in twin.effects if e.stage == "loop"]
     kscale = _cutting_scale(eng, plan, resolved, program)
     model = path_model(twin, program, plan, eng, kscale)
-    rec = program.records
-    cut = _program_cutting(twin, program)
-    candidates = feed_records(program)
     # the program's own simulation's warnings (a spindle speed clamped to the machine's, a
     # travel limit…) hold for the optimiser's figures too
     warnings: list = list(getattr(before.summary, "warnings", []) or [])
@@ -149,25 +169,15 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         return _unchanged(program, before, opts, warnings, dict(never_set), t_start,
                           "no feed move whose feed can be set (G1/G2/G3 in mm/min or in/min that are not plunges, "
                           "canned cycles, synchronised or macro-expression feeds): the program is written unchanged")
-    # ---- only where the twin knows the cut (a described tool, a running spindle)
-    trust = trusted_records(program, cut, candidates)
     warnings += trust.warnings
     kept = {f"tool T{t} not described": lines for t, lines in trust.undescribed.items()}
     kept.update(never_set)
     if trust.stopped:
         kept["spindle stopped"] = trust.stopped
-    ok = trust.ok
     if not ok.any():
         return _unchanged(program, before, opts, warnings, kept, t_start,
                           "no feed move the twin knows the cut of: the program is written unchanged")
-    max_feed = m.max_cutting_feed
-    if opts.feed_range is None:
-        # (a programmed feed above the machine's maximum runs at that maximum: the range is the machine's)
-        lo = max(1.0, 0.1 * min(float(rec["feed"][ok].min()), max_feed))
-        feed_range = (lo, max_feed)
-    else:
-        feed_range = _within_machine(opts.feed_range, max_feed, "--feed-range", "mm/min",
-                                     "the machine's maximum cutting feed", program.path, warnings)
+    warnings += range_warnings
     spindle_range = opts.spindle_range if opts.objective != "air" else None
     if spindle_range is not None:
         spindle_range = _within_machine(spindle_range, m.spindle.max_speed, "--spindle-range", "rpm",
@@ -181,11 +191,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     per_segment_s = opts.spindle_per == "segment" and spindle_range is not None
     segs = segment_path(program, model, power0, ok, min_length=opts.min_segment, method=opts.segmentation,
                         allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
-    # the planner's own times at a few uniform feeds over the range (acceleration, jerk and
-    # look-ahead over short blocks are in them; a formula in L/F misses them on short moves)
-    levels_f = np.geomspace(feed_range[0], feed_range[1], TIME_LEVELS)
-    times = move_times(program, plan, [(float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"]), like=plan))
-                                       for F in levels_f])
+    times = times_job()
 
     # ---- the limits: given, or learned per tool from the program as written
     learned = opts.force_limit is None
@@ -572,6 +578,31 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
                           "steps at its programmed F and S); --force-limit sets one",
                           list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
                           spindle_chosen)
+
+
+def _background(work):
+    """Start ``work()`` in a second thread; returns a function that waits for its result (and
+    raises what it raised)."""
+    import threading
+
+    box: dict = {}
+
+    def run():
+        try:
+            box["value"] = work()
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            box["error"] = exc
+
+    th = threading.Thread(target=run, name="mtwin-plans", daemon=True)
+    th.start()
+
+    def result():
+        th.join()
+        if "error" in box:
+            raise box["error"]
+        return box["value"]
+
+    return result
 
 
 def _worse(objective: str, before: Figures, after: Figures) -> bool:
