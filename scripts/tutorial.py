@@ -50,6 +50,11 @@ def _diagnose_block(text: str, most: dict | None = None) -> list[str]:
             out.append(ln)
             shown, more = 0, False
             per_signal = (most or {}).get(ln.split(":")[0], 1)
+        elif ln.startswith("  together:"):
+            if more:
+                out.append("  …")
+                more = False
+            out.append(ln)  # the forward selection's answer, always shown
         elif out and out[-1].endswith("— fits"):
             continue
         elif shown < per_signal:

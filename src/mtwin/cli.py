@@ -1201,6 +1201,10 @@ def diagnose(
         err.print(f"[bold]{s}[/bold]: RMS {v['rms']:.4g} against noise {v['noise']:.4g} — {v['verdict']}", soft_wrap=True)
         for c in v["candidates"][:3]:
             err.print(f"  {c['evidence']}", soft_wrap=True)
+        if len(v["selected"]) > 1:
+            chain = " → ".join(f"{x['effect']} (ΔBIC {x['delta_bic']:+.1f})" for x in v["selected"])
+            err.print(f"  together: {chain}: residual RMS {v['rms_after']:.4g} against noise {v['noise']:.4g}",
+                      soft_wrap=True)
 
 
 @app.command(short_help="Fit effects to a measurement; write the twin file.")

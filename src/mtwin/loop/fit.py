@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import copy
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +28,10 @@ from ..errors import MtwinError
 from .compare import compare
 
 _FIT_FACTOR = 1.5  # a residual within this many noise levels fits
+# ΔBIC below which the evidence for a model is "very strong" (Kass & Raftery 1995: a BIC
+# difference over 10): what makes a candidate "explained" and what forward selection takes
+STRONG_EVIDENCE = -10.0
+MAX_SELECTED = 4  # effects forward selection takes at most, per signal
 
 
 @dataclass
@@ -233,11 +239,7 @@ def diagnose(tg: Target, candidates=None) -> dict:
     jobs = [(cls, used) for cls, used in jobs if used and cls.params]
     # candidates are independent; the servo loop and the engagement release the GIL, so two
     # fit at once on a 2-core machine
-    import os
-    from concurrent.futures import ThreadPoolExecutor
-
-    workers = max(1, min(len(jobs), os.cpu_count() or 1, 4))
-    with ThreadPoolExecutor(max_workers=workers) as pool:
+    with ThreadPoolExecutor(max_workers=_workers(len(jobs))) as pool:
         done = list(pool.map(lambda job: _fit_candidate(tg, *job), jobs))
     fits = {cls.name: fr for (cls, _), fr in zip(jobs, done)}
     for s in tg.measured:
@@ -251,7 +253,7 @@ def diagnose(tg: Target, candidates=None) -> dict:
             rss1 = n * fr.rms_after[s] ** 2
             k = len(fr.params)
             ev = 1.0 - rss1 / rss0 if rss0 > 0 else 0.0
-            dbic = n * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + k * math.log(max(n, 2))
+            dbic = _delta_bic(n, rss1, rss0, k)
             p = {key.rsplit(".", 1)[-1]: round(v, 6) for key, v in fr.params.items()}
             rows.append({"effect": name, "explained_variance": ev, "delta_bic": dbic, "params": p,
                          "rms_after": fr.rms_after[s],
@@ -262,12 +264,66 @@ def diagnose(tg: Target, candidates=None) -> dict:
         noise = tg.noise[s]
         if rms0 <= _FIT_FACTOR * noise:
             verdict = "fits"
-        elif rows and rows[0]["delta_bic"] < -10 and rows[0]["explained_variance"] >= 0.5:
+        elif rows and rows[0]["delta_bic"] < STRONG_EVIDENCE and rows[0]["explained_variance"] >= 0.5:
             verdict = "explained"
         else:
             verdict = "unexplained"
-        out[s] = {"rms": rms0, "noise": noise, "verdict": verdict, "candidates": rows}
+        selected, rms_joint = ([], rms0) if verdict == "fits" else _forward(tg, s, rows, fits, rms0, n)
+        out[s] = {"rms": rms0, "noise": noise, "verdict": verdict, "candidates": rows, "selected": selected,
+                  "rms_after": rms_joint}
     return out
+
+
+def _workers(jobs: int) -> int:
+    return max(1, min(jobs, os.cpu_count() or 1, 4))
+
+
+def _delta_bic(n: int, rss_new: float, rss_old: float, k: int) -> float:
+    """Bayesian information criterion of a model with ``k`` more parameters against the old
+    (Gaussian residuals): negative favours the new one."""
+    return n * math.log(max(rss_new, 1e-300) / max(rss_old, 1e-300)) + k * math.log(max(n, 2))
+
+
+def _forward(tg: Target, s: str, rows: list, fits: dict, rms0: float, n: int):
+    """Forward selection on signal ``s``: the best candidate alone, then, one at a time, the
+    candidate whose joint fit with those already taken (all of them refitted together) lowers
+    the BIC most — while it lowers it by STRONG_EVIDENCE or more and the residual is above
+    the noise.  Returns ([{effect, params, delta_bic, rms_after}] in the order taken, the
+    joint fit's residual RMS); the params are the final joint fit's."""
+    from ..effects import available
+
+    if not rows or rows[0]["delta_bic"] >= STRONG_EVIDENCE:
+        return [], rms0
+    first = rows[0]
+    effects = list(fits[first["effect"]].effects)
+    steps = [{"effect": first["effect"], "delta_bic": first["delta_bic"], "rms_after": first["rms_after"]}]
+    rms = first["rms_after"]
+    remaining = [r["effect"] for r in rows[1:] if r["effect"] in available()]
+    classes = available()
+    while remaining and rms > _FIT_FACTOR * tg.noise[s] and len(steps) < MAX_SELECTED:
+        def joint(name, base=tuple(effects)):
+            try:
+                # (copies: a fit must not share effect objects with another running beside it)
+                return fit(tg, [copy.deepcopy(e) for e in base] + [classes[name]()], [s])
+            except (MtwinError, ValueError, FloatingPointError):
+                return None
+
+        with ThreadPoolExecutor(max_workers=_workers(len(remaining))) as pool:
+            done = list(pool.map(joint, remaining))
+        trials = [(_delta_bic(n, n * fr.rms_after[s] ** 2, n * rms ** 2, len(classes[name].params)), name, fr)
+                  for name, fr in zip(remaining, done) if fr is not None]
+        if not trials:
+            break
+        dbic, name, fr = min(trials, key=lambda t: t[0])
+        if dbic >= STRONG_EVIDENCE:
+            break
+        effects, rms = list(fr.effects), fr.rms_after[s]
+        steps.append({"effect": name, "delta_bic": dbic, "rms_after": rms})
+        remaining.remove(name)
+    final = {e.name: e.resolved() for e in effects}
+    for st in steps:
+        st["params"] = {k: round(float(v), 6) for k, v in final[st["effect"]].items()}
+    return steps, rms
 
 
 def _fit_candidate(tg: Target, cls, signals):
