@@ -1,4 +1,5 @@
-"""``mtwin grind``: plunge-grinding cycles (registered on the main app by ``cli.py``).
+"""``mtwin grind``: plunge-grinding cycles (on the app of ``cli_app.py``; ``cli.py`` imports this
+module to register them).
 
 Heavy modules are imported inside the commands, as in ``cli.py``."""
 from __future__ import annotations
@@ -9,7 +10,7 @@ from typing import Optional
 
 import typer
 
-from .cli import _reports_errors, app, check_outputs, err, write_output
+from .cli_app import _reports_errors, app, check_outputs, err, write_output
 from .errors import MtwinError
 
 grind_app = typer.Typer(help="Plunge grinding: optimal stepped feed cycles.",

@@ -67,45 +67,6 @@ def read_twin_toml(path: str) -> dict:
     return raw
 
 
-def load_machine(path: str | None):
-    """The Machine of a twin file (the embedded default machine when path is None)."""
-    from .twin.machine import Machine, machine_from_dict
-
-    if path is None:
-        return Machine()
-    return machine_from_dict(read_twin_toml(path), str(path))
-
-
-def load_cutting(path: str | None):
-    """Tools, materials and stock settings of a twin file (the built-in defaults when None)."""
-    from .cutting.library import cutting_from_dict
-
-    if path is None:
-        return cutting_from_dict({})
-    return cutting_from_dict(read_twin_toml(path), str(path))
-
-
-def load_effects(path: str | None) -> tuple:
-    """The effects of a twin file, in the file's order: ``[effects.NAME]`` tables of parameter
-    values (an empty table: the effect at its defaults)."""
-    if path is None:
-        return ()
-    raw = read_twin_toml(path).get("effects", {})
-    from .effects import get
-
-    out = []
-    for name, values in raw.items():
-        if not isinstance(values, dict):
-            raise ConfigError(f"{path}: [effects.{name}] must be a table of parameter values")
-        try:
-            eff = get(name)(**values)
-            eff.resolved()
-        except ConfigError as exc:
-            raise ConfigError(f"{path}: [effects.{name}]: {exc}") from None
-        out.append(eff)
-    return tuple(out)
-
-
 def load_twin_file(path: str | None) -> dict:
     """Read and validate the front-end sections of a twin TOML file (plain dict of values)."""
     if path is None:

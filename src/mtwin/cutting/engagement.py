@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, GCodeError, SourceLocation
-from ..motion.path import ARC, LINE, PAUSE
+from ..layout import PAUSE
 from . import _engagekernel as EK
 from .library import Cutting, parse_box
 

@@ -42,7 +42,7 @@ def _validate(cls, origin: str) -> type[Effect]:
 
     if cls.stage not in STAGES:
         raise ConfigError(f"{origin}: effect {cls.name}: stage must be one of {', '.join(STAGES)}")
-    from ..motion.trace import SIGNALS
+    from ..layout import SIGNALS
 
     bad = [s for s in cls.signals if s not in SIGNALS]
     if bad:

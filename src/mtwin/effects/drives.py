@@ -3,8 +3,8 @@ loop reads (``motion._runkernel.SV_*``), so the drives feel them and the motor t
 currents and following errors change with them."""
 from __future__ import annotations
 
-from ..motion import _runkernel as RK
-from ..motion.trace import AXES
+from .. import layout as RK  # the servo table's columns (mtwin.layout)
+from ..layout import AXES
 from ..params import Param
 from .base import Effect
 

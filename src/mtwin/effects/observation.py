@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ..motion.trace import AXES
+from ..layout import AXES
 from ..params import Param
 from .base import Effect
 

@@ -22,12 +22,9 @@ from ._plankernel import ramp_eval
 
 FILTER_NONE, FILTER_LINEAR, FILTER_BELL, FILTER_EXP = 0, 1, 2, 3
 
-# servo parameter columns, per axis
-# SV_MASS is the mass the controller's gains are set for, SV_MP the mass the drive really moves
-# (they differ when the load does: the inertia effect)
-SV_KPP, SV_WV, SV_WI, SV_FF, SV_MASS, SV_FPT, SV_FMAX, SV_FCP, SV_FCN, SV_FSP, SV_FSN, SV_VS, SV_B, SV_FG, \
-    SV_MP = range(15)
-N_SV = 15
+# servo parameter columns, per axis (mtwin.layout: effects write the table through them too)
+from ..layout import (N_SV, SV_B, SV_FCN, SV_FCP, SV_FF, SV_FG, SV_FMAX, SV_FPT, SV_FSN, SV_FSP,  # noqa: E402,F401
+                      SV_KPP, SV_MASS, SV_MP, SV_VS, SV_WI, SV_WV)
 _V_STICK = 1e-9  # mm/s: below this an axis is at rest for the friction model
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import GCodeError, SourceLocation
 from ..gcode import records as R
 
-LINE, ARC, PAUSE = 0, 1, 2
+from ..layout import ARC, LINE, PAUSE  # noqa: F401  (segment kinds, shared with the engagement)
 # Time categories for the cycle-time breakdown
 CAT_RAPID, CAT_CUT, CAT_DWELL, CAT_TOOL, CAT_SPINDLE = 0, 1, 2, 3, 4
 CATEGORY_NAMES = ("rapid", "cutting", "dwell", "tool_change", "spindle_wait")

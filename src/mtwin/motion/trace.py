@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-AXES = ("x", "y", "z")
+from ..layout import _CUT_SIGNALS, AXES, SIGNALS  # noqa: F401  (the layouts, shared with effects)
 
 
 @dataclass
@@ -93,7 +93,6 @@ class Summary:
 
 
 _AXIS_SIGNALS = {"": "act", "_cmd": "cmd", "_err": "err", "_vel": "vel", "_torque": "torque", "_current": "current"}
-_CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")
 
 
 def _source(name: str) -> tuple[str, int]:
@@ -108,11 +107,6 @@ def _source(name: str) -> tuple[str, int]:
         return _AXIS_SIGNALS[name[1:]], AXES.index(name[0])
     raise KeyError(f"no signal {name!r} in the measurement format")
 
-
-#: every signal a trace can hold, in the measurement format's order
-SIGNALS = (tuple(a + s for s in ("", "_cmd", "_err", "_vel") for a in AXES) + ("feed",)
-           + tuple(a + s for s in ("_torque", "_current") for a in AXES) + _CUT_SIGNALS[:3]
-           + ("fx", "fy", "fz") + _CUT_SIGNALS[3:])
 
 
 @dataclass

@@ -38,7 +38,8 @@ class Twin:
     @classmethod
     def from_toml(cls, path: str | None, **interpreter_overrides) -> "Twin":
         """Twin from a twin file (None = the embedded default machine)."""
-        from ..config import interpreter_settings, load_cutting, load_effects, load_machine
+        from ..config import interpreter_settings
+        from .files import load_cutting, load_effects, load_machine
 
         return cls(load_machine(path), interpreter_settings(path, **interpreter_overrides), path, load_cutting(path),
                    load_effects(path))

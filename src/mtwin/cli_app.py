@@ -1,0 +1,181 @@
+"""The ``mtwin`` application object and what every command shares: the stderr console, the
+mapping of errors to messages and exit codes, Ctrl-C, and the atomic writing of outputs.
+
+Apart from ``cli.py`` so that the command modules (``cli.py``, ``cli_grind.py``) import it
+and not one another (one-way imports: ``cli`` registers ``cli_grind``'s commands)."""
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import sys
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from .errors import MtwinError
+
+
+def _conventional_help() -> None:
+    """Usage lines as Unix tools write them (``mtwin scale [OPTIONS] PART``, ``--feed FLOAT``)
+    rather than this typer release's ``{part}`` and ``<float>``, which read as literal text."""
+    try:
+        from typer import core
+
+        def usage_name(self) -> str:
+            name = self.display_name_raw.upper()
+            return name if self.required else f"[{name}]"
+
+        plain = core.TyperArgument.display_type
+
+        def display_type(self, ctx) -> str:
+            s = plain(self, ctx)
+            if isinstance(self, core.TyperArgument):
+                return ""
+            return s[1:-1].upper() if s.startswith("<") and s.endswith(">") else s
+
+        core.TyperArgument._usage_display_name = usage_name
+        for cls in (core.TyperArgument, core.TyperOption):
+            cls.display_type = display_type
+    except (ImportError, AttributeError):  # another typer release: its own style stays
+        pass
+
+
+_conventional_help()
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    # Plain click help: rendering help through rich costs ~80 ms of imports
+    # (rich.markdown, typer.rich_utils), which would put `mtwin --help` over
+    # its 0.3 s budget. Our own messages still go through rich on stderr.
+    rich_markup_mode=None,
+    help="mtwin: G-code optimiser built on a digital twin of a CNC machine tool.",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+# piped or redirected (a CI log, a file), rich would cut tables at 80 columns, breaking file
+# names mid-word: there the width is the content's (up to a generous bound)
+err = Console(stderr=True, highlight=False, width=None if sys.stderr.isatty() else 240)
+EXIT_INTERNAL = 3
+
+_state = {"traceback": False}
+
+
+def _version(value: bool):
+    if value:
+        from . import __version__
+
+        sys.stdout.write(f"mtwin {__version__}\n")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _main(traceback: bool = typer.Option(False, "--traceback",
+                                         help="Show Python tracebacks on errors (also after the command)."),
+          version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")):
+    _state["traceback"] = _state["traceback"] or traceback
+    _install_compile_notice()
+
+
+def _install_compile_notice() -> None:
+    """Say on stderr, once per process, that kernels are being compiled, with a live line per
+    kernel on a terminal: a first run compiles what it needs (seconds), later runs load it."""
+    import time
+
+    from . import _jit
+
+    said = {"n": 0, "t": 0.0}
+
+    @contextlib.contextmanager
+    def notice(name: str):
+        if said["n"] == 0:
+            err.print("compiling the twin's kernels, first run only "
+                      f"(cached in {os.environ.get('NUMBA_CACHE_DIR')}) …", soft_wrap=True)
+        said["n"] += 1
+        t0 = time.perf_counter()
+        if err.is_terminal:
+            with err.status(f"compiling kernel {said['n']}: {name} …"):
+                yield
+        else:
+            yield
+        dt = time.perf_counter() - t0
+        said["t"] += dt
+        if err.is_terminal or dt > 1.0:
+            err.print(f"  compiled {name} in {dt:.1f} s", soft_wrap=True)
+
+    _jit.compile_notice = notice
+
+    def uncached(kernel) -> None:
+        # once per process: a kernel ran as Python because the cache lacks it
+        if said.get("bg") is None:
+            from .warmup import start_background
+
+            said["bg"] = start_background()
+            if said["bg"]:
+                err.print("compiling the twin's kernels in the background for the next runs "
+                          f"(first run only; cached in {os.environ.get('NUMBA_CACHE_DIR')})", soft_wrap=True)
+
+    _jit.uncached_notice = uncached
+
+
+def _fail(exc: BaseException) -> None:
+    if _state["traceback"]:
+        import traceback as tb
+
+        tb.print_exception(exc)
+        if isinstance(exc, MtwinError):
+            raise typer.Exit(exc.exit_code)
+        raise typer.Exit(EXIT_INTERNAL)
+    if isinstance(exc, MtwinError):
+        from rich.markup import escape
+
+        err.print(f"[red]error:[/red] {escape(str(exc))}", markup=True, soft_wrap=True)
+        raise typer.Exit(exc.exit_code)
+    from rich.markup import escape
+
+    err.print(f"[red]internal error:[/red] {type(exc).__name__}: {escape(str(exc))} (run with --traceback and report it)")
+    raise typer.Exit(EXIT_INTERNAL)
+
+
+INTERRUPTED = ("interrupted (Ctrl-C): no output is left half-written (an output not yet complete was not "
+               "written; one written before the interrupt is whole)")
+
+
+def _reports_errors(command):
+    """Turn every exception of a command into a message and an exit code (see ``_fail``)."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except typer.Exit:
+            raise
+        except KeyboardInterrupt:
+            # every output is written atomically: an interrupted run leaves none half-written
+            err.print(INTERRUPTED, highlight=False)
+            raise typer.Exit(130) from None
+        except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
+            _fail(exc)
+
+    return wrapper
+
+
+def write_output(data: bytes, out: str, inputs: list[str], in_place: bool = False) -> None:
+    """Write ``data`` to ``out`` atomically (temporary file + rename), or to stdout for ``-``."""
+    from .io import write_bytes
+
+    write_bytes(data, out, inputs, in_place)
+
+
+def check_outputs(*paths) -> None:
+    """Where results go is checked before the work, not after it ('-' is stdout)."""
+    for p in paths:
+        if not p or p == "-":
+            continue
+        if Path(p).is_dir():
+            raise MtwinError(f"{p} is a directory: give a file name")
+        parent = Path(p).parent if str(Path(p).parent) else Path(".")
+        if not parent.is_dir():
+            raise MtwinError(f"output directory {parent} does not exist")

@@ -1,0 +1,26 @@
+"""Data layouts that several packages share: the segment kinds of a plan, the servo table's
+columns, the axes and the signals a trace can hold.
+
+They live here, below ``motion``, ``cutting`` and ``effects``, so that those packages import
+one place and not one another: an effect writes the servo table through these names
+(``SV_B``, ``SV_FG``…), the engagement reads the segment kinds, and neither needs the motion
+package that runs them (docs/architecture.md: one-way imports).  No imports beyond the
+standard library: this module is cheap and cycle-free by construction."""
+from __future__ import annotations
+
+#: segment kinds of a plan's segment table (``motion.path.SEG_DTYPE``)
+LINE, ARC, PAUSE = 0, 1, 2
+
+#: servo parameter columns of the run kernel's per-axis table.  SV_MASS is the mass the
+#: controller's gains are set for, SV_MP the mass the drive really moves (they differ when the
+#: load does: the inertia effect)
+SV_KPP, SV_WV, SV_WI, SV_FF, SV_MASS, SV_FPT, SV_FMAX, SV_FCP, SV_FCN, SV_FSP, SV_FSN, SV_VS, SV_B, SV_FG, \
+    SV_MP = range(15)
+N_SV = 15
+
+AXES = ("x", "y", "z")
+_CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")
+#: every signal a trace can hold, in the measurement format's order
+SIGNALS = (tuple(a + s for s in ("", "_cmd", "_err", "_vel") for a in AXES) + ("feed",)
+           + tuple(a + s for s in ("_torque", "_current") for a in AXES) + _CUT_SIGNALS[:3]
+           + ("fx", "fy", "fz") + _CUT_SIGNALS[3:])
