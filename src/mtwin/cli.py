@@ -1041,7 +1041,8 @@ def diagnose(
         err.print(f"[bold]{s}[/bold]: RMS {v['rms']:.4g} against noise {v['noise']:.4g} — {v['verdict']}", soft_wrap=True)
         for c in v["candidates"][:3]:
             err.print(f"  {c['evidence']}", soft_wrap=True)
-        if len(v["selected"]) > 1:
+        # the forward selection, where it says more than the single ranking's first line
+        if v["selected"] and (len(v["selected"]) > 1 or v["selected"][0]["effect"] != v["candidates"][0]["effect"]):
             chain = " → ".join(f"{x['effect']} (ΔBIC {x['delta_bic']:+.1f})" for x in v["selected"])
             err.print(f"  together: {chain}: residual RMS {v['rms_after']:.4g} against noise {v['noise']:.4g}",
                       soft_wrap=True)

@@ -32,6 +32,7 @@ _FIT_FACTOR = 1.5  # a residual within this many noise levels fits
 # difference over 10): what makes a candidate "explained" and what forward selection takes
 STRONG_EVIDENCE = -10.0
 MAX_SELECTED = 4  # effects forward selection takes at most, per signal
+TRIAL_EVALUATIONS = 24  # the short fit each candidate of a forward-selection step gets
 
 
 @dataclass
@@ -117,7 +118,8 @@ class FitResult:
                 "effects": [{"name": e.name, "params": e.resolved()} for e in self.effects]}
 
 
-def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None = None) -> FitResult:
+def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None = None,
+        max_evaluations: int = 80) -> FitResult:
     """Fit every parameter of ``effects`` (Effect instances: their values are the starts)
     and the named ``base_params`` of the twin to the target's signals."""
     from scipy.optimize import least_squares
@@ -142,7 +144,7 @@ def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None =
         return residuals(tg, _trace_with(tg, twin, fitted), signals)
 
     ulo, uhi = 1.0 + (lo - x0) / scale, 1.0 + (hi - x0) / scale
-    res = least_squares(fun, np.ones(len(x0)), bounds=(ulo, uhi), method="trf", max_nfev=80,
+    res = least_squares(fun, np.ones(len(x0)), bounds=(ulo, uhi), method="trf", max_nfev=max_evaluations,
                         diff_step=1e-3, xtol=1e-8, ftol=1e-10)
     xfit = to_x(res.x)
     twin, fitted = build(xfit)
@@ -288,7 +290,7 @@ def _forward(tg: Target, s: str, rows: list, fits: dict, rms0: float, n: int):
     """Forward selection on signal ``s``: the best candidate alone, then, one at a time, the
     candidate whose joint fit with those already taken (all of them refitted together) lowers
     the BIC most — while it lowers it by STRONG_EVIDENCE or more and the residual is above
-    the noise.  Returns ([{effect, params, delta_bic, rms_after}] in the order taken, the
+    the noise; after each, an earlier one the BIC prefers without is dropped (stepwise).  Returns ([{effect, params, delta_bic, rms_after}] in the order taken, the
     joint fit's residual RMS); the params are the final joint fit's."""
     from ..effects import available
 
@@ -301,28 +303,46 @@ def _forward(tg: Target, s: str, rows: list, fits: dict, rms0: float, n: int):
     remaining = [r["effect"] for r in rows[1:] if r["effect"] in available()]
     classes = available()
     while remaining and rms > _FIT_FACTOR * tg.noise[s] and len(steps) < MAX_SELECTED:
-        def joint(name, base=tuple(effects)):
+        def joint(name, base=tuple(effects), budget=TRIAL_EVALUATIONS):
             try:
                 # (copies: a fit must not share effect objects with another running beside it)
-                return fit(tg, [copy.deepcopy(e) for e in base] + [classes[name]()], [s])
+                return fit(tg, [copy.deepcopy(e) for e in base] + [classes[name]()], [s], max_evaluations=budget)
             except (MtwinError, ValueError, FloatingPointError):
                 return None
 
+        # every candidate on a short budget; the best one then fitted to the end from there
         with ThreadPoolExecutor(max_workers=_workers(len(remaining))) as pool:
             done = list(pool.map(joint, remaining))
-        trials = [(_delta_bic(n, n * fr.rms_after[s] ** 2, n * rms ** 2, len(classes[name].params)), name, fr)
-                  for name, fr in zip(remaining, done) if fr is not None]
+        trials = [(fr.rms_after[s], name, fr) for name, fr in zip(remaining, done) if fr is not None]
         if not trials:
             break
-        dbic, name, fr = min(trials, key=lambda t: t[0])
+        _, name, short = min(trials, key=lambda t: t[0])
+        try:
+            fr = fit(tg, list(short.effects), [s])
+        except (MtwinError, ValueError, FloatingPointError):
+            fr = short
+        dbic = _delta_bic(n, n * fr.rms_after[s] ** 2, n * rms ** 2, len(classes[name].params))
         if dbic >= STRONG_EVIDENCE:
             break
         effects, rms = list(fr.effects), fr.rms_after[s]
         steps.append({"effect": name, "delta_bic": dbic, "rms_after": rms})
         remaining.remove(name)
+        # a backward look (stepwise): an effect taken earlier that the new one makes redundant
+        # (its parameters gone to zero, or the residual as good without it) is dropped again
+        for old in [st["effect"] for st in steps[:-1]]:
+            rest = [copy.deepcopy(e) for e in effects if e.name != old]
+            try:
+                without = fit(tg, rest, [s])
+            except (MtwinError, ValueError, FloatingPointError):
+                continue
+            k_old = len(classes[old].params) if old in classes else 0
+            if _delta_bic(n, n * without.rms_after[s] ** 2, n * rms ** 2, -k_old) < 0:
+                effects, rms = list(without.effects), without.rms_after[s]
+                steps = [st for st in steps if st["effect"] != old]
     final = {e.name: e.resolved() for e in effects}
     for st in steps:
         st["params"] = {k: round(float(v), 6) for k, v in final[st["effect"]].items()}
+        st["rms_after"] = st["rms_after"] if st is not steps[-1] else rms
     return steps, rms
 
 
