@@ -15,7 +15,8 @@ The twin is a base model plus an ordered list of effects.  An effect is a small 
 
 Estimator rules (as scikit-learn's): ``__init__`` only stores the values it is given;
 :meth:`Effect.resolved` checks them against the declarations.  A user effect subclasses
-:class:`Effect` and is registered like a built-in (``mtwin.effects.registry``).
+:class:`Effect` and is registered like a built-in (``mtwin.effects.register``, a package's
+``mtwin.effects`` entry point or ``--effect-file``; ``mtwin.effects.available()`` lists them).
 """
 from __future__ import annotations
 
