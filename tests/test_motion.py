@@ -365,3 +365,16 @@ def test_a_plan_like_another_program_is_planned_in_full():
         p = tw.plan(b, like=base)
         assert p.geometry is not base.geometry
         assert p.total_time == pytest.approx(tw.plan(b).total_time, rel=1e-12)
+
+
+def test_twin_replace_by_name_shares_the_engagement_cache_unless_told():
+    tw = Twin()
+    a = tw.replace(path="x.toml")
+    assert a.path == "x.toml" and a.machine is tw.machine and a.engagement_cache is tw.engagement_cache
+    b = tw.replace(share_cache=False)
+    assert b.engagement_cache is not tw.engagement_cache
+    with pytest.raises(TypeError, match="unknown field"):
+        tw.replace(machin=tw.machine)
+    # the with_* copies go through it: effects and tools keep the cache, a planner change does not
+    assert tw.with_effects("gravity:mass=1").engagement_cache is tw.engagement_cache
+    assert tw.with_controller(style="grbl").engagement_cache is not tw.engagement_cache

@@ -1097,18 +1097,16 @@ def calibrate(
                                        block_delete, any_program, ignore_item, partial)
     new = [parse_effect_spec(e) for e in fit_effect or ()]
     own = {e.name for e in tw.effects}
-    from .twin import Twin as _Twin
-
     if any(e.name in own for e in new) and not refit:
         # fitting an effect the twin already has: fit it from its current values (stacking a
         # second copy on top would write only the increment)
         keep = [e for e in tw.effects if e.name not in {x.name for x in new}]
         new = [next((e for e in tw.effects if e.name == x.name), x) if not x.values else x for x in new]
-        tw = _Twin(tw.machine, tw.interpreter, tw.path, tw.cutting, tuple(keep))
+        tw = tw.replace(effects=tuple(keep), share_cache=False)
     if refit:
         # the twin's effects start from their current values and are fitted with the new ones
         new = list(tw.effects) + [e for e in new if e.name not in {x.name for x in tw.effects}]
-        tw = _Twin(tw.machine, tw.interpreter, tw.path, tw.cutting, ())
+        tw = tw.replace(effects=(), share_cache=False)
     sig = [s.strip() for s in signals.split(",")] if signals else None
     how = _objective(objective, meas, new)
     pairs = [(part, measurement)] + list(zip((more or [])[::2], (more or [])[1::2]))
@@ -1134,7 +1132,7 @@ def calibrate(
     validation = None
     if validate:
         fitted_base = tw.with_params(base) if base else tw
-        tw2 = _Twin(fitted_base.machine, tw.interpreter, tw.path, fitted_base.cutting, effects)
+        tw2 = tw.replace(machine=fitted_base.machine, cutting=fitted_base.cutting, effects=effects, share_cache=False)
         prog, meas2 = _measured_program(_load(part, tw.interpreter), validate, maps, any_program, ignore_item,
                                         partial)
         if how == "timing":

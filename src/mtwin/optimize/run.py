@@ -837,9 +837,7 @@ def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray) ->
 
 
 def _fresh(twin):
-    from ..twin import Twin
-
-    return Twin(twin.machine, twin.interpreter, twin.path, twin.cutting, twin.effects)
+    return twin.replace(share_cache=False)  # (an engagement of its own: see its caller)
 
 
 def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarray:

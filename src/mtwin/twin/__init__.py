@@ -35,6 +35,21 @@ class Twin:
         # engagement depends only on the path: kept between simulations of this twin
         self.engagement_cache = EngagementCache()
 
+    def replace(self, *, share_cache: bool = True, **changes) -> "Twin":
+        """A copy with some of ``machine``, ``interpreter``, ``path``, ``cutting`` and
+        ``effects`` replaced (by name, never by position).  ``share_cache``: keep this twin's
+        engagement cache (right when the path cannot change: effects, tools, drive
+        parameters); a new, empty one otherwise."""
+        known = ("machine", "interpreter", "path", "cutting", "effects")
+        unknown = sorted(set(changes) - set(known))
+        if unknown:
+            raise TypeError(f"Twin.replace: unknown field(s) {', '.join(unknown)} (known: {', '.join(known)})")
+        values = {k: changes.get(k, getattr(self, k)) for k in known}
+        tw = Twin(**values)
+        if share_cache:
+            tw.engagement_cache = self.engagement_cache
+        return tw
+
     @classmethod
     def from_toml(cls, path: str | None, **interpreter_overrides) -> "Twin":
         """Twin from a twin file (None = the embedded default machine)."""
@@ -52,9 +67,7 @@ class Twin:
         new = tuple(parse_effect_spec(e) if isinstance(e, str) else e for e in effects)
         for e in new:
             e.resolved()
-        tw = Twin(self.machine, self.interpreter, self.path, self.cutting, self.effects + new)
-        tw.engagement_cache = self.engagement_cache
-        return tw
+        return self.replace(effects=self.effects + new)
 
     def with_tools(self, tools: dict) -> "Twin":
         """A copy that knows these tools (number -> ``mtwin.cutting.library.Tool``, or a
@@ -67,10 +80,7 @@ class Twin:
         parsed = {}
         for n, t in tools.items():
             parsed[int(n)] = parse_tool_option(f"{int(n)}={t}")[1] if isinstance(t, str) else t
-        tw = Twin(self.machine, self.interpreter, self.path,
-                  replace(self.cutting, declared={**self.cutting.declared, **parsed}), self.effects)
-        tw.engagement_cache = self.engagement_cache
-        return tw
+        return self.replace(cutting=replace(self.cutting, declared={**self.cutting.declared, **parsed}))
 
     def load(self, source, *, path: str | None = None):
         """Read and interpret a program with this twin's interpreter settings."""
@@ -81,7 +91,7 @@ class Twin:
     def with_controller(self, **changes) -> "Twin":
         """A copy with some controller parameters changed (e.g. ``style="grbl"``)."""
         m = replace(self.machine, controller=replace(self.machine.controller, **changes))
-        return Twin(m, self.interpreter, self.path, self.cutting, self.effects)
+        return self.replace(machine=m, share_cache=False)  # (a planner change may change the path)
 
     def with_params(self, values: dict) -> "Twin":
         """A copy with parameters changed by dotted name: the machine's
@@ -113,9 +123,7 @@ class Twin:
                                   f"(has {', '.join(e.name for e in effects) or 'none'})")
             effects[idx[-1]] = effects[idx[-1]].with_values(**{param: value})
             effects[idx[-1]].resolved()
-        tw = Twin(with_params(self.machine, machine_values), self.interpreter, self.path, cutting, effects)
-        tw.engagement_cache = self.engagement_cache
-        return tw
+        return self.replace(machine=with_params(self.machine, machine_values), cutting=cutting, effects=effects)
 
     def plan(self, program, *, feeds=None, spindles=None, like=None, keep_geometry: bool = False):
         """NCK stages: segments, limits, corners, look-ahead, timing.
