@@ -236,7 +236,7 @@ def _twin_inputs(twin, dialect, lenient, block_delete, effect, effect_file, stoc
         machine = replace(machine, controller=replace(machine.controller, style=planner))
     settings = interpreter_settings(twin, dialect=dialect, lenient=lenient or None, skip_block_delete=block_delete)
     _load_effect_files(effect_file)
-    tw = Twin(machine, settings, twin, load_cutting(twin), load_effects(twin))
+    tw = Twin(machine=machine, interpreter=settings, path=twin, cutting=load_cutting(twin), effects=load_effects(twin))
     if tools:
         from .cutting.library import parse_tool_option
 

@@ -56,8 +56,8 @@ class Twin:
         from ..config import interpreter_settings
         from .files import load_cutting, load_effects, load_machine
 
-        return cls(load_machine(path), interpreter_settings(path, **interpreter_overrides), path, load_cutting(path),
-                   load_effects(path))
+        return cls(machine=load_machine(path), interpreter=interpreter_settings(path, **interpreter_overrides),
+                   path=path, cutting=load_cutting(path), effects=load_effects(path))
 
     def with_effects(self, *effects) -> "Twin":
         """A copy with these effects added after the twin's own (Effect instances or
