@@ -67,7 +67,10 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
         return AsRun(program, meas)
     out = AsRun(program, meas)
     has_lines = meas.line is not None and bool((meas.line > 0).any())
-    group = record_groups(program.records["line"], meas) if has_lines else None
+    # the log's block groups in time order, and the group each record ran in (once: the cut
+    # and the overrides below both read them)
+    g_t0, g_line = transitions(meas.t, meas.line) if has_lines else (np.zeros(0), np.zeros(0, np.int64))
+    group = record_groups(program.records["line"], g_line) if has_lines else None
     if meas.complete is False:
         last = _last_line(meas)
         if not partial:
@@ -79,8 +82,8 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
                                    "stopped is not known: --partial cannot cut the program there",
                                    SourceLocation(meas.path, 0, 0))
         # both sides up to the moment the last line was entered (its last entry, in execution
-        # order): how long the control ran it before the log stops is not known
-        g_t0, g_line = transitions(meas.t, meas.line)
+        # order): how long the control ran it before the log stops is not known; the records
+        # kept are all in the groups before it, whose ends (g_t0 of the next) are unchanged
         t_last = float(g_t0[-1])
         cut = _cut(program.records["line"], group, len(g_t0) - 1, int(g_line[-1]))
         if cut == 0 or not (program.records["kind"][:cut] != R.DWELL).any():
@@ -106,7 +109,6 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
     rec = program.records
     end = meas.end_time if meas.end_time is not None else float(meas.t[-1])
     if group is not None:
-        g_t0, _ = transitions(meas.t, meas.line)
         g_t1 = np.concatenate([g_t0[1:], [end]])
         t0 = np.where(group >= 0, g_t0[np.maximum(group, 0)], float(meas.t[0]))
         t1 = np.where(group >= 0, g_t1[np.maximum(group, 0)], g_t0[0] if len(g_t0) else end)
@@ -155,13 +157,12 @@ def transitions(t: np.ndarray, line: np.ndarray):
     return tt[start], ll[start].astype(np.int64)
 
 
-def record_groups(lines: np.ndarray, meas) -> np.ndarray:
+def record_groups(lines: np.ndarray, g_line: np.ndarray) -> np.ndarray:
     """Per record (in execution order), the index of the log's block group it ran in (-1:
     before the first), matching the records to the groups in step: a record that enters the
     line the next group reports starts that group; groups whose line no record has (a
     comment, an M-code line) are passed over; a record on a line the log did not report stays
-    in the group before it."""
-    _, g_line = transitions(meas.t, meas.line)
+    in the group before it.  ``g_line``: the groups' lines (:func:`transitions`)."""
     has = set(np.unique(lines).tolist())
     out = np.full(len(lines), -1, np.int64)
     g = -1

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -149,8 +150,10 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
         # planned in a second thread while the program's simulation runs: the kernels of both
         # release the GIL, and the plans need only the path
         levels_f = np.geomspace(feed_range[0], feed_range[1], TIME_LEVELS)
-        times_job = _background(lambda: move_times(program, plan, [
+        pool = ThreadPoolExecutor(max_workers=1)
+        times_job = pool.submit(lambda: move_times(program, plan, [
             (float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"]), like=plan)) for F in levels_f]))
+        pool.shutdown(wait=False)  # (the job runs on; the executor takes no more)
     before = simulate_plan(twin, program, plan, stock=stock)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that scale the cutting coefficients along the path (tool wear) act on the estimate too
@@ -191,7 +194,7 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
     per_segment_s = opts.spindle_per == "segment" and spindle_range is not None
     segs = segment_path(program, model, power0, ok, min_length=opts.min_segment, method=opts.segmentation,
                         allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
-    times = times_job()
+    times = times_job.result()
 
     # ---- the limits: given, or learned per tool from the program as written
     learned = opts.force_limit is None
@@ -578,31 +581,6 @@ def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, st
                           "steps at its programmed F and S); --force-limit sets one",
                           list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
                           spindle_chosen)
-
-
-def _background(work):
-    """Start ``work()`` in a second thread; returns a function that waits for its result (and
-    raises what it raised)."""
-    import threading
-
-    box: dict = {}
-
-    def run():
-        try:
-            box["value"] = work()
-        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
-            box["error"] = exc
-
-    th = threading.Thread(target=run, name="mtwin-plans", daemon=True)
-    th.start()
-
-    def result():
-        th.join()
-        if "error" in box:
-            raise box["error"]
-        return box["value"]
-
-    return result
 
 
 def _worse(objective: str, before: Figures, after: Figures) -> bool:
