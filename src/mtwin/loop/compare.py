@@ -69,9 +69,12 @@ def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, r
             c = res.cycle_time
             c["measured"] = cyc_m
             c["relative_error"] = (c["simulated"] - cyc_m) / cyc_m if cyc_m > 0 else None
-            if b.hold_time > 0 or b.stop_time > 0:
-                res.notes.append(f"measured cycle time: the run's {float(meas.end_time):.3f} s less "
-                                 f"{b.hold_time:.1f} s of feed hold and {b.stop_time:.1f} s of program stops")
+            res.notes.append(f"measured cycle time: the logged run, {float(meas.end_time):.3f} s from its start to "
+                             f"its end" + (f", less {b.hold_time:.1f} s of feed hold and {b.stop_time:.1f} s of "
+                                           f"program stops" if b.hold_time > 0 or b.stop_time > 0 else ""))
+            return res
+    if res.alignment == "line":
+        res.notes.append("measured cycle time: first to last sample")
     return res
 
 
@@ -134,8 +137,6 @@ def _compare_series(trace, meas, align, xcorr_signal, regions) -> Comparison:
     cyc_s = float(trace.summary.cycle_time)
     cycle = {"measured": cyc_m, "simulated": cyc_s,
              "relative_error": (cyc_s - cyc_m) / cyc_m if cyc_m > 0 else None}
-    if align == "line":
-        notes.append("measured cycle time: first to last sample")
     worst = _worst_regions(measured, simulated, line, regions)
     offset = float(np.median(t_sim_i - tm_i))
     return Comparison(align, offset, cycle, stats, worst, tm_i, t_sim_i, measured, simulated, line, notes)
