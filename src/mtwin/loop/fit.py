@@ -111,6 +111,12 @@ class FitResult:
     noise: dict
     evaluations: int
     signals: list = field(default_factory=list)
+    # the fitted model on the target's time base, per signal: the simulated values and their
+    # derivatives by each parameter (d simulated / d params[key], columns in params' order),
+    # from the solver's last Jacobian — what forward selection's linearised joint fits use
+    simulated: dict = field(default_factory=dict, repr=False)
+    jacobian: dict = field(default_factory=dict, repr=False)
+    bounds: tuple = ((), ())
 
     def as_dict(self) -> dict:
         return {"params": self.params, "uncertainty": self.uncertainty, "rms_before": self.rms_before,
@@ -152,7 +158,21 @@ def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None =
     unc = [None if u is None else u * sc for u, sc in zip(_uncertainty(res, len(signals)), scale)]
     return FitResult(fitted, dict(zip(keys, map(float, xfit))), dict(zip(keys, unc)),
                      _rms_by_signal(tg, tg.base, signals), _rms_by_signal(tg, after_trace, signals),
-                     dict(tg.noise), count[0], signals)
+                     dict(tg.noise), count[0], signals, tg.simulated(after_trace, signals),
+                     _signal_jacobians(tg, signals, res.jac, scale), (lo, hi))
+
+
+def _signal_jacobians(tg: Target, signals, jac, scale) -> dict:
+    """The solver's Jacobian (of the scaled residuals by the scaled parameters) as, per
+    signal, d simulated / d parameter: residual = (measured − simulated) / noise and
+    x = x0 + (u − 1)·scale."""
+    jac = np.asarray(jac.toarray() if hasattr(jac, "toarray") else jac, dtype=np.float64)
+    out, row = {}, 0
+    for s in signals:
+        m = len(tg.measured[s])
+        out[s] = -jac[row:row + m] * tg.noise[s] / scale
+        row += m
+    return out
 
 
 def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
@@ -287,63 +307,155 @@ def _delta_bic(n: int, rss_new: float, rss_old: float, k: int) -> float:
 
 
 def _forward(tg: Target, s: str, rows: list, fits: dict, rms0: float, n: int):
-    """Forward selection on signal ``s``: the best candidate alone, then, one at a time, the
-    candidate whose joint fit with those already taken (all of them refitted together) lowers
-    the BIC most — while it lowers it by STRONG_EVIDENCE or more and the residual is above
-    the noise; after each, an earlier one the BIC prefers without is dropped (stepwise).  Returns ([{effect, params, delta_bic, rms_after}] in the order taken, the
-    joint fit's residual RMS); the params are the final joint fit's."""
-    from ..effects import available
+    """Forward selection on signal ``s`` (stepwise, in the spirit of FROLS): the candidate
+    whose joint fit with those already taken lowers the BIC most, one at a time, while it
+    lowers it by STRONG_EVIDENCE or more and the residual is above the noise; after each, an
+    earlier one the BIC prefers without is dropped again.
 
-    if not rows or rows[0]["delta_bic"] >= STRONG_EVIDENCE:
-        return [], rms0
-    first = rows[0]
-    effects = list(fits[first["effect"]].effects)
-    steps = [{"effect": first["effect"], "delta_bic": first["delta_bic"], "rms_after": first["rms_after"]}]
-    rms = first["rms_after"]
-    remaining = [r["effect"] for r in rows[1:] if r["effect"] in available()]
-    classes = available()
-    while remaining and rms > _FIT_FACTOR * tg.noise[s] and len(steps) < MAX_SELECTED:
-        def joint(name, base=tuple(effects), budget=TRIAL_EVALUATIONS):
-            try:
-                # (copies: a fit must not share effect objects with another running beside it)
-                return fit(tg, [copy.deepcopy(e) for e in base] + [classes[name]()], [s], max_evaluations=budget)
-            except (MtwinError, ValueError, FloatingPointError):
-                return None
-
-        # every candidate on a short budget; the best one then fitted to the end from there
-        with ThreadPoolExecutor(max_workers=_workers(len(remaining))) as pool:
-            done = list(pool.map(joint, remaining))
-        trials = [(fr.rms_after[s], name, fr) for name, fr in zip(remaining, done) if fr is not None]
+    The joint fits are the candidates' single fits linearised — each candidate's simulated
+    change and its Jacobian, both from its single fit — and solved by bounded linear least
+    squares, so a step costs no simulation; the selected effects are then evaluated once on
+    the twin (and refitted there if the linearisation was poor), which gives the reported
+    residual.  Returns ([{effect, params, delta_bic, rms_after}] in the order taken, the joint
+    fit's residual RMS); the params are the final joint fit's."""
+    measured = tg.measured[s]
+    ok = ~np.isnan(measured)
+    sim0 = tg.simulated(tg.base, [s])[s]
+    r0 = np.where(ok, measured - sim0, 0.0)
+    lin = _Linearised(r0, ok, sim0, s, [fits[r["effect"]] for r in rows])
+    rss = float(r0 @ r0)
+    taken: list = []
+    steps: list = []
+    while lin.names and len(steps) < MAX_SELECTED and (not steps or math.sqrt(rss / n) > _FIT_FACTOR * tg.noise[s]):
+        trials = [(lin.rss(taken + [c]), c) for c in lin.names if c not in taken]
         if not trials:
             break
-        _, name, short = min(trials, key=lambda t: t[0])
-        try:
-            fr = fit(tg, list(short.effects), [s])
-        except (MtwinError, ValueError, FloatingPointError):
-            fr = short
-        dbic = _delta_bic(n, n * fr.rms_after[s] ** 2, n * rms ** 2, len(classes[name].params))
+        rss_c, name = min(trials)
+        dbic = _delta_bic(n, rss_c, rss, lin.k[name])
         if dbic >= STRONG_EVIDENCE:
             break
-        effects, rms = list(fr.effects), fr.rms_after[s]
-        steps.append({"effect": name, "delta_bic": dbic, "rms_after": rms})
-        remaining.remove(name)
-        # a backward look (stepwise): an effect taken earlier that the new one makes redundant
-        # (its parameters gone to zero, or the residual as good without it) is dropped again
-        for old in [st["effect"] for st in steps[:-1]]:
-            rest = [copy.deepcopy(e) for e in effects if e.name != old]
-            try:
-                without = fit(tg, rest, [s])
-            except (MtwinError, ValueError, FloatingPointError):
-                continue
-            k_old = len(classes[old].params) if old in classes else 0
-            if _delta_bic(n, n * without.rms_after[s] ** 2, n * rms ** 2, -k_old) < 0:
-                effects, rms = list(without.effects), without.rms_after[s]
+        taken.append(name)
+        rss = rss_c
+        steps.append({"effect": name, "delta_bic": dbic, "rms_after": math.sqrt(rss / n)})
+        for old in taken[:-1]:  # the backward look: one the new effect makes redundant goes
+            without = lin.rss([c for c in taken if c != old])
+            if _delta_bic(n, without, rss, -lin.k[old]) < 0:
+                taken.remove(old)
+                rss = without
                 steps = [st for st in steps if st["effect"] != old]
+    if not steps:
+        return [], rms0
+    effects, rms = lin.evaluate(tg, taken, math.sqrt(rss / n))
+    best = rows[0]
+    if len(steps) > 1 and rms >= best["rms_after"] and best["delta_bic"] < STRONG_EVIDENCE:
+        # the twin does not bear the linearised joint fit out (an effect far from linear over
+        # the move from its single fit): the single ranking's best is what is known
+        fr = lin.fit[best["effect"]]
+        return [{"effect": best["effect"], "delta_bic": best["delta_bic"], "rms_after": best["rms_after"],
+                 "params": {k: round(float(v), 6) for k, v in fr.effects[0].resolved().items()}}], best["rms_after"]
     final = {e.name: e.resolved() for e in effects}
     for st in steps:
         st["params"] = {k: round(float(v), 6) for k, v in final[st["effect"]].items()}
-        st["rms_after"] = st["rms_after"] if st is not steps[-1] else rms
+    steps[-1]["rms_after"] = rms
     return steps, rms
+
+
+class _Linearised:
+    """Candidates' single fits on one signal as a linear model around their fitted values:
+    simulated ≈ base + Σ (change_c + J_c·δ_c), δ_c the move of candidate c's parameters from
+    its fitted ones, within their bounds."""
+
+    def __init__(self, r0, ok, sim0, s: str, fitted):
+        self.r0, self.s = r0, s
+        self.change, self.jac, self.fit, self.k = {}, {}, {}, {}
+        for fr in fitted:
+            if fr is None or s not in fr.simulated or s not in fr.jacobian or len(fr.effects) != 1:
+                continue
+            name = fr.effects[0].name
+            change = np.where(ok, fr.simulated[s] - sim0, 0.0)
+            if len(fr.params) > 1 and np.linalg.norm(change) < 1e-3 * np.linalg.norm(r0):
+                # a single fit that stayed where it started (a shape parameter at zero amplitude
+                # has no gradient): its tangent says nothing of the effect's shape
+                continue
+            self.change[name] = change
+            self.jac[name] = np.where(ok[:, None], fr.jacobian[s], 0.0)
+            self._secant(name, fr)
+            self.fit[name] = fr
+            self.k[name] = len(fr.params)
+        self.names = list(self.change)
+
+    def _secant(self, name: str, fr) -> None:
+        """A parameter the single fit left against a saturation (a friction taken to zero: its
+        Jacobian column is zero there) gets the secant from its default instead — the change
+        its move made, less what the other parameters' columns account for."""
+        e = fr.effects[0]
+        x = np.array(list(fr.params.values()), dtype=np.float64)
+        default = np.array([d.default for d in e.params], dtype=np.float64)
+        J = self.jac[name]
+        flat = [j for j in range(len(x)) if not np.any(J[:, j]) and abs(x[j] - default[j]) > 1e-12]
+        if len(flat) != 1:
+            return
+        j = flat[0]
+        rest = self.change[name] - J @ np.where(np.arange(len(x)) == j, 0.0, x - default)
+        J[:, j] = rest / (x[j] - default[j])
+
+    def solve(self, names) -> tuple[float, dict]:
+        """(residual sum of squares, {name: parameter values}) of the joint fit of ``names``."""
+        from scipy.optimize import lsq_linear
+
+        target = self.r0 - sum((self.change[c] for c in names), np.zeros_like(self.r0))
+        cols, lo, hi, where = [], [], [], []
+        for c in names:
+            fr = self.fit[c]
+            x = np.array(list(fr.params.values()))
+            blo, bhi = fr.bounds
+            for j in range(len(x)):
+                if np.any(self.jac[c][:, j]) and bhi[j] > blo[j]:
+                    cols.append(self.jac[c][:, j])
+                    lo.append(blo[j] - x[j])
+                    hi.append(bhi[j] - x[j])
+                    where.append((c, j))
+        delta = np.zeros(len(cols))
+        if cols:
+            A = np.stack(cols, axis=1)
+            norm = np.linalg.norm(A, axis=0)
+            sol = lsq_linear(A / norm, target, bounds=(np.minimum(np.array(lo) * norm, -1e-300),
+                                                        np.maximum(np.array(hi) * norm, 1e-300)))
+            delta = sol.x / norm
+            target = target - A @ delta
+        values = {c: np.array(list(self.fit[c].params.values()), dtype=np.float64) for c in names}
+        for (c, j), d in zip(where, delta):
+            values[c][j] += d
+        return float(target @ target), values
+
+    def rss(self, names) -> float:
+        return self.solve(names)[0]
+
+    def evaluate(self, tg: Target, names, rms_linear: float):
+        """(the effects at the joint fit's values, the residual RMS of the twin with them): one
+        simulation; where that residual is above the noise level, a short fit on the twin from
+        there (the better of the two is kept)."""
+        _, values = self.solve(names)
+        effects = []
+        for c in names:
+            e = self.fit[c].effects[0]
+            lo, hi = self.fit[c].bounds
+            effects.append(type(e)(**{d.name: float(np.clip(v, a, b))
+                                      for d, v, a, b in zip(e.params, values[c], lo, hi)}))
+        single = len(names) == 1 and np.allclose(values[names[0]], list(self.fit[names[0]].params.values()))
+        if single:
+            return effects, self.fit[names[0]].rms_after[self.s]
+        rms = _rms_by_signal(tg, _trace_with(tg, tg.twin, effects), [self.s])[self.s]
+        if rms > _FIT_FACTOR * tg.noise[self.s] and rms < 2.0 * rms_linear:
+            # not at the noise level: a fit on the twin from there (further from the linear
+            # model's figure than 2×, the linearisation is not a start a short fit gets back from)
+            try:
+                fr = fit(tg, [copy.deepcopy(e) for e in effects], [self.s], max_evaluations=2 * TRIAL_EVALUATIONS)
+            except (MtwinError, ValueError, FloatingPointError):
+                fr = None
+            if fr is not None and fr.rms_after[self.s] < rms:
+                return list(fr.effects), fr.rms_after[self.s]
+        return effects, rms
 
 
 def _fit_candidate(tg: Target, cls, signals):
