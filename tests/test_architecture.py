@@ -103,6 +103,58 @@ def test_the_graph_is_read_as_it_is():
     # the reader itself: it sees the edges that exist (a test that could not fail would prove nothing)
     edges, in_functions = import_graph()
     assert "mtwin.motion" in edges["mtwin.optimize"] and "mtwin.layout" in edges["mtwin.cutting"]
-    assert "mtwin.cli_app" in edges["mtwin.cli_grind"] and "mtwin.cli" not in edges["mtwin.cli_grind"]
+    assert "mtwin.api" in edges["mtwin.cli"] and "mtwin.cli" not in edges["mtwin.api"]
     assert in_functions > 0
     assert _cycles({"a": {"b": []}, "b": {"c": []}, "c": {"a": []}}) == [["a", "b", "c"]]
+
+
+# ------------------------------------------------------------------------- the commands
+
+CLI = PKG / "cli"
+COMMAND_LINES = 60  # the longest a command function may be
+
+
+def _commands():
+    """(module, function) of every command: functions decorated with ``<typer>.command`` or
+    ``<typer>.callback``."""
+    for path in sorted(CLI.glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for fn in tree.body:
+            if not isinstance(fn, ast.FunctionDef):
+                continue
+            for d in fn.decorator_list:
+                f = d.func if isinstance(d, ast.Call) else d
+                if isinstance(f, ast.Attribute) and f.attr in ("command", "callback"):
+                    yield path.name, fn
+                    break
+
+
+def test_no_command_function_is_longer_than_60_lines():
+    found = list(_commands())
+    assert len(found) >= 20  # (the reader sees the commands)
+    long = [f"{m}:{fn.name} {fn.end_lineno - fn.lineno + 1} lines" for m, fn in found
+            if fn.end_lineno - fn.lineno + 1 > COMMAND_LINES]
+    assert not long, f"commands over {COMMAND_LINES} lines (move the work into the library): {long}"
+
+
+def test_the_cli_imports_nothing_private_and_builds_no_twin():
+    bad = []
+    for path in sorted(CLI.glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for n in ast.walk(tree):
+            if isinstance(n, ast.ImportFrom):
+                inside = n.level == 1 or (n.module or "").startswith("mtwin.cli")
+                module = (n.module or "").split(".")
+                if inside:
+                    continue
+                private = [x for x in module + [a.name for a in n.names]
+                           if x.startswith("_") and not (x.startswith("__") and x.endswith("__"))]
+                if private:
+                    bad.append(f"{path.name}:{n.lineno} from {'.' * n.level}{n.module or ''} import "
+                               f"{', '.join(a.name for a in n.names)}")
+            elif isinstance(n, ast.Call):
+                f = n.func
+                name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+                if name in ("Twin", "build", "from_toml"):
+                    bad.append(f"{path.name}:{n.lineno} builds a twin ({name})")
+    assert not bad, bad

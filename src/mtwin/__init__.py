@@ -8,10 +8,21 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 __all__ = ["load_program", "InterpreterSettings", "Program", "rewrite", "verify", "summarize", "scale_feeds",
-           "Twin", "Machine"]
+           "Twin", "Machine", "TwinSetup", "Reading", "simulate", "scale", "optimize", "synthesize", "compare",
+           "diagnose", "calibrate", "grind"]
+
+# the use cases (mtwin.api): what each command runs, as functions
+_USE_CASES = ("simulate", "scale", "synthesize", "compare", "diagnose", "calibrate", "Reading", "TwinSetup")
 
 
 def __getattr__(name):
+    if name in _USE_CASES:
+        from . import api
+        return getattr(api, name)
+    if name in ("optimize", "grind"):
+        # packages that are (optimize) or hold (grind) their use cases
+        import importlib
+        return importlib.import_module(f".{name}", __name__)
     if name in ("load_program", "InterpreterSettings", "Program"):
         from .gcode import interpreter
         return getattr(interpreter, name)

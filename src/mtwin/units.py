@@ -103,3 +103,8 @@ def convert(value, unit: str, key: str) -> float:
     if not math.isfinite(out):
         raise UnitError(f"{key}: value must be finite")
     return out
+
+
+#: The units of every JSON output, whatever the program's (an inch program's F10 is 254 mm/min).
+SI_UNITS = {"length": "mm", "time": "s", "feed": "mm/min", "spindle": "rpm", "force": "N", "power": "W",
+            "torque": "N·m", "energy": "J"}

@@ -191,3 +191,27 @@ def warm(step: Callable[[str], None] = lambda what: None) -> None:
         tr = twin.simulate(fanuc)
         meas = Measurement("warm-up.csv", tr.t[::10], {a: tr.signal(a)[::10] for a in ("x", "y", "z")})
         compare(tr, meas, "position")
+
+
+def cache_dir() -> str:
+    """Where the compiled kernels are cached (``NUMBA_CACHE_DIR``)."""
+    from . import _jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
+
+    return os.environ["NUMBA_CACHE_DIR"]
+
+
+def set_notices(compile_notice=None, uncached_notice=None) -> None:
+    """How a caller hears of kernel work: ``compile_notice(name)``, a context manager around
+    each compile; ``uncached_notice(kernel)``, called when a kernel runs as Python because the
+    cache lacks it.  None: silent (the library's default)."""
+    from . import _jit
+
+    _jit.compile_notice = compile_notice or _jit._no_notice
+    _jit.uncached_notice = uncached_notice or _jit._no_uncached
+
+
+def compiled_count() -> int:
+    """Kernels compiled in this process."""
+    from . import _jit
+
+    return len(_jit.COMPILE_LOG)

@@ -97,6 +97,19 @@ class Program:
     def is_macro(self) -> bool:
         return self.expanded is not None
 
+    @property
+    def inch(self) -> bool:
+        """Whether the program is written in inches (G20 on most of its moves)."""
+        from .records import FL_INCH
+
+        rec = self.records
+        return bool(len(rec)) and bool(((rec["flags"] & FL_INCH) != 0).mean() > 0.5)
+
+    @property
+    def text_lines(self) -> list[str]:
+        """The program's lines as text (Latin-1: every byte stands for itself)."""
+        return self.data.decode("latin-1").split("\n")
+
     def turning_line(self) -> int:
         """The first line that makes this a turning (lathe) program — a G70-G72 profile cycle,
         G96 constant surface speed or G7 diameter mode — or 0."""

@@ -101,8 +101,7 @@ def fit(twin: GrindTwin, stages: list, t: np.ndarray, feed: np.ndarray, force: n
     """Fit grinding parameters (by dotted name) to a recorded cycle: actual feed and radial
     force against time, by bounded least squares on the twin's own trace of the same cycle.
     Returns {name: value} and the RMS residuals before and after."""
-    from scipy.optimize import least_squares
-
+    from ..fitting import solve
     from .model import BY_NAME
 
     params = [BY_NAME[n] for n in names]
@@ -120,6 +119,8 @@ def fit(twin: GrindTwin, stages: list, t: np.ndarray, feed: np.ndarray, force: n
     r0 = resid(x0)
     lo = np.array([max(p.lower, 1e-12) for p in params])
     hi = np.array([p.upper for p in params])
-    sol = least_squares(resid, np.clip(x0, lo, hi), bounds=(lo, hi), x_scale=np.abs(x0) + 1e-12, diff_step=1e-3)
+    # (residuals scaled by each signal's spread, not its noise: no identifiability cut)
+    sol = solve(resid, x0, lo, hi, np.abs(np.clip(x0, lo, hi)) + 1e-12, max_evaluations=200, blind_check=False)
     return {"values": {n: float(v) for n, v in zip(names, sol.x)},
+            "uncertainty": {n: u for n, u in zip(names, sol.uncertainty)},
             "rms_before": float(np.sqrt(np.mean(r0 ** 2))), "rms_after": float(np.sqrt(np.mean(sol.fun ** 2)))}

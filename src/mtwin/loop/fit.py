@@ -25,12 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MtwinError
+from ..fitting import FIT_FACTOR, STRONG_EVIDENCE, default_scale, delta_bic, solve, verdict
 from .compare import compare
 
-_FIT_FACTOR = 1.5  # a residual within this many noise levels fits
-# ΔBIC below which the evidence for a model is "very strong" (Kass & Raftery 1995: a BIC
-# difference over 10): what makes a candidate "explained" and what forward selection takes
-STRONG_EVIDENCE = -10.0
 MAX_SELECTED = 4  # effects forward selection takes at most, per signal
 TRIAL_EVALUATIONS = 24  # the short fit each candidate of a forward-selection step gets
 
@@ -117,10 +114,13 @@ class FitResult:
     simulated: dict = field(default_factory=dict, repr=False)
     jacobian: dict = field(default_factory=dict, repr=False)
     bounds: tuple = ((), ())
+    # parameters the fitted signals cannot see: left at their starting values, no uncertainty
+    not_identifiable: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return {"params": self.params, "uncertainty": self.uncertainty, "rms_before": self.rms_before,
                 "rms_after": self.rms_after, "noise": self.noise, "evaluations": self.evaluations,
+                "not_identifiable": self.not_identifiable,
                 "effects": [{"name": e.name, "params": e.resolved()} for e in self.effects]}
 
 
@@ -128,45 +128,29 @@ def fit(tg: Target, effects, signals=None, base_params=(), starts: dict | None =
         max_evaluations: int = 80) -> FitResult:
     """Fit every parameter of ``effects`` (Effect instances: their values are the starts)
     and the named ``base_params`` of the twin to the target's signals."""
-    from scipy.optimize import least_squares
-
     signals = [s for s in (signals or tg.measured) if s in tg.measured]
     keys, lo, hi, x0, scale = free_parameters(tg.twin, effects, base_params, starts)
-    count = [0]
 
-    def build(x):
-        return build_fitted(tg.twin, effects, keys, x)
-
-    # the solver works on u = 1 + (x - x0) / scale, starting at 1: scipy's finite-difference
-    # steps are relative to u, so they are then a fixed share of each parameter's range, well
-    # above the float32 resolution of the simulated signals (relative to x itself they would
-    # vanish at a zero default)
-    def to_x(u):
-        return np.clip(x0 + (u - 1.0) * scale, lo, hi)
-
-    def fun(u):
-        count[0] += 1
-        twin, fitted = build(to_x(u))
+    def fun(x):
+        twin, fitted = build_fitted(tg.twin, effects, keys, x)
         return residuals(tg, _trace_with(tg, twin, fitted), signals)
 
-    ulo, uhi = 1.0 + (lo - x0) / scale, 1.0 + (hi - x0) / scale
-    res = least_squares(fun, np.ones(len(x0)), bounds=(ulo, uhi), method="trf", max_nfev=max_evaluations,
-                        diff_step=1e-3, xtol=1e-8, ftol=1e-10)
-    xfit = to_x(res.x)
-    twin, fitted = build(xfit)
+    sol = solve(fun, x0, lo, hi, scale, max_evaluations=max_evaluations)
+    xfit = sol.x  # (what the signals cannot see stays where it started: sol.blind)
+    twin, fitted = build_fitted(tg.twin, effects, keys, xfit)
     after_trace = _trace_with(tg, twin, fitted)
-    unc = [None if u is None else u * sc for u, sc in zip(_uncertainty(res, len(signals)), scale)]
+    unc = sol.uncertainty
     return FitResult(fitted, dict(zip(keys, map(float, xfit))), dict(zip(keys, unc)),
-                     _rms_by_signal(tg, tg.base, signals), _rms_by_signal(tg, after_trace, signals),
-                     dict(tg.noise), count[0], signals, tg.simulated(after_trace, signals),
-                     _signal_jacobians(tg, signals, res.jac, scale), (lo, hi))
+                     rms_by_signal(tg, tg.base, signals), rms_by_signal(tg, after_trace, signals),
+                     dict(tg.noise), sol.evaluations, signals, tg.simulated(after_trace, signals),
+                     _signal_jacobians(tg, signals, sol.jac, scale), (lo, hi),
+                     [k for k, b in zip(keys, sol.blind) if b])
 
 
 def _signal_jacobians(tg: Target, signals, jac, scale) -> dict:
     """The solver's Jacobian (of the scaled residuals by the scaled parameters) as, per
     signal, d simulated / d parameter: residual = (measured − simulated) / noise and
     x = x0 + (u − 1)·scale."""
-    jac = np.asarray(jac.toarray() if hasattr(jac, "toarray") else jac, dtype=np.float64)
     out, row = {}, 0
     for s in signals:
         m = len(tg.measured[s])
@@ -194,7 +178,7 @@ def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
     lo = np.array([f[1] for f in free])
     hi = np.array([f[2] for f in free])
     x0 = np.clip(np.array([f[3] for f in free]), lo, hi)
-    scale = np.array([_scale(lo_, hi_, x) for lo_, hi_, x in zip(lo, hi, x0)])
+    scale = np.array([default_scale(lo_, hi_, x) for lo_, hi_, x in zip(lo, hi, x0)])
     return keys, lo, hi, x0, scale
 
 
@@ -206,26 +190,7 @@ def build_fitted(twin, effects, keys, x):
     return (twin.with_params(base) if base else twin), fitted
 
 
-def _scale(lo, hi, x):
-    if math.isfinite(lo) and math.isfinite(hi) and hi > lo:
-        return 0.1 * (hi - lo)
-    return max(abs(x), 1.0)
-
-
-def _uncertainty(res, nsig):
-    try:
-        J = res.jac
-        dof = max(1, len(res.fun) - len(res.x))
-        s2 = float(np.sum(res.fun ** 2)) / dof
-        cov = np.linalg.pinv(J.T @ J) * s2
-        seen = np.linalg.norm(J, axis=0) > 1e-12 * max(float(np.abs(J).max()), 1e-300)
-        # a parameter the fitted signals do not see has no uncertainty to report (pinv would say 0)
-        return [float(math.sqrt(max(v, 0.0))) if ok else None for v, ok in zip(np.diag(cov), seen)]
-    except Exception:  # noqa: BLE001 - an uncertainty we cannot compute is reported as unknown
-        return [None] * len(res.x)
-
-
-def _rms_by_signal(tg, trace, signals) -> dict:
+def rms_by_signal(tg, trace, signals) -> dict:
     sim = tg.simulated(trace, signals)
     out = {}
     for s in signals:
@@ -265,7 +230,7 @@ def diagnose(tg: Target, candidates=None) -> dict:
         done = list(pool.map(lambda job: _fit_candidate(tg, *job), jobs))
     fits = {cls.name: fr for (cls, _), fr in zip(jobs, done)}
     for s in tg.measured:
-        rms0 = _rms_by_signal(tg, tg.base, [s])[s]
+        rms0 = rms_by_signal(tg, tg.base, [s])[s]
         n = int(np.sum(~np.isnan(tg.measured[s])))
         rows = []
         for name, fr in fits.items():
@@ -275,7 +240,7 @@ def diagnose(tg: Target, candidates=None) -> dict:
             rss1 = n * fr.rms_after[s] ** 2
             k = len(fr.params)
             ev = 1.0 - rss1 / rss0 if rss0 > 0 else 0.0
-            dbic = _delta_bic(n, rss1, rss0, k)
+            dbic = delta_bic(n, rss1, rss0, k)
             p = {key.rsplit(".", 1)[-1]: round(v, 6) for key, v in fr.params.items()}
             rows.append({"effect": name, "explained_variance": ev, "delta_bic": dbic, "params": p,
                          "rms_after": fr.rms_after[s],
@@ -284,14 +249,10 @@ def diagnose(tg: Target, candidates=None) -> dict:
                                       f"{max(ev, 0.0):.0%} of it explained, ΔBIC {dbic:+.1f}")})
         rows.sort(key=lambda r: r["delta_bic"])
         noise = tg.noise[s]
-        if rms0 <= _FIT_FACTOR * noise:
-            verdict = "fits"
-        elif rows and rows[0]["delta_bic"] < STRONG_EVIDENCE and rows[0]["explained_variance"] >= 0.5:
-            verdict = "explained"
-        else:
-            verdict = "unexplained"
-        selected, rms_joint = ([], rms0) if verdict == "fits" else _forward(tg, s, rows, fits, rms0, n)
-        out[s] = {"rms": rms0, "noise": noise, "verdict": verdict, "candidates": rows, "selected": selected,
+        said = verdict(rms0, noise, rows[0]["delta_bic"] if rows else None,
+                       rows[0]["explained_variance"] if rows else 0.0)
+        selected, rms_joint = ([], rms0) if said == "fits" else _forward(tg, s, rows, fits, rms0, n)
+        out[s] = {"rms": rms0, "noise": noise, "verdict": said, "candidates": rows, "selected": selected,
                   "rms_after": rms_joint}
     return out
 
@@ -300,64 +261,66 @@ def _workers(jobs: int) -> int:
     return max(1, min(jobs, os.cpu_count() or 1, 4))
 
 
-def _delta_bic(n: int, rss_new: float, rss_old: float, k: int) -> float:
-    """Bayesian information criterion of a model with ``k`` more parameters against the old
-    (Gaussian residuals): negative favours the new one."""
-    return n * math.log(max(rss_new, 1e-300) / max(rss_old, 1e-300)) + k * math.log(max(n, 2))
-
-
 def _forward(tg: Target, s: str, rows: list, fits: dict, rms0: float, n: int):
-    """Forward selection on signal ``s`` (stepwise, in the spirit of FROLS): the candidate
-    whose joint fit with those already taken lowers the BIC most, one at a time, while it
-    lowers it by STRONG_EVIDENCE or more and the residual is above the noise; after each, an
-    earlier one the BIC prefers without is dropped again.
+    """Forward selection on signal ``s`` (stepwise, in the spirit of FROLS): one at a time, the
+    candidate that lowers the BIC most when added to those already taken, while it lowers it
+    by STRONG_EVIDENCE or more and the residual is above the noise; after each, an earlier one
+    the BIC prefers without is dropped again.
 
-    The joint fits are the candidates' single fits linearised — each candidate's simulated
-    change and its Jacobian, both from its single fit — and solved by bounded linear least
-    squares, so a step costs no simulation; the selected effects are then evaluated once on
-    the twin (and refitted there if the linearisation was poor), which gives the reported
-    residual.  Returns ([{effect, params, delta_bic, rms_after}] in the order taken, the joint
-    fit's residual RMS); the params are the final joint fit's."""
+    A step screens the candidates without simulating: each one's single fit linearised (its
+    simulated change and Jacobian), fitted by bounded linear least squares to the residual of
+    the effects already taken.  The best is then added on the twin — the joint model simulated
+    once, and refitted there when its residual is above the noise — and kept only if the twin
+    bears the evidence out; the next step screens against that residual.  Returns
+    ([{effect, params, delta_bic, rms_after}] in the order taken, the joint fit's residual RMS);
+    the params are the final joint fit's."""
     measured = tg.measured[s]
     ok = ~np.isnan(measured)
     sim0 = tg.simulated(tg.base, [s])[s]
-    r0 = np.where(ok, measured - sim0, 0.0)
-    lin = _Linearised(r0, ok, sim0, s, [fits[r["effect"]] for r in rows])
-    rss = float(r0 @ r0)
-    taken: list = []
+    lin = _Linearised(np.where(ok, measured - sim0, 0.0), ok, sim0, s, [fits[r["effect"]] for r in rows])
+    state = _Joint([], sim0, rms0)
     steps: list = []
-    while lin.names and len(steps) < MAX_SELECTED and (not steps or math.sqrt(rss / n) > _FIT_FACTOR * tg.noise[s]):
-        trials = [(lin.rss(taken + [c]), c) for c in lin.names if c not in taken]
+    noise = FIT_FACTOR * tg.noise[s]
+    while len(steps) < MAX_SELECTED and (not steps or state.rms > noise):
+        residual = np.where(ok, measured - state.sim, 0.0)
+        trials = [(lin.solve([c], residual)[0], c) for c in lin.names if c not in state.names]
         if not trials:
             break
         rss_c, name = min(trials)
-        dbic = _delta_bic(n, rss_c, rss, lin.k[name])
-        if dbic >= STRONG_EVIDENCE:
+        if delta_bic(n, rss_c, n * state.rms ** 2, lin.k[name]) >= STRONG_EVIDENCE:
             break
-        taken.append(name)
-        rss = rss_c
-        steps.append({"effect": name, "delta_bic": dbic, "rms_after": math.sqrt(rss / n)})
-        for old in taken[:-1]:  # the backward look: one the new effect makes redundant goes
-            without = lin.rss([c for c in taken if c != old])
-            if _delta_bic(n, without, rss, -lin.k[old]) < 0:
-                taken.remove(old)
-                rss = without
+        values = lin.solve([name], residual)[1][name]
+        joint = lin.on_twin(tg, state.effects + [lin.effect(name, values)], noise, ok)
+        dbic = delta_bic(n, n * joint.rms ** 2, n * state.rms ** 2, lin.k[name])
+        if dbic >= STRONG_EVIDENCE:  # the twin does not bear the screening out
+            break
+        state = joint
+        steps.append({"effect": name, "delta_bic": dbic, "rms_after": joint.rms})
+        for old in [st["effect"] for st in steps[:-1]]:  # the backward look
+            rest = [copy.deepcopy(e) for e in state.effects if e.name != old]
+            without = lin.on_twin(tg, rest, noise, ok)
+            if delta_bic(n, n * without.rms ** 2, n * state.rms ** 2, -lin.k[old]) < 0:
+                state = without
                 steps = [st for st in steps if st["effect"] != old]
-    if not steps:
-        return [], rms0
-    effects, rms = lin.evaluate(tg, taken, math.sqrt(rss / n))
-    best = rows[0]
-    if len(steps) > 1 and rms >= best["rms_after"] and best["delta_bic"] < STRONG_EVIDENCE:
-        # the twin does not bear the linearised joint fit out (an effect far from linear over
-        # the move from its single fit): the single ranking's best is what is known
-        fr = lin.fit[best["effect"]]
-        return [{"effect": best["effect"], "delta_bic": best["delta_bic"], "rms_after": best["rms_after"],
-                 "params": {k: round(float(v), 6) for k, v in fr.effects[0].resolved().items()}}], best["rms_after"]
-    final = {e.name: e.resolved() for e in effects}
+    final = {e.name: e.resolved() for e in state.effects}
     for st in steps:
         st["params"] = {k: round(float(v), 6) for k, v in final[st["effect"]].items()}
-    steps[-1]["rms_after"] = rms
-    return steps, rms
+    if steps:
+        steps[-1]["rms_after"] = state.rms
+    return steps, state.rms
+
+
+@dataclass
+class _Joint:
+    """Effects fitted together on the twin: the signal they simulate and its residual RMS."""
+
+    effects: list
+    sim: np.ndarray
+    rms: float
+
+    @property
+    def names(self) -> list:
+        return [e.name for e in self.effects]
 
 
 class _Linearised:
@@ -385,25 +348,27 @@ class _Linearised:
         self.names = list(self.change)
 
     def _secant(self, name: str, fr) -> None:
-        """A parameter the single fit left against a saturation (a friction taken to zero: its
-        Jacobian column is zero there) gets the secant from its default instead — the change
-        its move made, less what the other parameters' columns account for."""
+        """Where the single fit moved one parameter alone from its default (the effect off
+        there, as most are), that parameter's column is the secant from the default to the fit
+        instead of the tangent at the fit: exact at both ends, so a joint fit that moves the
+        parameter back toward the default (the single fit compensated for another effect) is
+        still predicted — and a parameter left against a saturation (a friction taken to zero,
+        whose tangent is zero) gets a column at all."""
         e = fr.effects[0]
         x = np.array(list(fr.params.values()), dtype=np.float64)
         default = np.array([d.default for d in e.params], dtype=np.float64)
-        J = self.jac[name]
-        flat = [j for j in range(len(x)) if not np.any(J[:, j]) and abs(x[j] - default[j]) > 1e-12]
-        if len(flat) != 1:
-            return
-        j = flat[0]
-        rest = self.change[name] - J @ np.where(np.arange(len(x)) == j, 0.0, x - default)
-        J[:, j] = rest / (x[j] - default[j])
+        moved = np.flatnonzero(np.abs(x - default) > 1e-9 * np.maximum(1.0, np.abs(default)))
+        if len(moved) == 1:
+            j = int(moved[0])
+            self.jac[name][:, j] = self.change[name] / (x[j] - default[j])
 
-    def solve(self, names) -> tuple[float, dict]:
-        """(residual sum of squares, {name: parameter values}) of the joint fit of ``names``."""
+    def solve(self, names, residual=None) -> tuple[float, dict]:
+        """(residual sum of squares, {name: parameter values}) of ``names`` fitted together to
+        ``residual`` (default: the base simulation's) on the linear model."""
         from scipy.optimize import lsq_linear
 
-        target = self.r0 - sum((self.change[c] for c in names), np.zeros_like(self.r0))
+        target = (self.r0 if residual is None else residual) - sum((self.change[c] for c in names),
+                                                                   np.zeros_like(self.r0))
         cols, lo, hi, where = [], [], [], []
         for c in names:
             fr = self.fit[c]
@@ -428,34 +393,46 @@ class _Linearised:
             values[c][j] += d
         return float(target @ target), values
 
-    def rss(self, names) -> float:
-        return self.solve(names)[0]
+    def effect(self, name: str, values):
+        """Candidate ``name``'s effect at ``values`` (within its bounds)."""
+        e = self.fit[name].effects[0]
+        lo, hi = self.fit[name].bounds
+        return type(e)(**{d.name: float(np.clip(v, a, b)) for d, v, a, b in zip(e.params, values, lo, hi)})
 
-    def evaluate(self, tg: Target, names, rms_linear: float):
-        """(the effects at the joint fit's values, the residual RMS of the twin with them): one
-        simulation; where that residual is above the noise level, a short fit on the twin from
-        there (the better of the two is kept)."""
-        _, values = self.solve(names)
-        effects = []
-        for c in names:
-            e = self.fit[c].effects[0]
-            lo, hi = self.fit[c].bounds
-            effects.append(type(e)(**{d.name: float(np.clip(v, a, b))
-                                      for d, v, a, b in zip(e.params, values[c], lo, hi)}))
-        single = len(names) == 1 and np.allclose(values[names[0]], list(self.fit[names[0]].params.values()))
-        if single:
-            return effects, self.fit[names[0]].rms_after[self.s]
-        rms = _rms_by_signal(tg, _trace_with(tg, tg.twin, effects), [self.s])[self.s]
-        if rms > _FIT_FACTOR * tg.noise[self.s] and rms < 2.0 * rms_linear:
-            # not at the noise level: a fit on the twin from there (further from the linear
-            # model's figure than 2×, the linearisation is not a start a short fit gets back from)
+    def on_twin(self, tg: Target, effects: list, noise: float, ok) -> _Joint:
+        """``effects`` simulated together on the twin.  Where there are several and the residual
+        is above ``noise``: all of them moved together on the linear model, then, if still above,
+        a short fit on the twin from the better values (the best is kept).  One effect alone is
+        its single fit already, moved by the linear model."""
+        if not effects:
+            sim = tg.simulated(tg.base, [self.s])[self.s]
+        elif len(effects) == 1 and effects[0].resolved() == self.fit[effects[0].name].effects[0].resolved():
+            sim = self.fit[effects[0].name].simulated[self.s]  # the single fit itself
+        else:
+            sim = tg.simulated(_trace_with(tg, tg.twin, effects), [self.s])[self.s]
+        joint = _Joint(effects, sim, _rms(tg.measured[self.s], sim, ok))
+        names = [e.name for e in effects]
+        if len(effects) > 1 and joint.rms > noise and all(c in self.fit for c in names):
+            # all of them moved together on the linear model first (one simulation)
+            values = self.solve(names)[1]
+            again = [self.effect(c, values[c]) for c in names]
+            sim = tg.simulated(_trace_with(tg, tg.twin, again), [self.s])[self.s]
+            rms = _rms(tg.measured[self.s], sim, ok)
+            if rms < joint.rms:
+                joint = _Joint(again, sim, rms)
+        if len(effects) > 1 and joint.rms > noise:
             try:
                 fr = fit(tg, [copy.deepcopy(e) for e in effects], [self.s], max_evaluations=2 * TRIAL_EVALUATIONS)
             except (MtwinError, ValueError, FloatingPointError):
-                fr = None
-            if fr is not None and fr.rms_after[self.s] < rms:
-                return list(fr.effects), fr.rms_after[self.s]
-        return effects, rms
+                return joint
+            if fr.rms_after[self.s] < joint.rms:
+                return _Joint(list(fr.effects), fr.simulated[self.s], fr.rms_after[self.s])
+        return joint
+
+
+def _rms(measured, sim, ok) -> float:
+    r = (measured - sim)[ok]
+    return float(np.sqrt(np.mean(r * r))) if len(r) else 0.0
 
 
 def _fit_candidate(tg: Target, cls, signals):

@@ -68,6 +68,16 @@ class Measurement:
     def is_summary(self) -> bool:
         return self.t is None
 
+    def write(self, path: str) -> None:
+        """Write a time series in the measurement format (t, line, the signals, then the
+        control's columns), its metadata as the file's comment lines."""
+        from ..motion.trace import write_columns
+
+        if self.t is None:
+            raise MtwinError(f"{self.path}: a summary measurement is not written as a time series")
+        cols = {"t": self.t, **({"line": self.line} if self.line is not None else {}), **self.signals, **self.extra}
+        write_columns(path, cols, self.meta)
+
 
 def signal_unit(name: str) -> str:
     """The unit of a signal or of a summary column (``fx_rms``: N)."""

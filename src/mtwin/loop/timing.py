@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConfigError, MtwinError
+from ..fitting import delta_bic, solve, verdict
 from .blocks import NOISE_FLOOR, Groups, measurement_groups, set_apart_stops, simulated_durations
 
 SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
@@ -254,8 +255,6 @@ def rapid_rates(cases) -> dict:
 def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool = True) -> TimingFit:
     """Fit the parameters of ``effects`` (their values are the starts) and the named base
     parameters to the block times of ``cases``."""
-    from scipy.optimize import least_squares
-
     from .fit import build_fitted, free_parameters
 
     bad = [e.name for e in effects if e.stage != "plan"]
@@ -291,19 +290,15 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
     for _ in range(max(1, passes)):
         if scan:
             x = _scan(fun_x, x, lo, hi, keys)
-        u_lo, u_hi = 1.0 + (lo - x) / scale, 1.0 + (hi - x) / scale
-        xs = x.copy()
-        res = least_squares(lambda u: fun_x(np.clip(xs + (u - 1.0) * scale, lo, hi)), np.ones(len(x)),
-                            bounds=(u_lo, u_hi), method="trf", max_nfev=60, diff_step=1e-3, xtol=1e-6, ftol=1e-8)
-        x = np.clip(xs + (res.x - 1.0) * scale, lo, hi)
+        # (block times are not noise-scaled residuals: no identifiability cut on them)
+        sol = solve(fun_x, x, lo, hi, scale, max_evaluations=60, xtol=1e-6, ftol=1e-8, blind_check=False)
+        x = sol.x
         tw, fitted = build_fitted(twin, effects, keys, x)
         for c in cases:  # the waits as the fitted twin has them
             refresh_waits(tw.with_effects(*fitted), c)
     tw, fitted = build_fitted(twin, effects, keys, x)
     after = summary(tw.with_effects(*fitted), cases)
-    from .fit import _uncertainty
-
-    unc = [None if u is None else u * sc for u, sc in zip(_uncertainty(res, 1), scale)]
+    unc = sol.uncertainty
     params = {p: v[0] for p, v in read.items()} | dict(zip(keys, map(float, x)))
     uncertainty = {p: v[1] for p, v in read.items()} | dict(zip(keys, unc))
     return TimingFit(fitted, params, uncertainty, {SIGNAL: before["window_rms"]}, {SIGNAL: after["window_rms"]},
@@ -382,12 +377,11 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
         rows.append({"effect": cls.name, "params": p, "rms_after": fr.after["rms"],
                      "window_rms_after": fr.after["window_rms"],
                      "removed": rss0 - rss1, "explained_variance": 1.0 - rss1 / rss0 if rss0 > 0 else 0.0,
-                     "delta_bic": n * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + k * math.log(max(n, 2)),
+                     "delta_bic": delta_bic(n, rss1, rss0, k),
                      "cycle_error_after": [c["cycle_error"] for c in fr.after["cases"]]})
     rows.sort(key=lambda r: -r["removed"])
     rms0, wrms0 = before["rms"], before["window_rms"]
-    verdict = ("fits" if wrms0 <= 1.5 * NOISE_FLOOR * math.sqrt(2.0) else
-               "explained" if rows and rows[0]["delta_bic"] < -10 else "unexplained")
+    said = verdict(wrms0, NOISE_FLOOR * math.sqrt(2.0), rows[0]["delta_bic"] if rows else None)
     for r in rows:
         r["evidence"] = (f"window RMS {wrms0:.3g} → {r['window_rms_after']:.3g} s with {r['effect']} "
                          f"({', '.join(f'{k}={v:.4g}' for k, v in r['params'].items())}): "
@@ -395,4 +389,4 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
                          f"ΔBIC {r['delta_bic']:+.0f}; cycle time "
                          + ", ".join(f"{e:+.1%}" for e in r["cycle_error_after"]))
     return {"rms": rms0, "window_rms": wrms0, "noise": NOISE_FLOOR, "window_noise": NOISE_FLOOR * math.sqrt(2.0),
-            "verdict": verdict, "before": before, "candidates": rows}
+            "verdict": said, "before": before, "candidates": rows}

@@ -2,13 +2,24 @@
 load, power and machine limits, write the program back and prove it (see docs/optimize.md).
 
     >>> import mtwin
-    >>> from mtwin.optimize import optimize, OptimizeOptions
-    >>> twin = mtwin.Twin()
-    >>> prog = twin.load("samples/contour.nc")
-    >>> res = optimize(twin, prog, OptimizeOptions(objective="time", force_limit=60.0))
-    >>> res.after.peak_load, res.output[:20]
+    >>> res = mtwin.optimize(None, "samples/contour.nc", mtwin.optimize.OptimizeOptions(force_limit=60.0))
+    >>> res.after.peak_load, res.output[:20], res.as_dict()["verdict"]
+
+``mtwin.optimize`` is this package and, called, :func:`mtwin.optimize.run.optimize` — the
+use case as the other use cases are functions of ``mtwin`` (``mtwin.simulate``, …).
 """
+import sys
+import types
+
 from .run import InfeasibleError, OptimizeOptions, OptimizeResult, optimize
 from .search import GAOptions
+
+
+class _CallablePackage(types.ModuleType):
+    def __call__(self, *args, **kwargs):
+        return optimize(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallablePackage
 
 __all__ = ["optimize", "OptimizeOptions", "OptimizeResult", "GAOptions", "InfeasibleError"]

@@ -62,7 +62,7 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
         undescribed[int(t)] = lines
         warnings.append(warning_text(program.path, lines[0], f"tool T{int(t)} is not described (no tool table entry, "
                         f"no comment the twin reads; it would be simulated as the default 6 mm end mill): its "
-                        f"{int(m.sum())} feed move(s) keep their programmed feeds (lines {_ranges(lines)}); declare "
+                        f"{int(m.sum())} feed move(s) keep their programmed feeds (lines {line_ranges(lines)}); declare "
                         f"it with --tool {int(t)}=flat:DIAMETER_MM[:FLUTES] (or ball, bull, vee:D:FLUTES:ANGLE:TIP) or a "
                         f"[tools.{int(t)}] "
                         f"table in the twin file"))
@@ -71,7 +71,7 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
     if stopped:
         warnings.append(warning_text(program.path, stopped[0], f"{int((stopped_m & ok).sum())} feed move(s) run with "
                         f"the spindle stopped (no M3/M4, or S0 — a router's hand-switched spindle?): the twin cannot "
-                        f"know their cut, so they keep their programmed feeds (lines {_ranges(stopped)})"))
+                        f"know their cut, so they keep their programmed feeds (lines {line_ranges(stopped)})"))
     ok &= ~stopped_m
     return Trust(ok, warnings, undescribed, stopped)
 
@@ -215,7 +215,7 @@ def contour_error(trace) -> np.ndarray:
     return out
 
 
-def _ranges(lines: list[int], most: int = 8) -> str:
+def line_ranges(lines: list[int], most: int = 8) -> str:
     """``3-7, 12, 20-31`` (the first ``most`` runs, then ``…``)."""
     runs: list[list[int]] = []
     for ln in lines:

@@ -61,6 +61,34 @@ class OptimizeOptions:
     margin: float = 0.01
     max_rounds: int = 8
 
+    def __post_init__(self):
+        # every option within its domain, named as the command line names it
+        from .search import METHODS, OBJECTIVES
+
+        def positive(v) -> bool:
+            return v is None or (v > 0 and math.isfinite(v))
+
+        o = self
+        checks = [  # (holds, the message when it does not: built only then)
+            (o.objective in OBJECTIVES, lambda: f"--objective must be one of {', '.join(OBJECTIVES)}, got {o.objective!r}"),
+            (o.method in METHODS, lambda: f"--method must be one of {', '.join(METHODS)}, got {o.method!r}"),
+            (o.segmentation in ("cluster", "changepoint"),
+             lambda: f"--segmentation must be cluster or changepoint, got {o.segmentation!r}"),
+            (o.spindle_per in ("tool", "segment"), lambda: f"--spindle-per must be tool or segment, got {o.spindle_per!r}"),
+            (positive(o.force_limit), lambda: f"--force-limit must be a positive number of N, got {o.force_limit:g}"),
+            (positive(o.target_power), lambda: f"--target-power must be a positive number of W, got {o.target_power:g}"),
+            (0 < o.power_tolerance < 1, lambda: f"--power-tolerance must be between 0 and 1, got {o.power_tolerance:g}"),
+            (o.tolerance >= 0 and math.isfinite(o.tolerance),
+             lambda: f"--tolerance must be a contour error of 0 mm or more, got {o.tolerance:g}"),
+            (o.finish_feed in ("keep", "optimize"), lambda: f"--finish-feed must be keep or optimize, got {o.finish_feed!r}"),
+            (o.min_segment >= 0, lambda: f"--min-segment must be >= 0, got {o.min_segment:g}"),
+            (o.ga.population >= 4 and o.ga.generations >= 1,
+             lambda: "--population must be at least 4 and --generations at least 1"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise MtwinError(message())
+
 
 @dataclass
 class Figures:
@@ -115,11 +143,69 @@ class OptimizeResult:
         c = self.trace_before.summary.cutting if self.trace_before is not None else None
         return list(c.tools) if c is not None else []
 
+    @property
+    def verdict(self) -> tuple[str, float]:
+        """("faster" | "slower" | "unchanged", the relative change of the cycle time); a change
+        under 0.05 % is "unchanged" unless lines were changed."""
+        before, after = self.before.cycle_time, self.after.cycle_time
+        change = after / before - 1.0 if before else 0.0
+        if abs(change) >= 5e-4 or self.changed_lines:
+            return ("faster" if change < 0 else "slower" if change > 0 else "unchanged"), change
+        return "unchanged", change
 
-def optimize(twin, program, opts: OptimizeOptions, progress=None, stock=None, stage=None) -> OptimizeResult:
-    """Optimise ``program`` on ``twin`` (see the module and docs/optimize.md).  ``progress``:
-    called with (generation, generations, best fitness) by the GA; ``stage``: called with a
-    short description of each stage (simulating, searching, re-simulating round k)."""
+    def as_dict(self, program_path: str = "") -> dict:
+        """As ``mtwin optimize --json`` prints it."""
+        verdict, change = self.verdict
+        b, a = self.before, self.after
+        return {"program": program_path, "objective": self.objective, "method": self.method, "written": True,
+                "verdict": verdict, "cycle_time_change": change, "before": b.as_dict(), "after": a.as_dict(),
+                "estimate": self.estimate, "estimate_error": {"cycle_time": self.estimate["cycle_time"] - a.cycle_time},
+                "changed_lines": len(self.changed_lines), "verified": self.verified, "rounds": self.rounds,
+                "evaluations": self.evaluations, "generations": self.generations, "seconds": self.seconds,
+                "force_limit": self.force_limit, "force_limit_source": self.force_limit_source,
+                "limits": self.limits, "kept": self.kept, "contour_error": self.contour_error,
+                "spindle": {str(k): v for k, v in self.spindle.items()}, "defaults": self.defaults,
+                "tools": self.tools, "segments": self.segments,
+                "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in self.tradeoff],
+                "tradeoff_source": self.tradeoff_source,
+                "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in self.changed_lines]}
+
+
+def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progress=None, stock=None,
+             stage=None) -> OptimizeResult:
+    """Optimise a program's F (and S) words on a twin (see the module and docs/optimize.md).
+
+    Parameters
+    ----------
+    twin : Twin, str or None
+        The twin, a twin file's path, or None for the default machine.
+    program : Program, str or bytes
+        The program, or a path (``-`` for stdin) or its text, read with the twin's settings.
+    opts : OptimizeOptions, optional
+        Objective, method, limits and ranges (default: time by bisection, learned limits).
+    progress : callable, optional
+        Called with (generation, generations, best fitness) by the GA.
+    stock : tuple, optional
+        The stock box (xmin, ymin, zmin, xmax, ymax, zmax), mm.
+    stage : callable, optional
+        Called with a short description of each stage (simulating, searching, re-simulating).
+
+    Returns
+    -------
+    OptimizeResult
+        ``output`` the proven program's bytes; ``as_dict()`` what ``--json`` prints.
+    """
+    from ..twin.setup import Messages, load_part, open_twin
+
+    msgs = Messages()
+    twin = open_twin(twin)
+    program = load_part(twin, program, msgs)
+    res = _optimize(twin, program, opts or OptimizeOptions(), progress, stock, stage)
+    res.warnings[:0] = msgs.warnings
+    return res
+
+
+def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> OptimizeResult:
     from ..gcode.verify import compare
     from ..gcode.writer import rewrite
     from ..motion.simulate import _cutting_scale, _program_cutting, simulate_plan

@@ -1,20 +1,19 @@
 """The ``mtwin`` application object and what every command shares: the stderr console, the
-mapping of errors to messages and exit codes, Ctrl-C, and the atomic writing of outputs.
+mapping of errors to messages and exit codes, Ctrl-C, and the kernel-compile notices.
 
-Apart from ``cli.py`` so that the command modules (``cli.py``, ``cli_grind.py``) import it
-and not one another (one-way imports: ``cli`` registers ``cli_grind``'s commands)."""
+The command modules import it and not one another; ``cli/__init__`` imports them all, which
+registers their commands on :data:`app`."""
 from __future__ import annotations
 
 import contextlib
 import functools
 import os
 import sys
-from pathlib import Path
 
 import typer
 from rich.console import Console
 
-from .errors import MtwinError
+from ..errors import MtwinError
 
 
 def _conventional_help() -> None:
@@ -59,32 +58,32 @@ app = typer.Typer(
 err = Console(stderr=True, highlight=False, width=None if sys.stderr.isatty() else 240)
 EXIT_INTERNAL = 3
 
-_state = {"traceback": False}
+state = {"traceback": False}
 
 
 def _version(value: bool):
     if value:
-        from . import __version__
+        from .. import __version__
 
         sys.stdout.write(f"mtwin {__version__}\n")
         raise typer.Exit(0)
 
 
 @app.callback()
-def _main(traceback: bool = typer.Option(False, "--traceback",
+def _options(traceback: bool = typer.Option(False, "--traceback",
                                          help="Show Python tracebacks on errors (also after the command)."),
           version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                        help="Print the version and exit.")):
-    _state["traceback"] = _state["traceback"] or traceback
-    _install_compile_notice()
+    state["traceback"] = state["traceback"] or traceback
+    install_compile_notice()
 
 
-def _install_compile_notice() -> None:
+def install_compile_notice() -> None:
     """Say on stderr, once per process, that kernels are being compiled, with a live line per
     kernel on a terminal: a first run compiles what it needs (seconds), later runs load it."""
     import time
 
-    from . import _jit
+    from ..warmup import set_notices
 
     said = {"n": 0, "t": 0.0}
 
@@ -105,23 +104,21 @@ def _install_compile_notice() -> None:
         if err.is_terminal or dt > 1.0:
             err.print(f"  compiled {name} in {dt:.1f} s", soft_wrap=True)
 
-    _jit.compile_notice = notice
-
     def uncached(kernel) -> None:
         # once per process: a kernel ran as Python because the cache lacks it
         if said.get("bg") is None:
-            from .warmup import start_background
+            from ..warmup import start_background
 
             said["bg"] = start_background()
             if said["bg"]:
                 err.print("compiling the twin's kernels in the background for the next runs "
                           f"(first run only; cached in {os.environ.get('NUMBA_CACHE_DIR')})", soft_wrap=True)
 
-    _jit.uncached_notice = uncached
+    set_notices(notice, uncached)
 
 
-def _fail(exc: BaseException) -> None:
-    if _state["traceback"]:
+def fail(exc: BaseException) -> None:
+    if state["traceback"]:
         import traceback as tb
 
         tb.print_exception(exc)
@@ -143,8 +140,8 @@ INTERRUPTED = ("interrupted (Ctrl-C): no output is left half-written (an output 
                "written; one written before the interrupt is whole)")
 
 
-def _reports_errors(command):
-    """Turn every exception of a command into a message and an exit code (see ``_fail``)."""
+def reports_errors(command):
+    """Turn every exception of a command into a message and an exit code (see ``fail``)."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
@@ -157,25 +154,6 @@ def _reports_errors(command):
             err.print(INTERRUPTED, highlight=False)
             raise typer.Exit(130) from None
         except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
-            _fail(exc)
+            fail(exc)
 
     return wrapper
-
-
-def write_output(data: bytes, out: str, inputs: list[str], in_place: bool = False) -> None:
-    """Write ``data`` to ``out`` atomically (temporary file + rename), or to stdout for ``-``."""
-    from .io import write_bytes
-
-    write_bytes(data, out, inputs, in_place)
-
-
-def check_outputs(*paths) -> None:
-    """Where results go is checked before the work, not after it ('-' is stdout)."""
-    for p in paths:
-        if not p or p == "-":
-            continue
-        if Path(p).is_dir():
-            raise MtwinError(f"{p} is a directory: give a file name")
-        parent = Path(p).parent if str(Path(p).parent) else Path(".")
-        if not parent.is_dir():
-            raise MtwinError(f"output directory {parent} does not exist")

@@ -1,0 +1,364 @@
+"""The model-against-measurement loop as use cases: ``synthesize`` a recording, ``compare``
+the twin with one, ``diagnose`` which effect is missing, ``calibrate`` it (the twin file
+written back with a journal entry)."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Optional
+
+from ..errors import MtwinError
+from ..twin.setup import Messages, load_part, open_twin
+
+
+@dataclass(frozen=True)
+class Reading:
+    """How a measurement is read and set against its program: columns read as signals
+    (``maps``: ``"SRC=DST[*SCALE]"``), MTConnect items read past, whether a log of another
+    program name is accepted (a renamed file), and whether a run that did not finish is
+    compared up to where it got (``partial``)."""
+
+    maps: tuple = ()
+    ignore_items: tuple = ()
+    any_program: bool = False
+    partial: bool = False
+
+
+def measured_program(program, measurement, reading: Reading, messages: Messages):
+    """(the program as the measurement says it ran — a control's logged overrides applied, cut
+    at the last line reached with ``partial`` — and the measurement as read)."""
+    from ..loop.asrun import as_run
+    from ..loop.measurement import check_against_program, read_measurement
+
+    meas = read_measurement(measurement, reading.maps, reading.ignore_items)
+    check_against_program(meas, program, reading.any_program)
+    run = as_run(program, meas, reading.partial)
+    for n in run.notes:
+        messages.note(f"{measurement}: {n}")
+    return run.program, run.measurement
+
+
+def _inputs(twin, program, measurement, reading, msgs):
+    tw = open_twin(twin)
+    prog, meas = measured_program(load_part(tw, program, msgs), measurement, reading or Reading(), msgs)
+    return tw, prog, meas
+
+
+# ------------------------------------------------------------------------------ synthesize
+
+@dataclass
+class Synthetic:
+    """A synthetic measurement: columns (name -> array) and the metadata lines of its file."""
+
+    program: object
+    columns: dict
+    meta: dict
+    messages: list = field(default_factory=list, repr=False)
+
+    def write(self, path: str) -> None:
+        """Write it in the measurement format (.csv, .parquet, or '-')."""
+        from ..motion.trace import write_columns
+
+        write_columns(path, self.columns, self.meta)
+
+    def as_dict(self) -> dict:
+        return {"program": self.program.path, "samples": len(self.columns["t"]), "columns": list(self.columns),
+                "meta": self.meta}
+
+
+def synthesize(twin=None, program=None, *, rate: float = 100.0, noise: float = 0.0, seed: int = 0,
+               signals=None, line: bool = True, stock=None, on_message=None) -> Synthetic:
+    """What a machine would record running ``program`` on ``twin`` (with the effects to hide
+    in it: ``twin.with_effects(…)``): the signals sampled at ``rate`` Hz, with Gaussian noise
+    of ``noise`` × each signal's RMS (``seed``); ``line=False`` leaves out the line column."""
+    from .. import __version__
+    from ..loop.synth import synthesize as sample
+
+    msgs = Messages(on_message)
+    tw = open_twin(twin)
+    prog = load_part(tw, program, msgs)
+    cols = sample(tw, prog, rate=rate, noise=noise, seed=seed, line=line, stock=stock, signals=signals)
+    meta = {"source": f"mtwin {__version__} synth", "program": prog.path,
+            "effects": "; ".join(f"{e.name}:" + ",".join(f"{k}={v:g}" for k, v in e.resolved().items())
+                                 for e in tw.effects) or "none",
+            "noise": f"{noise:g} of each signal's RMS, seed {seed}", "rate_hz": f"{rate:g}"}
+    return Synthetic(prog, cols, meta, msgs.items)
+
+
+# ------------------------------------------------------------------------------ compare
+
+@dataclass
+class Comparison:
+    """The twin against a measurement: ``result`` (mtwin.loop.compare.CompareResult), the
+    program as it ran, the measurement and the simulation."""
+
+    program: object
+    measurement: object
+    result: object
+    trace: object
+    messages: list = field(default_factory=list, repr=False)
+
+    def as_dict(self) -> dict:
+        """As ``mtwin compare --json`` prints it."""
+        return self.result.as_dict(self.program.text_lines)
+
+
+def compare(twin=None, program=None, measurement=None, *, align: str = "auto", xcorr_signal: Optional[str] = None,
+            tooth_resolution: bool = False, reading: Optional[Reading] = None, stock=None,
+            on_message=None) -> Comparison:
+    """How far the twin is from a measurement of ``program``, signal by signal, and the lines
+    where it is farthest; against a control's log of its executing line, the block timing.
+
+    Parameters
+    ----------
+    twin : Twin, str or None
+    program : Program, str or bytes
+    measurement : str
+        A measurement file (measurement format, CSV or .parquet) or an MTConnect log.
+    align : str
+        auto | line | position | xcorr.
+    xcorr_signal : str, optional
+        The signal ``align="xcorr"`` correlates.
+    tooth_resolution : bool
+        Simulate tooth-passing forces (for a dynamometer's measurement).
+    reading : Reading, optional
+        How the measurement is read against the program.
+    stock : tuple, optional
+        The stock box, mm.
+
+    Returns
+    -------
+    Comparison
+    """
+    from ..loop.compare import compare as run_compare
+
+    msgs = Messages(on_message)
+    tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
+    # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
+    trace = tw.simulate(prog, stock=stock, cutting=not prog.turning_line(), tooth_resolution=tooth_resolution)
+    res = run_compare(trace, meas, align, xcorr_signal, program=prog)
+    for n in res.notes:
+        msgs.note(n)
+    blocks = res.blocks
+    if blocks is not None:
+        if blocks.hold_time > 0:
+            msgs.note(f"{blocks.hold_time:.1f} s of feed hold taken out of the measured times")
+        for x in blocks.stops:
+            where = (f"line {x['line']} ({x['state']})" if "line" in x else
+                     f"{x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']})")
+            msgs.note(f"program stop at {where}: waited {x['wait']:.1f} s — the operator's time, taken out of the "
+                      f"block timing and the cycle time")
+        for x in blocks.excluded[:5]:
+            msgs.note(f"lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} at "
+                      f"{x['t0']:.1f}–{x['t1']:.1f} s")
+        if len(blocks.excluded) > 5:
+            msgs.note(f"{len(blocks.excluded) - 5} more block groups left out (the machine held)")
+    return Comparison(prog, meas, res, trace, msgs.items)
+
+
+# ------------------------------------------------------------------------------ diagnose
+
+OBJECTIVES = ("auto", "signals", "timing")
+
+
+def objective_for(objective: str, meas, effects=None) -> str:
+    """``signals`` or ``timing``: ``auto`` is timing for a control's log of its executing line
+    (line, feed and spindle speed only) and timing effects, else signals."""
+    if objective not in OBJECTIVES:
+        raise MtwinError(f"--objective {objective}: expected auto, signals or timing")
+    if objective != "auto":
+        return objective
+    log = (meas.t is not None and meas.line is not None and (meas.line > 0).any()
+           and set(meas.signals) <= {"feed", "spindle_speed"})
+    return "timing" if log and all(e.stage == "plan" for e in effects or ()) else "signals"
+
+
+def _case_notes(case, msgs: Messages) -> None:
+    """What a timing fit leaves out of a log: the operator's stops and holds."""
+    g = case.groups
+    for x in g.stop_groups:
+        msgs.note(f"{case.label}: program stop at line {x['line']} ({x['state']}): waited {x['wait']:.1f} s (the "
+                  f"operator's time), left out of the fit")
+    for x in g.logged_stops:
+        msgs.note(f"{case.label}: program stop {x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']}), left out of "
+                  f"the fit")
+    if g.hold_time > 0:
+        msgs.note(f"{case.label}: {g.hold_time:.1f} s of feed hold left out of the fit")
+
+
+@dataclass
+class Diagnosis:
+    """Which effect is missing: per signal (``signals``: rms, noise, verdict, candidates ranked,
+    selected, rms_after) or, against a control's log, by block timing (``timing``)."""
+
+    objective: str  # signals | timing
+    signals: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    alignment: str = ""
+    messages: list = field(default_factory=list, repr=False)
+
+    def as_dict(self) -> dict:
+        """As ``mtwin diagnose --json`` prints it."""
+        if self.objective == "timing":
+            return {"objective": "timing", "timing": self.timing}
+        return {"alignment": self.alignment, "signals": self.signals}
+
+
+def diagnose(twin=None, program=None, measurement=None, *, signals=None, candidates=None, objective: str = "auto",
+             align: str = "auto", reading: Optional[Reading] = None, stock=None, on_message=None) -> Diagnosis:
+    """For each signal: does the twin fit the measurement, and if not, which effect not yet in
+    the twin explains the residual — each candidate fitted alone and ranked by ΔBIC, then the
+    forward selection of several together (``selected``).  Against a control's log of its
+    executing line: which timing effect explains the block times.
+
+    ``signals``, ``candidates``: lists of names limiting what is used and tried (default: every
+    signal in both, every effect not yet in the twin); ``objective``: auto | signals | timing.
+    Other parameters as for :func:`compare`."""
+    msgs = Messages(on_message)
+    tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
+    if objective_for(objective, meas) == "timing":
+        from ..loop.timing import diagnose_timing, timing_case
+
+        case = timing_case(tw, prog, meas, str(measurement))
+        _case_notes(case, msgs)
+        return Diagnosis("timing", timing=diagnose_timing(tw, [case], list(candidates) if candidates else None),
+                         messages=msgs.items)
+    from ..loop.fit import diagnose as run_diagnose
+    from ..loop.fit import target
+
+    tg = target(tw, prog, meas, align, list(signals) if signals else None, stock)
+    d = run_diagnose(tg, list(candidates) if candidates else None)
+    return Diagnosis("signals", signals=d, alignment=tg.alignment, messages=msgs.items)
+
+
+# ------------------------------------------------------------------------------ calibrate
+
+@dataclass
+class Calibration:
+    """A fit of effects (and base parameters) to measurements: ``result`` (FitResult or
+    TimingFit: values, uncertainties, RMS before and after), the error on a validation
+    measurement, and the twin file's new text (effects, fitted values, the journal entry)."""
+
+    objective: str  # signals | timing
+    result: object
+    validation: Optional[dict]
+    twin_text: str
+    inputs: list  # every file read (programs and measurements)
+    base_params: tuple = ()
+    messages: list = field(default_factory=list, repr=False)
+
+    def as_dict(self) -> dict:
+        """As ``mtwin calibrate --json`` prints it (less the file written)."""
+        return {**self.result.as_dict(), "validation": self.validation}
+
+    def write(self, path: str, in_place: bool = False) -> None:
+        """Write the calibrated twin file (atomically)."""
+        from ..io import write_bytes
+
+        write_bytes(self.twin_text.encode(), path, self.inputs, in_place)
+
+
+def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), more=(), validate=None,
+              refit: bool = False, objective: str = "auto", signals=None, align: str = "auto",
+              reading: Optional[Reading] = None, stock=None, on_message=None) -> Calibration:
+    """Fit effects to a measurement and give the twin file with them and a journal entry.
+
+    Parameters
+    ----------
+    fit : list of str or Effect
+        Effects to add and fit (``"name:p=v"`` values are starts); an effect the twin already
+        has is fitted from its current values.
+    params : list of str
+        Base parameters fitted too, by dotted name (``axes.x.friction.viscous``).
+    more : list of (program, measurement)
+        More runs: a timing fit over all of them.
+    validate : str, optional
+        A second measurement of ``program``: the error on it after the fit.
+    refit : bool
+        Fit the twin's own effects again too, together with the new ones.
+    objective, signals, align, reading, stock
+        As for :func:`diagnose`.
+
+    Returns
+    -------
+    Calibration
+    """
+    from ..effects import Effect, parse_effect_spec
+    from ..loop.journal import calibrated_text, journal_entry, read_journal
+
+    if not fit and not params and not refit:
+        raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects), --param NAME or --refit")
+    msgs = Messages(on_message)
+    reading = reading or Reading()
+    tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
+    tw, new = _fit_set(tw, [e if isinstance(e, Effect) else parse_effect_spec(e) for e in fit], refit)
+    how = objective_for(objective, meas, new)
+    pairs = [(program, measurement)] + [tuple(p) for p in more]
+    sig = list(signals) if signals else None
+    if how == "timing":
+        from ..loop.timing import fit_timing, timing_case
+
+        cases = [timing_case(tw, prog, meas, os.path.basename(str(measurement)))]
+        _case_notes(cases[0], msgs)
+        for p_i, m_i in pairs[1:]:
+            prog_i, meas_i = measured_program(load_part(tw, p_i, msgs), m_i, reading, msgs)
+            cases.append(timing_case(tw, prog_i, meas_i, os.path.basename(str(m_i))))
+            _case_notes(cases[-1], msgs)
+        res = fit_timing(tw, cases, new, tuple(params))
+        logs = [c.meas for c in cases]
+    else:
+        if len(pairs) > 1:
+            raise MtwinError("several programs are fitted together only by their block times (--objective timing)")
+        from ..loop.fit import fit as run_fit
+        from ..loop.fit import target
+
+        res = run_fit(target(tw, prog, meas, align, sig, stock), new, sig, tuple(params))
+        logs = [meas]
+    fitted = {e.name: e for e in res.effects}
+    effects = [fitted.pop(e.name, e) for e in tw.effects] + list(fitted.values())
+    base = {k: v for k, v in res.params.items() if not k.startswith("effects.")}
+    validation = None
+    if validate:
+        fitted_base = tw.with_params(base) if base else tw
+        tw2 = tw.replace(machine=fitted_base.machine, cutting=fitted_base.cutting, effects=effects, share_cache=False)
+        validation = _validation(tw2, program, validate, how, reading, align, sig, stock, msgs)
+    path = tw.path
+    previous = read_journal(path) if path else []
+    source = open(path, encoding="utf-8").read() if path else ""
+    label = "; ".join(os.path.basename(str(m)) for _, m in pairs) if len(pairs) > 1 else str(measurement)
+    # a control's log that did not log its overrides: the values fitted to it are effective ones
+    notes = [f"{os.path.basename(m.path)}: overrides {m.meta['overrides']}; the fitted values are effective (they "
+             f"include any override the operator set)" for m in logs if "not logged" in m.meta.get("overrides", "")]
+    text = calibrated_text(source, effects, journal_entry(len(previous) + 1, label, res, validation, notes), previous,
+                           base, tw)
+    inputs = [str(p) for pair in pairs for p in pair if isinstance(p, (str, os.PathLike))]
+    return Calibration(how, res, validation, text, inputs, tuple(params), msgs.items)
+
+
+def _fit_set(tw, new: list, refit: bool):
+    """(the twin the fit starts from, the effects it fits): an effect the twin already has is
+    fitted from its current values (stacking a second copy would write only the increment);
+    ``refit``: the twin's own effects are fitted again with the new ones."""
+    own = {e.name for e in tw.effects}
+    if any(e.name in own for e in new) and not refit:
+        keep = [e for e in tw.effects if e.name not in {x.name for x in new}]
+        new = [next((e for e in tw.effects if e.name == x.name), x) if not x.values else x for x in new]
+        tw = tw.replace(effects=tuple(keep), share_cache=False)
+    if refit:
+        new = list(tw.effects) + [e for e in new if e.name not in {x.name for x in tw.effects}]
+        tw = tw.replace(effects=(), share_cache=False)
+    return tw, new
+
+
+def _validation(tw2, program, validate, how, reading, align, sig, stock, msgs) -> dict:
+    """The calibrated twin's error on a second measurement of the program."""
+    prog, meas2 = measured_program(load_part(tw2, program, msgs), validate, reading, msgs)
+    if how == "timing":
+        from ..loop.timing import summary, timing_case
+
+        v = summary(tw2, [timing_case(tw2, prog, meas2, str(validate))])
+        return {"measurement": str(validate), "block_time": v["rms"], "cycle_error": v["cases"][0]["cycle_error"]}
+    from ..loop.fit import rms_by_signal, target
+
+    tg2 = target(tw2, prog, meas2, align, sig, stock)
+    return {"measurement": str(validate), **rms_by_signal(tg2, tg2.base, list(tg2.measured))}

@@ -1,0 +1,152 @@
+"""Running a program on the twin: ``simulate``, and ``scale`` (an override baked into it)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+from ..twin.setup import Messages, load_part, open_twin
+from ..units import SI_UNITS
+
+
+@dataclass
+class Simulation:
+    """A program run on the twin: the program, its trace (``trace.summary`` the figures)."""
+
+    program: object
+    trace: object
+    messages: list = field(default_factory=list, repr=False)  # (kind, text) in order
+
+    @property
+    def summary(self):
+        return self.trace.summary
+
+    every: int = 1  # servo samples per trace sample
+    twin: object = None
+
+    def write_trace(self, path: str, source: str = "simulate") -> None:
+        """Write the trace in the measurement format (.csv, .parquet, or '-'), its metadata
+        naming the program, the machine, the planner and the sampling."""
+        from .. import __version__
+
+        m = self.twin.machine
+        self.trace.write(path, {"source": f"mtwin {__version__} {source}", "program": self.program.path,
+                                "machine": m.name, "planner": m.controller.style,
+                                "servo_period_s": f"{m.controller.servo_period:g}", "every": str(self.every)})
+
+    @property
+    def inch(self) -> bool:
+        """Whether the program is written in inches (most of its moves)."""
+        return self.program.inch
+
+    def as_dict(self) -> dict:
+        """The summary as ``mtwin simulate --json`` prints it (SI units whatever the program's)."""
+        d = self.summary.as_dict()
+        d["si_units"] = SI_UNITS
+        d["program_units"] = "inch" if self.inch else "mm"
+        d["program"] = self.program.path
+        return d
+
+
+def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every: Optional[int] = None,
+             rate: Optional[float] = None, tooth_resolution: bool = False,
+             progress: Optional[Callable[[int, int], None]] = None, progress_from: int = 0,
+             on_message=None) -> Simulation:
+    """Run a program through the twin: interpreter, planner, servo loop and cutting process.
+
+    Parameters
+    ----------
+    twin : Twin, str or None
+        The twin, a twin file's path, or None for the default machine.
+    program : Program, str or bytes
+        The program, or a path (``-`` for stdin) or its text, read with the twin's settings.
+    stock : tuple, optional
+        The stock box (xmin, ymin, zmin, xmax, ymax, zmax), mm, over the program's comment.
+    cutting : bool
+        Model the cut (engagement, forces, spindle power); False: motion only.
+    every : int, optional
+        Keep every n-th servo sample in the trace (the figures use all of them); default 1.
+    rate : float, optional
+        The trace's sample rate in Hz instead (``every`` from the servo period).
+    tooth_resolution : bool
+        Instantaneous tooth-passing forces instead of revolution averages.
+    progress : callable, optional
+        ``progress(samples_done, samples_total)`` during the servo loop, for a run of more
+        than ``progress_from`` servo samples (a shorter one runs in one piece).
+    on_message : callable, optional
+        ``on_message(kind, text)`` for each warning and note as it arises.
+
+    Returns
+    -------
+    Simulation
+    """
+    from ..motion.simulate import simulate_plan
+
+    msgs = Messages(on_message)
+    tw = open_twin(twin)
+    every = _every(every, rate, tw.machine.controller.servo_period)
+    prog = load_part(tw, program, msgs)
+    plan = tw.plan(prog)
+    if progress is not None and plan.total_time / tw.machine.controller.servo_period + 1 <= progress_from:
+        progress = None  # (reported progress runs the servo loop in pieces)
+    trace = simulate_plan(tw, prog, plan, every=every, progress=progress, cutting=cutting, stock=stock,
+                          tooth=tooth_resolution)
+    for w in trace.summary.warnings:
+        msgs.warn(w)
+    return Simulation(prog, trace, msgs.items, every, tw)
+
+
+def _every(every: Optional[int], rate: Optional[float], dt: float) -> int:
+    """Servo samples per trace sample, from ``every`` or a ``rate`` in Hz."""
+    from ..errors import MtwinError
+
+    if every is not None and rate is not None:
+        raise MtwinError("give --every or --decimate, not both")
+    if rate is not None:
+        if not rate > 0:
+            raise MtwinError(f"--decimate must be a positive rate in Hz, got {rate:g}")
+        every = max(1, int(round(1.0 / (rate * dt))))
+    if every is None:
+        every = 1
+    if every < 1:
+        raise MtwinError(f"--every must be at least 1, got {every}")
+    return every
+
+
+@dataclass
+class Scaled:
+    """A program with an override baked in: the new bytes (geometry and feeds proven)."""
+
+    program: object
+    output: bytes
+    changed_lines: int
+    messages: list = field(default_factory=list, repr=False)
+
+    def as_dict(self) -> dict:
+        return {"program": self.program.path, "changed_lines": self.changed_lines}
+
+
+def scale(twin=None, program=None, *, feed: float = 1.0, spindle: float = 1.0, max_feed: Optional[float] = None,
+          on_message=None) -> Scaled:
+    """Bake a feed/spindle override into a program and clamp its feeds (``max_feed``, mm/min,
+    and the machine's maximum cutting feed); nothing else changes.  A raised feed above the
+    machine's maximum is clamped to it, with a warning that names its lines."""
+    import numpy as np
+
+    from ..errors import warning_text
+    from ..gcode.writer import scale_feeds, scaled_feeds
+
+    msgs = Messages(on_message)
+    tw = open_twin(twin)
+    limit = tw.machine.max_cutting_feed
+    prog = load_part(tw, program, msgs)
+    f, is_feed = scaled_feeds(prog, feed, spindle)
+    raised = is_feed & (f > limit * (1 + 1e-9)) & (f > prog.records["feed"])
+    if raised.any() and (max_feed is None or max_feed > limit):
+        lines = np.unique(prog.records["line"][raised])
+        listed = ", ".join(str(x) for x in lines[:8]) + (" …" if lines.size > 8 else "")
+        msgs.warn(warning_text(prog.path, int(lines[0]),
+                               f"F {float(f[raised].max()):,.0f} mm/min would exceed the machine's maximum cutting "
+                               f"feed {limit:,.6g} mm/min: clamped to it on {lines.size} line(s) ({listed})"))
+    data = scale_feeds(prog, feed, spindle, max_feed, machine_max=limit)
+    changed = sum(1 for a, b in zip(prog.data.splitlines(), data.splitlines()) if a != b)
+    return Scaled(prog, data, changed, msgs.items)

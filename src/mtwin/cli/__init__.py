@@ -1,0 +1,36 @@
+"""The ``mtwin`` command line: commands over the use-case API (``mtwin.api``).
+
+Data goes to stdout (``--json``, CSV, rewritten programs with ``-o -``); everything else —
+tables, progress, warnings, errors — to stderr.  Exit codes: 0 ok, 1 a check failed
+(``verify`` found a difference), 2 bad input or usage, 3 an internal error (run with
+``--traceback`` and report it), 130 interrupted.
+
+The package: ``app`` (the application, error mapping, compile notices), ``options`` (option
+groups declared once: the twin, the measurement reading), ``argtypes`` (ranges, grids, lists,
+output checks), ``render`` (the JSON emitter, messages), and one module per command family.
+A command parses its options, calls one library function and renders its result; it never
+builds a twin itself and imports nothing private from the library (tests/test_architecture.py).
+Heavy modules are imported inside the commands, so that ``mtwin --help`` answers at once.
+"""
+from __future__ import annotations
+
+import sys
+
+# (imported in the order their commands are listed in --help)
+from . import program, simulate, optimize, loop, admin, grind  # noqa: F401,I001  (register their commands)
+from .app import INTERRUPTED, app, err, state
+
+__all__ = ["app", "main"]
+
+
+def main() -> None:
+    # --traceback is a debugging switch a user adds at the end of a failing command line:
+    # accept it anywhere, not only before the command as click would
+    if "--traceback" in sys.argv[1:]:
+        state["traceback"] = True
+        sys.argv = [a for a in sys.argv if a != "--traceback"]
+    try:
+        app()
+    except KeyboardInterrupt:  # pragma: no cover (an interrupt before a command started)
+        err.print(INTERRUPTED, highlight=False)
+        sys.exit(130)

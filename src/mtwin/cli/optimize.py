@@ -1,0 +1,237 @@
+"""``mtwin optimize``: F and S chosen under the load and machine limits, the program written
+back, proven and re-simulated."""
+from __future__ import annotations
+
+from typing import Optional
+
+import typer
+
+from ..errors import MtwinError
+from .app import app, err, reports_errors
+from .argtypes import check_outputs, check_report, value_range, write_output
+from .options import PART, Group, groups, twin_options
+from .render import emit_json, message
+
+
+def _ga_options(**values):
+    from ..optimize import GAOptions
+
+    return GAOptions(**values)
+
+
+# the genetic algorithm's options, as one GAOptions
+GA = Group({"seed": (int, typer.Option(0, "--seed", help="GA random seed (same seed, same result).")),
+            "population": (int, typer.Option(60, "--population", help="GA population size.")),
+            "generations": (int, typer.Option(200, "--generations", help="GA generation limit."))}, _ga_options)
+
+
+# the command's own options (declared apart, as HTTPie declares its own)
+OUTPUT = typer.Option(..., "-o", "--output", help="Optimised program ('-' for stdout).")
+OBJECTIVE = typer.Option("time", "--objective", help="time | cost | smooth | air.")
+METHOD = typer.Option("bisect", "--method", help="bisect (per-segment bisection) | ga (genetic algorithm).")
+FORCE_LIMIT = typer.Option(None, "--force-limit",
+                           help="Cutting-load limit, N (default: learned per tool from the "
+                           "program — the load and chip thickness it already runs at; "
+                           "then no feed is lowered and a result that is not faster is "
+                           "written unchanged).")
+FEED_RANGE = typer.Option(None, "--feed-range", help="LOW,HIGH mm/min (default: 10 % of the "
+                          "lowest F up to the machine's maximum cutting feed).")
+SPINDLE_RANGE = typer.Option(None, "--spindle-range",
+                             help="LOW,HIGH rpm: also choose S (per tool); without it S stays.")
+SPINDLE_PER = typer.Option("tool", "--spindle-per", help="tool | segment (needs --allow-s-changes).")
+ALLOW_S_CHANGES = typer.Option(False, "--allow-s-changes", help="Allow S words in mid-tool.")
+TARGET_POWER = typer.Option(None, "--target-power",
+                            help="smooth: target mean cutting power per segment, W "
+                            "(default: the 75th percentile of the segments').")
+TOLERANCE = typer.Option(0.02, "--tolerance", help="Contour error, mm, a segment may gain over the "
+                         "program's own on the re-simulated twin.")
+POWER_TOLERANCE = typer.Option(0.05, "--power-tolerance",
+                               help="smooth: relative tolerance K on the target power.")
+FINISH_FEED = typer.Option("keep", "--finish-feed", help="keep (finishing passes keep their feed per "
+                           "tooth) | optimize (treat them as any cut).")
+SEGMENTATION = typer.Option("cluster", "--segmentation",
+                            help="cluster (sequential clustering) | changepoint (binary segmentation).")
+MIN_SEGMENT = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of path.")
+REPORT = typer.Option(None, "--report", help="Write a self-contained HTML report (.html).")
+JSON_OUT = typer.Option(False, "--json", help="Result as JSON on stdout.")
+IN_PLACE = typer.Option(False, "--in-place", help="Allow -o to be the input file.")
+
+
+@app.command(short_help="Optimise F and S under the load and machine limits.")
+@reports_errors
+@groups(setup=twin_options(stock=True, planner=True, tools=True), ga=GA)
+def optimize(
+    part: str = PART,
+    output: str = OUTPUT,
+    objective: str = OBJECTIVE,
+    method: str = METHOD,
+    force_limit: Optional[float] = FORCE_LIMIT,
+    feed_range: Optional[str] = FEED_RANGE,
+    spindle_range: Optional[str] = SPINDLE_RANGE,
+    spindle_per: str = SPINDLE_PER,
+    allow_s_changes: bool = ALLOW_S_CHANGES,
+    target_power: Optional[float] = TARGET_POWER,
+    tolerance: float = TOLERANCE,
+    power_tolerance: float = POWER_TOLERANCE,
+    finish_feed: str = FINISH_FEED,
+    segmentation: str = SEGMENTATION,
+    min_segment: float = MIN_SEGMENT,
+    report: Optional[str] = REPORT,
+    json_out: bool = JSON_OUT,
+    in_place: bool = IN_PLACE,
+    setup=None, ga=None,
+):
+    """Segment the predicted power curve, choose F (and S) per segment for the objective under
+    the load, power, torque and feed limits, write the program through the byte-preserving
+    writer, prove it cuts the same path and check the limits on its re-simulation."""
+    from ..optimize import InfeasibleError, OptimizeOptions
+    from ..report.optimize_html import optimize_html
+    from ..twin.setup import Messages, load_part
+
+    _check_outputs(output, report, json_out)
+    opts = OptimizeOptions(objective, method, force_limit, value_range(feed_range, "--feed-range"),
+                           value_range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
+                           power_tolerance=power_tolerance, tolerance=tolerance, finish_feed=finish_feed,
+                           segmentation=segmentation, min_segment=min_segment, ga=ga)
+    prog = load_part(setup, part, Messages(message))
+    try:
+        res = _run_with_progress(setup, prog, opts, ga.generations if method == "ga" else 0)
+    except InfeasibleError as exc:
+        if json_out:  # (what was refused, as data, before the message on stderr)
+            emit_json({"program": prog.path, "objective": objective, "method": method, "written": False,
+                       "error": str(exc), "reasons": exc.reasons}, indent=1)
+        raise
+    for w in res.warnings:
+        message("warning", w)
+    write_output(res.output, output, [part], in_place)
+    if report:
+        write_output(optimize_html(res, prog.path), report, [part])
+    if json_out:
+        emit_json(res.as_dict(prog.path), indent=1)
+        return
+    _print_optimize(res, prog)
+
+
+def _check_outputs(output: str, report, json_out: bool) -> None:
+    if output == "-" and json_out:
+        raise MtwinError("-o - and --json both write to stdout: give the program a file name, or leave out --json")
+    check_report(report, output)
+    check_outputs(output, report)
+
+
+def _run_with_progress(setup, prog, opts, generations: int):
+    """Run the optimiser with a transient progress display on a terminal's stderr (the stage,
+    and the GA's generations), shown once the run has taken a second; plain otherwise."""
+    import mtwin
+
+    stock = setup.stock_box()
+    if not err.is_terminal:
+        return mtwin.optimize(setup, prog, opts, stock=stock)
+    import threading
+
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    bar = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
+                   TimeElapsedColumn(), console=err, transient=True)
+    task = bar.add_task("simulating the program", total=None, info="")
+    lock = threading.Lock()
+    state = {"shown": False, "done": False}
+
+    def show():
+        with lock:
+            if not state["done"]:
+                bar.start()
+                state["shown"] = True
+
+    timer = threading.Timer(1.0, show)
+    timer.daemon = True
+
+    def stage(text: str) -> None:
+        bar.update(task, description=text, total=None, completed=0, info="")
+
+    def ga(g, n, b):
+        bar.update(task, description="GA", total=n, completed=g, info=f"gen {g}/{n}, fitness {b:.4f}")
+
+    timer.start()
+    try:
+        return mtwin.optimize(setup, prog, opts, stock=stock, progress=ga if generations else None, stage=stage)
+    finally:
+        timer.cancel()
+        with lock:
+            state["done"] = True
+            if state["shown"]:
+                bar.stop()
+
+
+def _print_optimize(res, prog) -> None:
+    from ..optimize.guards import line_ranges
+
+    b, a = res.before, res.after
+    verdict, change = res.verdict
+
+    def pct(x, y):
+        return f"{(y / x - 1) * 100:+.1f} %" if x else "—"
+
+    from rich.table import Table
+
+    err.print(f"{prog.path}: {res.objective} by {res.method}", soft_wrap=True, highlight=False)
+    t = Table()
+    for col in ("", "before", "after", "change"):
+        t.add_column(col, justify="right" if col else "left")
+    t.add_row("cycle time", f"{b.cycle_time:.2f} s", f"{a.cycle_time:.2f} s", pct(b.cycle_time, a.cycle_time))
+    if b.cost is not None and a.cost is not None:
+        # (in the currency units of the twin file's [cost] rates)
+        t.add_row("cost (currency units)", f"{b.cost:.3f}", f"{a.cost:.3f}", pct(b.cost, a.cost))
+    t.add_row("peak load", f"{b.peak_load:.1f} N", f"{a.peak_load:.1f} N", pct(b.peak_load, a.peak_load))
+    t.add_row("peak spindle power", f"{b.peak_power / 1000:.2f} kW", f"{a.peak_power / 1000:.2f} kW",
+              pct(b.peak_power, a.peak_power))
+    ce = res.contour_error
+    if ce:
+        t.add_row("contour error (feed moves)", f"{ce['before']:.3f} mm", f"{ce['after']:.3f} mm",
+                  f"{ce['after'] - ce['before']:+.3f} mm")
+    cv = (lambda v: "—" if v is None else f"{v:.3f}")
+    t.add_row("power CV (segment means)", cv(b.power_cv), cv(a.power_cv), "")
+    err.print(t)
+    word = {"faster": f"{-change * 100:.1f} % faster", "slower": f"{change * 100:.1f} % SLOWER",
+            "unchanged": "cycle time unchanged"}[verdict]
+    err.print(f"result: {word} ({b.cycle_time:.2f} -> {a.cycle_time:.2f} s, re-simulated)", highlight=False)
+    for lim in res.limits:
+        if lim.get("tool") is None:
+            continue
+        if lim.get("load") is None:
+            err.print(f"limits T{lim['tool']}: {lim['source']}", highlight=False, soft_wrap=True)
+            continue
+        chip = f", chip thickness {lim['chip_thickness'] * 1000:.1f} µm" if lim.get("chip_thickness") else ""
+        err.print(f"limits T{lim['tool']}: load {lim['load']:.1f} N{chip} ({lim['source']})", highlight=False,
+                  soft_wrap=True)
+    if res.spindle:
+        err.print("spindle speed chosen: " + ", ".join(f"T{k}: S{v:.0f}" for k, v in res.spindle.items()),
+                  highlight=False)
+    for why, lines in res.kept.items():
+        err.print(f"kept their feeds ({why}): {len(lines)} line(s)", highlight=False, soft_wrap=True)
+    if res.segments:
+        from collections import Counter
+
+        held = Counter(sg["limited_by"] for sg in res.segments if not sg["air"])
+        if held:
+            err.print("what held the cutting segments' feeds: " + ", ".join(f"{k} {v}" for k, v in held.most_common()),
+                      highlight=False, soft_wrap=True)
+        top = [sg for sg in res.segments if sg["air"] and sg["limited_by"] == "feed range (air cut)"]
+        if top:
+            lines = sorted({ln for sg in top for ln in range(sg["lines"][0], sg["lines"][1] + 1)})
+            err.print(f"air cuts raised to the top of the feed range, F{top[0]['feed_after']:g} mm/min: "
+                      f"{len(top)} segment(s), lines {line_ranges(lines)}", highlight=False, soft_wrap=True)
+    for d in res.defaults:
+        err.print(f"note: {d}", soft_wrap=True, highlight=False, markup=False)
+    if res.segments:
+        held = ce.get("worst_segment_increase", 0.0) <= ce.get("tolerance", 0.0) + 1e-9
+        err.print(f"{len(res.segments)} segments, {len(res.changed_lines)} changed line group(s); verified: same path; "
+                  + (f"limits and contour tolerance ({ce.get('tolerance', 0):g} mm) held" if held else
+                     f"limits held, but a segment's contour error grew {ce['worst_segment_increase']:.3f} mm (over the "
+                     f"{ce.get('tolerance', 0):g} mm tolerance) where the program's own feed could not be kept")
+                  + " on the re-simulated program "
+                  f"({res.rounds} round(s)); estimate {res.estimate['cycle_time']:.2f} s vs re-simulated "
+                  f"{a.cycle_time:.2f} s; {res.evaluations} evaluations in {res.seconds:.1f} s", soft_wrap=True,
+                  highlight=False)
+    else:
+        err.print(f"nothing changed; written as it was ({res.seconds:.1f} s)", highlight=False)

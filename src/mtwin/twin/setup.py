@@ -1,0 +1,126 @@
+"""What every use case starts from: the twin a user names (a Twin, a twin file, or the common
+command-line options over one) and the program it runs on it, with the messages that leave
+beside a result (library code never prints)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Callable, Optional
+
+from ..errors import MtwinError
+
+class Messages:
+    """Warnings and notes of a use case, in the order they arose; each is also handed at once
+    to ``sink(kind, text)`` when one is given (the CLI prints them as the work goes on)."""
+
+    def __init__(self, sink: Optional[Callable[[str, str], None]] = None):
+        self.sink = sink
+        self.items: list[tuple[str, str]] = []
+
+    def warn(self, text: str) -> None:
+        self._say("warning", text)
+
+    def note(self, text: str) -> None:
+        self._say("note", text)
+
+    def _say(self, kind: str, text: str) -> None:
+        self.items.append((kind, text))
+        if self.sink is not None:
+            self.sink(kind, text)
+
+    @property
+    def warnings(self) -> list[str]:
+        return [t for k, t in self.items if k == "warning"]
+
+    @property
+    def notes(self) -> list[str]:
+        return [t for k, t in self.items if k == "note"]
+
+
+@dataclass(frozen=True)
+class TwinSetup:
+    """The twin as the common command-line options describe it: a twin file, the interpreter
+    switches over it, effects added by specification (``"name:p=v,…"``) or from user files, a
+    planner style and tools declared over the file's table; and the stock box."""
+
+    twin: Optional[str] = None  # twin file (TOML); None: the embedded default machine
+    dialect: Optional[str] = None  # auto | fanuc | linuxcnc
+    lenient: bool = False
+    block_delete: Optional[bool] = None
+    effects: tuple = ()
+    effect_files: tuple = ()
+    planner: Optional[str] = None  # fanuc | linuxcnc | grbl
+    tools: tuple = ()  # "N=TYPE:DIAMETER[:FLUTES…]"
+    stock: Optional[str] = None  # "xmin,ymin,zmin,xmax,ymax,zmax" (mm, work coordinates)
+
+    def settings(self):
+        """The interpreter settings: the twin file's, with the switches given over them."""
+        from ..config import interpreter_settings
+
+        return interpreter_settings(self.twin, dialect=self.dialect, lenient=self.lenient or None,
+                                    skip_block_delete=self.block_delete)
+
+    def build(self):
+        """The Twin."""
+        from ..effects import load_file
+        from . import Twin
+        from .files import load_cutting, load_effects, load_machine
+        from .machine import STYLES
+
+        machine = load_machine(self.twin)
+        if self.planner is not None:
+            if self.planner not in STYLES:
+                raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {self.planner!r}")
+            machine = replace(machine, controller=replace(machine.controller, style=self.planner))
+        for f in self.effect_files:
+            load_file(f)
+        tw = Twin(machine=machine, interpreter=self.settings(), path=self.twin, cutting=load_cutting(self.twin),
+                  effects=load_effects(self.twin))
+        if self.tools:
+            from ..cutting.library import parse_tool_option
+
+            tw = tw.with_tools(dict(parse_tool_option(t) for t in self.tools))
+        if self.effects:
+            tw = tw.with_effects(*self.effects)
+        return tw
+
+    def stock_box(self):
+        """The --stock box as a tuple, or None."""
+        if self.stock is None:
+            return None
+        from ..cutting.library import parse_box
+
+        return parse_box(self.stock, "--stock")
+
+
+def open_twin(twin=None):
+    """A Twin from a Twin (as it is), a twin file's path, or None (the default machine)."""
+    from . import Twin
+
+    if isinstance(twin, Twin):
+        return twin
+    if isinstance(twin, TwinSetup):
+        return twin.build()
+    return Twin.from_toml(None if twin is None else str(twin))
+
+
+def load_part(twin, program, messages: Optional[Messages] = None, need_motion: bool = True):
+    """The program (a Program as it is; a path, ``-`` for stdin, or bytes read with the twin's
+    interpreter settings), its warnings told.  An empty file is an error; one without a move
+    is an error where the use case needs motion (``need_motion``), else a warning."""
+    from ..errors import GCodeError, SourceLocation, warning_text
+    from ..gcode.interpreter import Program
+
+    if isinstance(program, Program):
+        return program
+    messages = messages if messages is not None else Messages()
+    prog = open_twin(twin).load(program)
+    for w in prog.warnings:
+        messages.warn(str(w))
+    if not prog.data.strip():
+        raise GCodeError("the program is empty", SourceLocation(prog.path, 1, 1))
+    if prog.records.size == 0:
+        msg = "the program has no motion (no G0/G1/G2/G3, cycle or dwell is run)"
+        if need_motion:
+            raise GCodeError(msg, SourceLocation(prog.path, 1, 1))
+        messages.warn(warning_text(prog.path, 0, msg))
+    return prog
