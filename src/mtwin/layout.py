@@ -19,6 +19,22 @@ SV_KPP, SV_WV, SV_WI, SV_FF, SV_MASS, SV_FPT, SV_FMAX, SV_FCP, SV_FCN, SV_FSP, S
 N_SV = 15
 
 AXES = ("x", "y", "z")
+#: rows of the servo table (and columns of every per-axis array): ``sv[AXIS_Z, SV_FG]``
+AXIS_X, AXIS_Y, AXIS_Z = range(3)
+
+#: columns of the engagement's per-step scalars (``Engagement.q``): the chip's cross-section
+#: (mm² per mm of feed per tooth), radial and axial depth, the widest chip's factor, the feed
+#: direction (unit x, y) and the uncut heights
+Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY, Q_UH, Q_UZ = range(8)
+N_Q = 8
+#: columns of the engagement's force sums (``Engagement.sums``): (component, coefficient)
+#: pairs — x: tangential, radial, axial | y: the same | z: radial, axial | spindle torque:
+#: tangential; C the cutting (× feed per tooth), E the edge part
+SX_TC, SX_RC, SX_AC, SY_TC, SY_RC, SY_AC, SZ_RC, SZ_AC, ST_TC = range(9)
+SX_TE, SX_RE, SX_AE, SY_TE, SY_RE, SY_AE, SZ_RE, SZ_AE, ST_TE = range(9, 18)
+N_SUMS = 18
+#: columns of the engagement's tool table (``Engagement.tools``): radius, nose radius (mm), flutes
+T_RADIUS, T_NOSE, T_FLUTES = range(3)
 _CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")
 #: every signal a trace can hold, in the measurement format's order
 SIGNALS = (tuple(a + s for s in ("", "_cmd", "_err", "_vel") for a in AXES) + ("feed",)

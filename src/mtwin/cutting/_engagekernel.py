@@ -23,14 +23,11 @@ import numpy as np
 
 from .._jit import njit
 
-# force-sum columns: (component, coefficient) pairs; C = cutting (× f), E = edge
-# x: t r a | y: t r a | z: r a | torque: t
-N_SUMS = 18
-SX_TC, SX_RC, SX_AC, SY_TC, SY_RC, SY_AC, SZ_RC, SZ_AC, ST_TC = range(9)
-SX_TE, SX_RE, SX_AE, SY_TE, SY_RE, SY_AE, SZ_RE, SZ_AE, ST_TE = range(9, 18)
-# per-step scalars
-Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY, Q_UH, Q_UZ = range(8)
-N_Q = 8
+# force-sum and per-step columns (mtwin.layout: the run kernel, the optimiser and the effects
+# read them by the same names)
+from ..layout import (N_Q, N_SUMS, Q_AE, Q_AP, Q_AREA, Q_DX, Q_DY, Q_UH, Q_UZ, Q_WMAX, ST_TC, ST_TE,  # noqa: E402,F401
+                      SX_AC, SX_AE, SX_RC, SX_RE, SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC, SY_TE, SZ_AC,
+                      SZ_AE, SZ_RC, SZ_RE)
 
 SLICE_BOTTOM, SLICE_SIDE = 0, 1
 # heights are float32: material thinner than this is rounding, not stock

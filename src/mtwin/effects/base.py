@@ -25,6 +25,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import ConfigError
+from ..layout import Q_AREA, Q_WMAX, T_FLUTES
 from ..params import Param
 
 STAGES = ("loop", "observation", "plan")
@@ -110,14 +111,14 @@ class StepInfo:
             tool[a:a + c] = eng.tool_index[i]
             if program is not None:
                 rpm = abs(float(program.records["spindle"][seg["rec"][i]]))
-                flutes = float(eng.tools[eng.tool_index[i], 2])
+                flutes = float(eng.tools[eng.tool_index[i], T_FLUTES])
                 if rpm > 0 and flutes > 0:
                     fz[a:a + c] = seg["feed"][i] / (flutes * rpm / 60.0)  # mm per tooth
-        area = np.asarray(eng.q[:, 0], dtype=np.float64)
+        area = np.asarray(eng.q[:, Q_AREA], dtype=np.float64)
         d = np.where(area > 0, ds, 0.0)
         length = np.zeros(n)
         for t in np.unique(tool):
             m = tool == t
             length[m] = np.cumsum(d[m]) - 0.5 * d[m]  # at the middle of each step
-        h_max = fz * np.asarray(eng.q[:, 3], dtype=np.float64)
+        h_max = fz * np.asarray(eng.q[:, Q_WMAX], dtype=np.float64)
         return cls(length, area, tool, line, h_max)

@@ -4,7 +4,7 @@ currents and following errors change with them."""
 from __future__ import annotations
 
 from .. import layout as RK  # the servo table's columns (mtwin.layout)
-from ..layout import AXES
+from ..layout import AXES, AXIS_Z
 from ..params import Param
 from .base import Effect
 
@@ -70,7 +70,7 @@ class Gravity(Effect):
     signals = ("z_torque", "z_current", "z_err")
 
     def servo(self, sv, p):
-        sv[2, RK.SV_FG] += p["mass"] * G
+        sv[AXIS_Z, RK.SV_FG] += p["mass"] * G
 
 
 class Inertia(Effect):

@@ -21,6 +21,7 @@ from .interpreter import Program, interpret
 from .lexer import lex
 from .numfmt import NumberStyle, detect_style
 from .records import (
+    is_feed_kind,
     FL_COMP,
     FL_CORNER,
     FL_MIRROR,
@@ -256,7 +257,7 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
     st = w.style
     lengths = move_lengths(rec)
     kinds = rec["kind"]
-    is_feed = (kinds == LINEAR) | (kinds == ARC_CW) | (kinds == ARC_CCW)
+    is_feed = is_feed_kind(kinds)
     new_spindle = np.where(np.isnan(spindles), rec["spindle"], spindles)
     new_feed = np.where(np.isnan(feeds), rec["feed"], feeds)
     asked = is_feed & ~np.isnan(feeds)  # (a zero feed left to the caller, --lenient, may stay)
@@ -563,7 +564,7 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
 def scaled_feeds(prog: Program, feed: float = 1.0, spindle: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """The feeds (mm/min) ``scale_feeds`` asks for before any clamp, and which records it may change."""
     rec = prog.records
-    is_feed = (rec["kind"] == LINEAR) | (rec["kind"] == ARC_CW) | (rec["kind"] == ARC_CCW)
+    is_feed = is_feed_kind(rec["kind"])
     is_feed &= rec["feed"] > 0  # a feed the program leaves to its caller (--lenient) stays as it is
     is_feed &= (rec["flags"] & FL_SYNC) == 0  # a thread or rigid tap runs at pitch x spindle speed
     is_feed &= (rec["flags"] & FL_PROBE) == 0  # a probing feed is part of the measurement

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
+from ..tomlwrite import toml_value
 from .cycle import Stage, run_cycle
 from .model import Batch, GrindTwin, read_toml
 
@@ -42,7 +43,8 @@ def cycle_toml(twin: GrindTwin, stages: list, note: str = "") -> str:
     out = ([f"# {note}"] if note else []) + twin.toml().rstrip().splitlines()
     out.append("stages = [  # programmed radial feed (mm/min) until the gauge reads switch_allowance (mm left)")
     for s in stages:
-        out.append(f"  {{ feed = {s.feed:.10g}, switch_allowance = {s.switch_allowance:.10g} }},")
+        out.append(f"  {{ feed = {toml_value(float(f'{s.feed:.10g}'))}, "
+                   f"switch_allowance = {toml_value(float(f'{s.switch_allowance:.10g}'))} }},")
     out.append("]")
     return "\n".join(out) + "\n"
 

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..params import Param
+from ..tomlwrite import toml_value
 
 #: Every parameter of the grinding twin, by dotted name (units, bounds, sources).
 PARAMS = (
@@ -125,7 +126,7 @@ class GrindTwin:
             if s != sec:
                 out += ["", f"[{s}]"]
                 sec = s
-            out.append(f"{k:<15} = {self.values[p.name]!r:<10}  # [{p.unit or '1'}] {p.doc} {p.source}")
+            out.append(f"{k:<15} = {toml_value(self.values[p.name]):<10}  # [{p.unit or '1'}] {p.doc} {p.source}")
         return "\n".join(out) + "\n"
 
     # ---- derived coefficients

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MtwinError
+from ..layout import T_FLUTES
 
 ALIGNMENTS = ("line", "position", "xcorr")
 
@@ -302,7 +303,7 @@ def _tooth_cycles(trace, t_sim) -> np.ndarray | None:
     eng = getattr(trace, "engagement", None)
     if eng is None or trace.cut is None or len(eng.tools) != 1:
         return None
-    flutes = float(eng.tools[0, 2])
+    flutes = float(eng.tools[0, T_FLUTES])
     ts = np.asarray(trace.t, dtype=np.float64)
     n = np.abs(trace.signal("spindle_speed"))
     teeth = np.concatenate(([0.0], np.cumsum(0.5 * (n[1:] + n[:-1]) / 60.0 * flutes * np.diff(ts))))

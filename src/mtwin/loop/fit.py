@@ -58,7 +58,7 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
         raise MtwinError(f"{meas.path}: diagnose and calibrate need a time series (a summary measurement is "
                          f"compared row by row with mtwin compare)")
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
-    cutting = not (hasattr(program, "turning_line") and program.turning_line())
+    cutting = not program.turning_line()
     base = twin.simulate(program, stock=stock, cutting=cutting)
     c = compare(base, meas, align)
     missing = [s for s in (signals or ()) if s not in c.measured]

@@ -9,43 +9,10 @@ falling across iterations.
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import re
 
 from ..errors import ConfigError
-
-
-def _toml_string(v: str) -> str:
-    out = []
-    for ch in v:
-        if ch in ('"', "\\"):
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04X}")  # TOML basic strings allow no control characters
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        if isinstance(v, float) and math.isnan(v):
-            return "nan"
-        if isinstance(v, float) and math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(float(v)) if isinstance(v, float) else str(v)
-    if isinstance(v, str):
-        return _toml_string(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(v)
-
-
-def _inline(d: dict) -> str:
-    return "{ " + ", ".join(f'{_toml_string(str(k))} = {_toml_value(v if v is not None else float("nan"))}'
-                            for k, v in d.items()) + " }"
+from ..tomlwrite import dump_tables, inline_table, toml_value
 
 
 def _strip_effects_and_journal(text: str) -> str:
@@ -84,27 +51,6 @@ def read_journal(path: str) -> list[dict]:
     return j
 
 
-def _dump_tables(d: dict, prefix: str = "") -> list[str]:
-    """A parsed TOML document (no effects, no journal) written back: scalars and lists first,
-    then each sub-table as [a.b]."""
-    out, scalars, tables = [], [], []
-    for k, v in d.items():
-        (tables if isinstance(v, dict) else scalars).append((k, v))
-    if prefix and scalars:
-        out.append(f"[{prefix}]")
-    for k, v in scalars:
-        out.append(f"{_key(k)} = {_toml_value(v)}")
-    if scalars:
-        out.append("")
-    for k, v in tables:
-        out += _dump_tables(v, f"{prefix}.{_key(k)}" if prefix else _key(k))
-    return out
-
-
-def _key(k: str) -> str:
-    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else _toml_string(k)
-
-
 def with_base_values(source_text: str, values: dict, twin) -> str:
     """The twin file's text with fitted base parameters written into its sections: machine
     parameters by their dotted names, ``cutting.<material>.<coef>`` as a ``[materials.<name>]``
@@ -129,7 +75,7 @@ def with_base_values(source_text: str, values: dict, twin) -> str:
         for p in parts[:-1]:
             node = node.setdefault(p, {})
         node[parts[-1]] = float(v)
-    return "\n".join(_dump_tables(doc)).rstrip() + "\n"
+    return "\n".join(dump_tables(doc)).rstrip() + "\n"
 
 
 def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict], base: dict | None = None,
@@ -144,12 +90,12 @@ def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]
     parts = [_strip_effects_and_journal(source_text)] if source_text.strip() else []
     for e in effects:
         values = e.resolved()
-        lines = [f"[effects.{e.name}]"] + [f"{k} = {_toml_value(v)}" for k, v in values.items()]
+        lines = [f"[effects.{e.name}]"] + [f"{k} = {toml_value(v)}" for k, v in values.items()]
         parts.append("\n".join(lines))
     for j in list(previous) + [entry]:
         lines = ["[[journal]]"]
         for k, v in j.items():
-            lines.append(f"{k} = {_inline(v) if isinstance(v, dict) else _toml_value(v)}")
+            lines.append(f"{k} = {inline_table(v) if isinstance(v, dict) else toml_value(v)}")
         parts.append("\n".join(lines))
     return "\n\n".join(p for p in parts if p) + "\n"
 

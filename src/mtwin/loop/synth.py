@@ -38,7 +38,7 @@ def synthesize(twin, program, *, rate: float = 100.0, noise: float = 0.0, signal
         raise MtwinError(f"--rate {rate:g} Hz is not the servo rate ({1 / dt:g} Hz) divided by a whole number "
                          f"(e.g. {1 / (every * dt):g} Hz)")
     trace = twin.simulate(program, every=every, stock=stock,
-                          cutting=not (hasattr(program, "turning_line") and program.turning_line()))
+                          cutting=not program.turning_line())
     rng = np.random.default_rng(seed)
     t = np.asarray(trace.t, dtype=np.float64)
     # a logger samples on its own clock: the trace's extra last sample is off that grid

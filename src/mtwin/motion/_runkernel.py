@@ -11,13 +11,15 @@ time series are stored every ``every``-th sample.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from .._jit import njit
-from ..cutting._engagekernel import (Q_AE, Q_AP, Q_UH, Q_UZ, Q_AREA, Q_DX, Q_DY, Q_WMAX, ST_TC, ST_TE, SX_AC, SX_AE,
-                                       SX_RC, SX_RE, SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC,
-                                       SY_TE, SZ_AC, SZ_AE, SZ_RC, SZ_RE, tooth_forces)
+from ..cutting._engagekernel import tooth_forces
+from ..layout import (Q_AE, Q_AP, Q_AREA, Q_DX, Q_DY, Q_UH, Q_UZ, Q_WMAX, ST_TC, ST_TE, SX_AC, SX_AE, SX_RC, SX_RE,
+                      SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC, SY_TE, SZ_AC, SZ_AE, SZ_RC, SZ_RE, T_FLUTES,
+                      T_RADIUS)
 from ._plankernel import ramp_eval
 
 FILTER_NONE, FILTER_LINEAR, FILTER_BELL, FILTER_EXP = 0, 1, 2, 3
@@ -79,39 +81,147 @@ def segment_point(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, i, s, ou
         out[k] = c[i, k] + r * (ca * e1[i, k] + sa * e2[i, k]) + h[i, k] * f
 
 
-class State:
-    """Mutable state of the servo-rate loop, so a run can be done in chunks (progress bar)."""
+class PathArrays(NamedTuple):
+    """The plan's segments as the kernel reads them (``motion.path.SEG_DTYPE`` columns; ``line``
+    the segment number, 1-based, that labels the samples)."""
 
-    def __init__(self, nbuf: int, x0: np.ndarray, sv: np.ndarray, nseg: int):
-        self.ring1 = np.repeat(x0[None, :], nbuf, axis=0).astype(np.float64)
-        self.ring2 = self.ring1.copy()
-        self.sums = np.zeros((2, 3))
-        self.sums[0] = x0 * nbuf
-        self.sums[1] = x0 * nbuf
-        # yexp, xc_prev, x, v, integ, previous raw command, last feed direction (unit)
-        self.axes = np.zeros((7, 3))
-        self.axes[0] = x0
-        self.axes[1] = x0
-        self.axes[2] = x0
-        self.axes[5] = x0
-        for k in range(3):
-            # an axis holding a weight at the start already has it in its integrator
-            gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
-            if gain > 0.0:
-                self.axes[4, k] = sv[k, SV_FG] / gain
-        # current segment, samples the raw command stood still, first and last sample at which
-        # the (filtered) command moved, last stop passed in position, finished flag, samples run
-        self.seg = np.array([0, 0, -1, -1, -1, 0, 0], np.int64)
-        self.clock = np.zeros(1)  # interpolator time, s
-        self.wait = np.zeros(max(nseg, 1))  # in-position wait at the end of each segment, s
-        self.max_err = np.zeros(3)
-        self.max_trq = np.zeros(3)
+    kind: np.ndarray
+    p0: np.ndarray
+    p1: np.ndarray
+    u: np.ndarray
+    c: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    h: np.ndarray
+    r0: np.ndarray
+    r1: np.ndarray
+    theta: np.ndarray
+    length: np.ndarray
+    line: np.ndarray
 
 
-def allocate_outputs(n_out: int, cutting: bool = True):
+class Profile(NamedTuple):
+    """The timing of each segment: start time, S-curve phases, duration, exact stop."""
+
+    t_start: np.ndarray
+    prof: np.ndarray
+    dur: np.ndarray
+    stop_end: np.ndarray
+
+
+class ServoInputs(NamedTuple):
+    """The servo period, the trace's sampling, the after-interpolation filter, the in-position
+    check, the per-axis servo table (``layout.SV_*`` columns) and an external disturbance."""
+
+    dt: float
+    every: int
+    filt: int
+    nfilt: int
+    tfilt: float
+    in_position: float
+    max_wait: float
+    sv: np.ndarray
+    fd: np.ndarray
+
+
+class LoopState(NamedTuple):
+    """The loop's state between runs (a run can go in chunks): the filter's rings and sums,
+    the axes' state (yexp, previous command, position, velocity, integrator, previous raw
+    command, last feed direction), the segment counters, the interpolator clock, each
+    segment's in-position wait, the peak following errors and torques."""
+
+    ring1: np.ndarray
+    ring2: np.ndarray
+    sums: np.ndarray
+    axes: np.ndarray
+    seg: np.ndarray
+    clock: np.ndarray
+    wait: np.ndarray
+    max_err: np.ndarray
+    max_trq: np.ndarray
+
+
+class CuttingInputs(NamedTuple):
+    """The engagement of the path (steps per segment, force sums, step scalars ``layout.Q_*``),
+    the tools (``layout.T_*`` columns), the material's coefficients and the effects' factors on
+    them, the spindle (command, acceleration, losses, power curve) and, for tooth resolution,
+    the edge profiles and slices."""
+
+    first: np.ndarray
+    count: np.ndarray
+    sums: np.ndarray
+    q: np.ndarray
+    seg_tool: np.ndarray
+    tools: np.ndarray
+    kc: np.ndarray
+    kscale: np.ndarray
+    hand: np.ndarray
+    spin_cmd: np.ndarray
+    spin_acc: float
+    loss: np.ndarray
+    spin_curve: np.ndarray
+    eprof: np.ndarray
+    sl_starts: np.ndarray
+    skind: np.ndarray
+    skap: np.ndarray
+    sr: np.ndarray
+    szlo: np.ndarray
+    szhi: np.ndarray
+    sdrho: np.ndarray
+    tan_helix: np.ndarray
+
+
+class CutState(NamedTuple):
+    """The spindle's state (speed rpm, angle rad) and the cut's running statistics (``CS_*``)."""
+
+    spin: np.ndarray
+    cstats: np.ndarray
+
+
+class Outputs(NamedTuple):
+    """The stored samples: time, segment number, commanded/actual positions, following error,
+    velocity, motor torque, path speed, cutting force and the cut's channels (``C_*``)."""
+
+    t: np.ndarray
+    segno: np.ndarray
+    cmd: np.ndarray
+    act: np.ndarray
+    err: np.ndarray
+    vel: np.ndarray
+    trq: np.ndarray
+    pathv: np.ndarray
+    force: np.ndarray
+    cut: np.ndarray
+
+
+def new_state(nbuf: int, x0: np.ndarray, sv: np.ndarray, nseg: int) -> LoopState:
+    """The loop's state at the start point, the axes at rest."""
+    ring1 = np.repeat(x0[None, :], nbuf, axis=0).astype(np.float64)
+    sums = np.zeros((2, 3))
+    sums[0] = x0 * nbuf
+    sums[1] = x0 * nbuf
+    # yexp, xc_prev, x, v, integ, previous raw command, last feed direction (unit)
+    axes = np.zeros((7, 3))
+    axes[0] = x0
+    axes[1] = x0
+    axes[2] = x0
+    axes[5] = x0
+    for k in range(3):
+        # an axis holding a weight at the start already has it in its integrator
+        gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
+        if gain > 0.0:
+            axes[4, k] = sv[k, SV_FG] / gain
+    # current segment, samples the raw command stood still, first and last sample at which
+    # the (filtered) command moved, last stop passed in position, finished flag, samples run
+    seg = np.array([0, 0, -1, -1, -1, 0, 0], np.int64)
+    return LoopState(ring1, ring1.copy(), sums, axes, seg, np.zeros(1), np.zeros(max(nseg, 1)), np.zeros(3),
+                     np.zeros(3))
+
+
+def allocate_outputs(n_out: int, cutting: bool = True) -> Outputs:
     # commanded positions stay float64 so that they can be differentiated (accelerations);
     # the other channels are stored as float32 (7 significant digits) to halve the memory
-    return (np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
+    return Outputs(np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
             np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32),
             np.empty((n_out, 3), np.float32), np.empty(n_out, np.float32),
             np.zeros((n_out if cutting else 1, 3), np.float32), np.zeros((n_out if cutting else 1, 7), np.float32))
@@ -150,21 +260,25 @@ def _friction(vk, sv, k):
 
 
 @njit
-def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start, prof, dur, stop_end,
-             dt, k0, k1, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd,
-             ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq,
-             t_out, line_out, cmd, act, err, vel, trq, pathv,
-             eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, kscale, hand, spin_cmd, spin_acc, loss,
-             spin_curve,
-             eprof, sl_starts, skind, skap, sr, szlo, szhi, sdrho, tan_helix,
-             spin, cstats, force_out, cut_out):
+def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
     """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
     position), continuing from the state arrays (updated in place).  Sample k is stored at
     index k // every when k is a multiple of ``every``; the last sample is always stored.
 
     Two clocks: wall time ``k·dt`` and the interpolator's time, which stands still at the end
     of an exact-stop segment until every axis is within ``in_position`` of the command (the
-    in-position check of a real control; 0 disables it).  Returns the number of samples run."""
+    in-position check of a real control; 0 disables it).  Returns the number of samples run.
+
+    The inputs come in named groups (PathArrays, Profile, ServoInputs, LoopState,
+    CuttingInputs, CutState, Outputs); the loop below reads them by the names they unpack to."""
+    kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line = path
+    t_start, prof, dur, stop_end = profile
+    dt, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd = servo
+    ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq = state
+    (eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, kscale, hand, spin_cmd, spin_acc, loss, spin_curve,
+     eprof, sl_starts, skind, skap, sr, szlo, szhi, sdrho, tan_helix) = cut
+    spin, cstats = cut_state
+    t_out, line_out, cmd, act, err, vel, trq, pathv, force_out, cut_out = out
     nseg = len(kind)
     nbuf = ring1.shape[0]
     sum1 = sums[0]
@@ -321,7 +435,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                 mi = cnt - 1
             m_ = eng_first[i] + mi
             nrps = abs(spin[0]) / 60.0
-            fl = tools[seg_tool[i], 2]
+            fl = tools[seg_tool[i], T_FLUTES]
             S = eng_sums[m_]
             if eng_q[m_, Q_AREA] > 0.0 or S[ST_TE] > 0.0:
                 cutting = True
@@ -341,11 +455,11 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
                         tt = seg_tool[i]
                         a0 = sl_starts[tt]
                         a1 = sl_starts[tt + 1]
-                        tooth_forces(eprof[m_], eng_q[m_], spin[1], 0.0, fl, tools[tt, 0], tan_helix[tt],
+                        tooth_forces(eprof[m_], eng_q[m_], spin[1], 0.0, fl, tools[tt, T_RADIUS], tan_helix[tt],
                                      skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
                                      eprof.shape[2], kc, tout)
                         bx, by, bz, tb = tout[0], tout[1], tout[2], tout[3] * 1e-3
-                        tooth_forces(eprof[m_], eng_q[m_], spin[1], 1.0, fl, tools[tt, 0], tan_helix[tt],
+                        tooth_forces(eprof[m_], eng_q[m_], spin[1], 1.0, fl, tools[tt, T_RADIUS], tan_helix[tt],
                                      skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
                                      eprof.shape[2], kc, tout)
                         ax_, ay_, az_, ta = tout[0] - bx, tout[1] - by, tout[2] - bz, tout[3] * 1e-3 - tb
@@ -457,7 +571,7 @@ def run_twin(kind, p0, p1, u, c, e1, e2, h, r0, r1, theta, length, line, t_start
             for k in range(3):
                 dev2 += (xc[k] - x[k]) ** 2
                 along += (xc[k] - x[k]) * cdir[k]
-            rt = tools[seg_tool[i], 0]
+            rt = tools[seg_tool[i], T_RADIUS]
             if dev2 - along * along > rt * rt and (fz_ > 0.0 or fb[0] != 0.0 or fb[1] != 0.0):
                 cstats[CS_PUSHED_LINE] = line[i]
                 segp[5] = 3  # reported by the caller

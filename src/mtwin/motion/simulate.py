@@ -91,11 +91,12 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
         z1 = np.zeros(1)
-        return None, (z, z, np.zeros((0, 18), np.float32), np.zeros((0, 8), np.float32), z, np.zeros((1, 3)),
-                      np.zeros(6), np.zeros(0), hand, spin_cmd, m.spindle.acceleration, np.zeros(3), curve,
-                      np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64), z1, z1, z1, z1,
-                      z1, z1)
-    turning = program.turning_line() if hasattr(program, "turning_line") else 0
+        return None, RK.CuttingInputs(z, z, np.zeros((0, 18), np.float32), np.zeros((0, 8), np.float32), z,
+                                      np.zeros((1, 3)), np.zeros(6), np.zeros(0), hand, spin_cmd,
+                                      float(m.spindle.acceleration), np.zeros(3), curve,
+                                      np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64),
+                                      z1, z1, z1, z1, z1, z1)
+    turning = program.turning_line()
     if turning:
         raise MtwinError(f"{program.path}:{turning}: this is a turning program (lathe cycle G70-G72, G96 constant "
                          f"surface speed or G7 diameter mode); the cutting model is for milling tools: simulate its "
@@ -107,8 +108,9 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
     kscale = _cutting_scale(eng, plan, loop_effects, program)
-    return eng, (eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, kscale, hand, spin_cmd,
-                 m.spindle.acceleration, np.array(cut.spindle_loss), curve, prof, *eng.slices, eng.helix)
+    return eng, RK.CuttingInputs(eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, kscale, hand,
+                                 spin_cmd, float(m.spindle.acceleration), np.array(cut.spindle_loss), curve, prof,
+                                 *eng.slices, eng.helix)
 
 
 def _cutting_scale(eng, plan, loop_effects, program=None) -> np.ndarray:
@@ -187,24 +189,28 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                              f"{', '.join(e.name for e, _ in observed)}) needs the full-rate trace: "
                              f"{need / 1e9:.1f} GB; simulate a shorter program or section")
     if len(seg):
-        args = (seg["kind"].astype(np.int64), np.ascontiguousarray(seg["p0"]), np.ascontiguousarray(seg["p1"]),
-                np.ascontiguousarray(seg["u0"]), np.ascontiguousarray(seg["c"]), np.ascontiguousarray(seg["e1"]),
-                np.ascontiguousarray(seg["e2"]), np.ascontiguousarray(seg["h"]), seg["r0"].copy(),
-                seg["r1"].copy(), seg["theta"].copy(), seg["length"].copy(),
-                # the kernel labels samples and statistics with this "line": the segment number
-                # (1-based, 0 = none), mapped to program line and record afterwards
-                np.arange(1, len(seg) + 1, dtype=np.int32),
-                plan.t_start, plan.prof, plan.dur, plan.stop_end)
+        path = RK.PathArrays(seg["kind"].astype(np.int64), np.ascontiguousarray(seg["p0"]),
+                             np.ascontiguousarray(seg["p1"]), np.ascontiguousarray(seg["u0"]),
+                             np.ascontiguousarray(seg["c"]), np.ascontiguousarray(seg["e1"]),
+                             np.ascontiguousarray(seg["e2"]), np.ascontiguousarray(seg["h"]), seg["r0"].copy(),
+                             seg["r1"].copy(), seg["theta"].copy(), seg["length"].copy(),
+                             # the kernel labels samples and statistics with this "line": the segment
+                             # number (1-based, 0 = none), mapped to program line and record afterwards
+                             np.arange(1, len(seg) + 1, dtype=np.int32))
+        profile = RK.Profile(plan.t_start, plan.prof, plan.dur, plan.stop_end)
     else:
         z3 = np.zeros((1, 3))
         z3[0] = x0
         z = np.zeros(1)
-        args = (np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z, np.zeros(1, np.int32),
-                z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
+        path = RK.PathArrays(np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z,
+                             np.zeros(1, np.int32))
+        profile = RK.Profile(z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
     eng, cut_args = _cutting_args(twin, program, plan, stock, cutting, tooth, loop_effects)
-    spin = np.zeros(2)  # speed (rpm), angle (rad)
-    cstats = np.zeros(16)
-    state = RK.State(nfilt, x0, sv, len(seg))
+    cut_state = RK.CutState(np.zeros(2), np.zeros(16))  # spindle speed (rpm) and angle (rad); statistics
+    cstats = cut_state.cstats
+    state = RK.new_state(nfilt, x0, sv, len(seg))
+    servo = RK.ServoInputs(float(dt), int(every), int(filt), int(nfilt), float(c.after_time), float(c.in_position),
+                           float(_MAX_WAIT), sv, fd)
     cap = n_est // every + 3
     outs = RK.allocate_outputs(cap, eng is not None)
     chunk = max(_CHUNK, every) if progress is not None else max(n_est, every)
@@ -215,11 +221,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         need_slots = k1 // every + 2
         if need_slots > cap:  # the waits took longer than estimated: grow the outputs
             cap = max(need_slots, int(cap * 1.25))
-            outs = tuple(a if len(a) == 1 else np.concatenate([a, np.empty((cap - len(a),) + a.shape[1:], a.dtype)])
-                         for a in outs)
-        k = RK.run_twin(*args, dt, k, k1, every, filt, nfilt, c.after_time, c.in_position, _MAX_WAIT, sv, fd,
-                        state.ring1, state.ring2, state.sums, state.axes, state.seg, state.clock, state.wait,
-                        state.max_err, state.max_trq, *outs[:8], *cut_args, spin, cstats, *outs[8:])
+            outs = RK.Outputs(*(a if len(a) == 1 else np.concatenate([a, np.empty((cap - len(a),) + a.shape[1:],
+                                                                                    a.dtype)]) for a in outs))
+        k = RK.run_twin(path, profile, servo, k, k1, state, cut_args, cut_state, outs)
         if progress is not None:
             progress(min(k, n_est), n_est)
     if state.seg[5] == 3:

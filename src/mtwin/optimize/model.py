@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cutting import _engagekernel as EK
+from .. import layout as EK  # the engagement's columns (Q_*, S*_*, T_*)
 from ..gcode import records as R
 from ..motion.path import PAUSE
 
@@ -106,8 +106,8 @@ def path_model(twin, program, plan, eng, kscale=None) -> PathModel:
     fb = np.stack([bx * dx + by * yx, bx * dy + by * yy], axis=1)
     cutting = (_f64(q, EK.Q_AREA) > 0.0) | (_f64(S, EK.ST_TE) > 0.0)
     trow = eng.tool_index[step_seg]
-    flutes = eng.tools[trow, 2]
-    diameter = 2.0 * eng.tools[trow, 0]
+    flutes = eng.tools[trow, EK.T_FLUTES]
+    diameter = 2.0 * eng.tools[trow, EK.T_RADIUS]
     return PathModel(step_rec, pos, length, fa, fb, ta, tb, flutes, cutting,
                      program.records["tool"][step_rec].astype(np.int64), diameter,
                      np.where(cutting, _f64(q, EK.Q_WMAX), 0.0), np.where(cutting, _f64(q, EK.Q_AE), 0.0))

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .guards import percentile_by_group
+from .model import cutting_speed, taylor_life
 
 GRID = 64
 
@@ -48,6 +49,16 @@ class CostRates:
     @property
     def rate(self) -> float:
         return self.machine_rate + self.labour_rate
+
+    def lives_used(self, cut_seconds, v_m_min):
+        """Tool lives a cut uses: its time over the Taylor life at its cutting speed."""
+        return (np.asarray(cut_seconds) / 60.0) / taylor_life(np.asarray(v_m_min, dtype=np.float64), self.taylor_n,
+                                                               self.taylor_c)
+
+    def cost(self, time_s, lives):
+        """Gilbert's cost: the rate over the time, and per tool life used its price and the
+        rate over the time to replace it."""
+        return self.rate * time_s / 3600.0 + lives * (self.tool_price + self.rate * self.tool_replace_time / 3600.0)
 
 
 @dataclass
@@ -154,12 +165,8 @@ class Problem:
         cut = ~self.seg_air
         v_load, v_power, v_torque, v_chip = (np.maximum(x, 0.0) for x in self._excess(load, power, torque, t_lim, fz))
         # cost (Gilbert): rate x time + per tool (cut time / life) x (price + rate x change time)
-        r = self.rates
-        v_cut = math.pi * self.seg_diam * n / 1000.0  # m/min
-        with np.errstate(divide="ignore"):
-            life = (r.taylor_c / np.maximum(v_cut, 1e-9)) ** (1.0 / r.taylor_n)  # min
-        wear = np.where(cut, (ts / 60.0) / life, 0.0).sum(axis=1)  # tool lives used
-        cost = r.rate * time / 3600.0 + wear * (r.tool_price + r.rate * r.tool_replace_time / 3600.0)
+        wear = np.where(cut, self.rates.lives_used(ts, cutting_speed(self.seg_diam, n)), 0.0).sum(axis=1)
+        cost = self.rates.cost(time, wear)
         return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
                 "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque + v_chip,
                 "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "v_chip": v_chip, "tool_lives": wear}

@@ -14,7 +14,7 @@ from ..errors import MtwinError
 from ..gcode import records as R
 from ..cutting.engagement import GUESSED_STOCK
 from ..motion.path import PAUSE
-from .model import feed_records, move_times, path_model
+from .model import cutting_speed, feed_records, move_times, path_model
 from .problem import CostRates, Limits, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
 from .guards import (FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, percentile_by_group,
@@ -1096,10 +1096,8 @@ def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray, load: np.ndarra
     diam = {int(t): float(d) for t, d in zip(prob.seg_tool, prob.seg_diam)}
     for t in np.unique(tool[engaged]):
         m = engaged & (tool == t)
-        v = math.pi * diam.get(int(t), 6.0) * n[m] / 1000.0
-        life = (rates.taylor_c / np.maximum(v, 1e-9)) ** (1.0 / rates.taylor_n)
-        wear += float(np.sum(dt / 60.0 / life))
-    cost = rates.rate * sm.cycle_time / 3600.0 + wear * (rates.tool_price + rates.rate * rates.tool_replace_time / 3600.0)
+        wear += float(np.sum(rates.lives_used(dt, cutting_speed(diam.get(int(t), 6.0), n[m]))))
+    cost = rates.cost(sm.cycle_time, wear)
     return Figures(float(sm.cycle_time), float(cost), float(c.peak_load if c else 0.0), float(c.peak_power if c else 0.0),
                    cv)
 

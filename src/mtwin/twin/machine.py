@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, fields, replace
 from ..errors import ConfigError
 from ..params import P
 from ..params import check_value as _check
+from ..tomlwrite import toml_string
 
 STYLES = ("fanuc", "linuxcnc", "grbl")
 BEFORE_SHAPES = ("bell", "linear")
@@ -252,7 +253,7 @@ def _fmt(value, unit) -> str:
     if unit == "bool":
         return "true" if value else "false"
     if unit == "str":
-        return f'"{value}"'
+        return toml_string(str(value))
     if unit == "int":
         return str(int(value))
     return repr(float(value)) if not float(value).is_integer() else f"{float(value):.1f}"
@@ -289,10 +290,10 @@ def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
         "# Tags: [S] value from a source cited in docs/physics.md, [E] estimate within the sourced range.",
         "",
         "[machine]",
-        f'name = "{m.name}"',
+        f"name = {toml_string(m.name)}",
         "",
         "[interpreter]",
-        f'dialect = "{front.get("dialect", "auto")}"          # auto (.ngc -> linuxcnc, else fanuc) | fanuc | linuxcnc',
+        f'dialect = {toml_string(front.get("dialect", "auto"))}          # auto (.ngc -> linuxcnc, else fanuc) | fanuc | linuxcnc',
         f'block_delete = {"true" if front.get("skip_block_delete") else "false"}         # true: skip lines starting with /',
     ]
     for key in ("home_g28", "home_g30"):
