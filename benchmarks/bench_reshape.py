@@ -1,7 +1,7 @@
 """Before/after figures of issue 20's reshaping (commands over a use-case API, the typed
 kernel boundary, the one fitting core): none may be worse than before by more than 5 %.
 
-    python benchmarks/bench_reshape.py [--ref 7c34e06] [--repeat 5]
+    python benchmarks/bench_reshape.py [--ref 7c34e06] [--repeat 3] [--only NAME]
 
 Each figure is measured in fresh processes, alternately for the reference commit (checked out
 into a temporary git worktree, run from its own ``src``) and for this checkout, so that a
@@ -107,7 +107,7 @@ FIGURES = {
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--ref", default="7c34e06", help="the commit before issue 20's reshaping")
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--only", default=None, help="a substring of the figures to measure")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -115,15 +115,15 @@ def main() -> None:
         subprocess.run(["git", "worktree", "add", "--detach", str(ref), a.ref], cwd=ROOT, check=True,
                        capture_output=True)
         try:
-            for src in (ref, ROOT):  # warm both caches
-                warm_simulate(src)
             print(f"{'figure':56} {'before (' + a.ref + ')':>16} {'after':>10} {'change':>8}")
             for name, measure in FIGURES.items():
                 if a.only and a.only not in name:
                     continue
                 runs = {ref: [], ROOT: []}
-                repeat = a.repeat if "cold" not in name and "diagnose" not in name else max(2, a.repeat // 2)
-                for _ in range(repeat):
+                if "cold" not in name:  # an untimed run first: each side's kernels compiled and cached
+                    for src in (ref, ROOT):
+                        measure(src)
+                for _ in range(a.repeat):
                     for src in (ref, ROOT):
                         runs[src].append(measure(src))
                 b, f = statistics.median(runs[ref]), statistics.median(runs[ROOT])

@@ -16,10 +16,21 @@ Conventions (as python-control writes its own down):
 """
 from __future__ import annotations
 
-from .loop import (Calibration, Comparison, Diagnosis, Reading, Synthetic, calibrate, compare, diagnose,
-                   measured_program, objective_for, synthesize)
 from ..twin.setup import Messages, TwinSetup, load_part, open_twin
 from ..units import SI_UNITS
+from .loop import (
+                   Calibration,
+                   Comparison,
+                   Diagnosis,
+                   Reading,
+                   Synthetic,
+                   calibrate,
+                   compare,
+                   diagnose,
+                   measured_program,
+                   objective_for,
+                   synthesize,
+)
 from .simulate import Scaled, Simulation, scale, simulate
 
 __all__ = ["Calibration", "Comparison", "Diagnosis", "Messages", "Reading", "SI_UNITS", "Scaled", "Simulation",

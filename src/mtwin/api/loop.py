@@ -7,7 +7,20 @@ import os
 from dataclasses import dataclass, field
 from typing import Optional
 
+from .. import __version__
+from ..effects import Effect, parse_effect_spec
 from ..errors import MtwinError
+from ..io import write_bytes
+from ..loop.asrun import as_run
+from ..loop.compare import compare as run_compare
+from ..loop.fit import diagnose as run_diagnose
+from ..loop.fit import fit as run_fit
+from ..loop.fit import rms_by_signal, target
+from ..loop.journal import calibrated_text, journal_entry, read_journal
+from ..loop.measurement import check_against_program, read_measurement
+from ..loop.synth import synthesize as sample
+from ..loop.timing import diagnose_timing, fit_timing, summary, timing_case
+from ..motion.trace import write_columns
 from ..twin.setup import Messages, load_part, open_twin
 
 
@@ -27,9 +40,6 @@ class Reading:
 def measured_program(program, measurement, reading: Reading, messages: Messages):
     """(the program as the measurement says it ran — a control's logged overrides applied, cut
     at the last line reached with ``partial`` — and the measurement as read)."""
-    from ..loop.asrun import as_run
-    from ..loop.measurement import check_against_program, read_measurement
-
     meas = read_measurement(measurement, reading.maps, reading.ignore_items)
     check_against_program(meas, program, reading.any_program)
     run = as_run(program, meas, reading.partial)
@@ -57,8 +67,6 @@ class Synthetic:
 
     def write(self, path: str) -> None:
         """Write it in the measurement format (.csv, .parquet, or '-')."""
-        from ..motion.trace import write_columns
-
         write_columns(path, self.columns, self.meta)
 
     def as_dict(self) -> dict:
@@ -71,9 +79,6 @@ def synthesize(twin=None, program=None, *, rate: float = 100.0, noise: float = 0
     """What a machine would record running ``program`` on ``twin`` (with the effects to hide
     in it: ``twin.with_effects(…)``): the signals sampled at ``rate`` Hz, with Gaussian noise
     of ``noise`` × each signal's RMS (``seed``); ``line=False`` leaves out the line column."""
-    from .. import __version__
-    from ..loop.synth import synthesize as sample
-
     msgs = Messages(on_message)
     tw = open_twin(twin)
     prog = load_part(tw, program, msgs)
@@ -130,8 +135,6 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     -------
     Comparison
     """
-    from ..loop.compare import compare as run_compare
-
     msgs = Messages(on_message)
     tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
@@ -217,14 +220,10 @@ def diagnose(twin=None, program=None, measurement=None, *, signals=None, candida
     msgs = Messages(on_message)
     tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
     if objective_for(objective, meas) == "timing":
-        from ..loop.timing import diagnose_timing, timing_case
-
         case = timing_case(tw, prog, meas, str(measurement))
         _case_notes(case, msgs)
         return Diagnosis("timing", timing=diagnose_timing(tw, [case], list(candidates) if candidates else None),
                          messages=msgs.items)
-    from ..loop.fit import diagnose as run_diagnose
-    from ..loop.fit import target
 
     tg = target(tw, prog, meas, align, list(signals) if signals else None, stock)
     d = run_diagnose(tg, list(candidates) if candidates else None)
@@ -253,8 +252,6 @@ class Calibration:
 
     def write(self, path: str, in_place: bool = False) -> None:
         """Write the calibrated twin file (atomically)."""
-        from ..io import write_bytes
-
         write_bytes(self.twin_text.encode(), path, self.inputs, in_place)
 
 
@@ -283,9 +280,6 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     -------
     Calibration
     """
-    from ..effects import Effect, parse_effect_spec
-    from ..loop.journal import calibrated_text, journal_entry, read_journal
-
     if not fit and not params and not refit:
         raise MtwinError("nothing to fit: give --fit NAME (see mtwin effects), --param NAME or --refit")
     msgs = Messages(on_message)
@@ -296,8 +290,6 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     pairs = [(program, measurement)] + [tuple(p) for p in more]
     sig = list(signals) if signals else None
     if how == "timing":
-        from ..loop.timing import fit_timing, timing_case
-
         cases = [timing_case(tw, prog, meas, os.path.basename(str(measurement)))]
         _case_notes(cases[0], msgs)
         for p_i, m_i in pairs[1:]:
@@ -309,8 +301,6 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     else:
         if len(pairs) > 1:
             raise MtwinError("several programs are fitted together only by their block times (--objective timing)")
-        from ..loop.fit import fit as run_fit
-        from ..loop.fit import target
 
         res = run_fit(target(tw, prog, meas, align, sig, stock), new, sig, tuple(params))
         logs = [meas]
@@ -354,11 +344,8 @@ def _validation(tw2, program, validate, how, reading, align, sig, stock, msgs) -
     """The calibrated twin's error on a second measurement of the program."""
     prog, meas2 = measured_program(load_part(tw2, program, msgs), validate, reading, msgs)
     if how == "timing":
-        from ..loop.timing import summary, timing_case
-
         v = summary(tw2, [timing_case(tw2, prog, meas2, str(validate))])
         return {"measurement": str(validate), "block_time": v["rms"], "cycle_error": v["cases"][0]["cycle_error"]}
-    from ..loop.fit import rms_by_signal, target
 
     tg2 = target(tw2, prog, meas2, align, sig, stock)
     return {"measurement": str(validate), **rms_by_signal(tg2, tg2.base, list(tg2.measured))}

@@ -4,6 +4,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
+import numpy as np
+
+from .. import __version__
+from ..errors import MtwinError, warning_text
+from ..gcode.writer import scale_feeds, scaled_feeds
+from ..motion.simulate import simulate_plan
 from ..twin.setup import Messages, load_part, open_twin
 from ..units import SI_UNITS
 
@@ -26,8 +32,6 @@ class Simulation:
     def write_trace(self, path: str, source: str = "simulate") -> None:
         """Write the trace in the measurement format (.csv, .parquet, or '-'), its metadata
         naming the program, the machine, the planner and the sampling."""
-        from .. import __version__
-
         m = self.twin.machine
         self.trace.write(path, {"source": f"mtwin {__version__} {source}", "program": self.program.path,
                                 "machine": m.name, "planner": m.controller.style,
@@ -79,8 +83,6 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
     -------
     Simulation
     """
-    from ..motion.simulate import simulate_plan
-
     msgs = Messages(on_message)
     tw = open_twin(twin)
     every = _every(every, rate, tw.machine.controller.servo_period)
@@ -97,8 +99,6 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
 
 def _every(every: Optional[int], rate: Optional[float], dt: float) -> int:
     """Servo samples per trace sample, from ``every`` or a ``rate`` in Hz."""
-    from ..errors import MtwinError
-
     if every is not None and rate is not None:
         raise MtwinError("give --every or --decimate, not both")
     if rate is not None:
@@ -130,11 +130,6 @@ def scale(twin=None, program=None, *, feed: float = 1.0, spindle: float = 1.0, m
     """Bake a feed/spindle override into a program and clamp its feeds (``max_feed``, mm/min,
     and the machine's maximum cutting feed); nothing else changes.  A raised feed above the
     machine's maximum is clamped to it, with a warning that names its lines."""
-    import numpy as np
-
-    from ..errors import warning_text
-    from ..gcode.writer import scale_feeds, scaled_feeds
-
     msgs = Messages(on_message)
     tw = open_twin(twin)
     limit = tw.machine.max_cutting_feed

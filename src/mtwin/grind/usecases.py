@@ -5,12 +5,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Optional
 
+import numpy as np
+
 from ..errors import MtwinError
+from ..loop.measurement import read_measurement
+from .cycle import run_cycle
+from .io import cycle_gcode, cycle_toml, fit, read_cycle, trace_columns
+from .model import BY_NAME, Batch, GrindTwin
+from .robust import robust_design
 
 
 def _twin(twin, fallback=None):
-    from .model import GrindTwin
-
     if isinstance(twin, GrindTwin):
         return twin
     return GrindTwin.from_toml(twin if twin else fallback)
@@ -39,21 +44,15 @@ class GrindDesign:
 
     def gcode(self) -> bytes:
         """The cycle as G-code."""
-        from .io import cycle_gcode
-
         return cycle_gcode(self.twin, self.result.design.stages, self.sparkout_time).encode()
 
     def cycle_toml(self) -> str:
         """The cycle file (TOML) for ``mtwin grind simulate``."""
-        from .io import cycle_toml
-
         d = self.result.design
         return cycle_toml(self.twin, d.stages, f"designed by mtwin grind design, {d.cycle_time:.2f} s")
 
     def trace_columns(self) -> dict:
         """The designed cycle's trace on the nominal part (measurement-format columns)."""
-        from .io import trace_columns
-
         return trace_columns(self.twin, self.result.design.stages)
 
     def as_dict(self) -> dict:
@@ -70,8 +69,6 @@ def design(twin=None, *, grid: tuple[int, int] = (40, 40), cases: int = 300, val
     allowance levels), then the robustness loop: the cycle run on ``cases`` varied parts,
     defects turned into tighter limits, re-optimised until none (at most ``iterations``);
     checked on ``validate`` fresh parts.  ``progress(iteration)`` after each iteration."""
-    from .robust import robust_design
-
     m, n = grid
     if not (2 <= m <= 400 and 2 <= n <= 400):
         raise MtwinError(f"--grid {m}x{n}: each size must be between 2 and 400")
@@ -96,8 +93,6 @@ class GrindRun:
     stage_times: list
 
     def trace_columns(self) -> dict:
-        from .io import trace_columns
-
         return trace_columns(self.twin, self.stages)
 
     def as_dict(self) -> dict:
@@ -107,10 +102,6 @@ class GrindRun:
 def simulate(cycle: str, twin=None) -> GrindRun:
     """Run a cycle file's stages on the nominal part: time, size error, roundness, roughness
     proxy, burn and force against their limits (the twin: ``twin``, else the cycle file's)."""
-    from .cycle import run_cycle
-    from .io import read_cycle
-    from .model import Batch
-
     stages = read_cycle(cycle)
     tw = _twin(twin, cycle)
     _check_feeds(tw, stages, cycle)
@@ -133,8 +124,6 @@ class GrindCalibration:
     result: dict
 
     def cycle_toml(self, source: str) -> str:
-        from .io import cycle_toml
-
         return cycle_toml(self.fitted, self.stages, f"calibrated by mtwin grind calibrate on {source}")
 
     def as_dict(self) -> dict:
@@ -144,12 +133,6 @@ class GrindCalibration:
 def calibrate(cycle: str, measurement: str, params=("system.compliance", "work.sigma"), twin=None) -> GrindCalibration:
     """Fit grinding parameters (by dotted name) to a recorded cycle — a measurement with t,
     feed (actual radial feed, mm/min) and fx (radial force, N) — by bounded least squares."""
-    import numpy as np
-
-    from ..loop.measurement import read_measurement
-    from .io import fit, read_cycle
-    from .model import BY_NAME
-
     unknown = [p for p in params if p not in BY_NAME]
     if unknown:
         raise MtwinError(f"--param {unknown[0]}: not a grinding parameter (known: {', '.join(BY_NAME)})")

@@ -16,7 +16,7 @@ candidate:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -61,8 +61,26 @@ class CostRates:
         return self.rate * time_s / 3600.0 + lives * (self.tool_price + self.rate * self.tool_replace_time / 3600.0)
 
 
+@dataclass(frozen=True)
+class Runups:
+    """Spindle run-ups the program waits for: per pause, the spindle variable whose speed it
+    runs up to (−2: a stop, down to 0 rpm), the one it starts from (−1: a fixed speed,
+    ``start``, rpm), its duration in the program's own plan (s), and the spindle's
+    acceleration (rpm/s)."""
+
+    var: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    prev_var: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    start: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    dur0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    acc: float = 1.0
+
+
 @dataclass
 class Problem:
+    """The optimisation problem on the fast model: per segment its variables, tools, limits
+    and tables, built once by :func:`build_problem` (copies with :func:`dataclasses.replace`
+    for a variant: another load limit, the learned chip limits)."""
+
     nvar: int
     seg_var: np.ndarray  # (S,)
     seg_spin: np.ndarray  # (S,) spindle variable of each segment
@@ -87,15 +105,8 @@ class Problem:
     limits: Limits
     rates: CostRates
     loss: np.ndarray  # spindle no-load loss polynomial, W: c0 + c1 n + c2 n^2
-    evaluations: int = field(default=0)
-    # spindle run-ups the program waits for: per pause, the spindle variable whose speed it
-    # runs up to, the one it starts from (-1: a fixed speed, ``runup_from``), its duration in
-    # the program's own plan and the spindle's acceleration (rpm/s)
-    runup_var: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    runup_prev_var: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    runup_from: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    runup_dur0: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    runup_acc: float = 1.0
+    evaluations: int = field(default=0)  # (a running count of the model's evaluations)
+    runups: Runups = field(default_factory=lambda: Runups())
     # the largest chip thickness of a segment per mm of feed per tooth, and its limit (mm;
     # inf: none) — the chip load a program's own cuts run at, when the limits are learned
     seg_chip: np.ndarray | None = None
@@ -173,14 +184,15 @@ class Problem:
 
     def runup_change(self, spins: np.ndarray) -> np.ndarray:
         """Change of the spindle run-up waits (s) at these speeds against the program's."""
-        if not len(self.runup_var):
+        r = self.runups
+        if not len(r.var):
             return np.zeros(spins.shape[0])
-        # runup_var -2: a stop, down to 0 rpm
-        to = np.where(self.runup_var >= 0, spins[:, np.maximum(self.runup_var, 0)], 0.0)
-        frm = np.where(self.runup_prev_var >= 0, spins[:, np.maximum(self.runup_prev_var, 0)], self.runup_from)
-        same = (self.runup_prev_var == self.runup_var) & (self.runup_var >= 0)
-        new = np.where(same, 0.0, np.abs(to - frm) / self.runup_acc)
-        return (new - self.runup_dur0).sum(axis=1)
+        # var -2: a stop, down to 0 rpm
+        to = np.where(r.var >= 0, spins[:, np.maximum(r.var, 0)], 0.0)
+        frm = np.where(r.prev_var >= 0, spins[:, np.maximum(r.prev_var, 0)], r.start)
+        same = (r.prev_var == r.var) & (r.var >= 0)
+        new = np.where(same, 0.0, np.abs(to - frm) / r.acc)
+        return (new - r.dur0).sum(axis=1)
 
     def max_feasible_feed(self, spins: np.ndarray) -> np.ndarray:
         """Per variable, the highest feed in the range that keeps every cutting segment of it
@@ -309,12 +321,13 @@ def build_problem(model, segs, times, power0: np.ndarray, program, limits: Limit
     np.minimum.at(n0, seg_spin[segs.piece_seg], np.minimum(rec["spindle"][segs.piece_rec], max_speed))
     n0 = np.where(np.isfinite(n0), n0, max_speed)
     seg_force = np.array([force_of_tool(int(t), float(d)) for t, d in zip(segs.seg_tool, diam_seg)])
-    p = Problem(nvar, segs.seg_var, seg_spin, nspin, segs.seg_air, flutes_seg, diam_seg, seg_force, segs.seg_tool,
-                seg_len, fz_grid, load_tab, torque_tab, mta, mtb, f_grid, time_tab, np.zeros(S), f0_var, n0[:nspin],
-                cycle_before, limits, rates, np.asarray(loss, float), seg_chip=seg_chip)
+    p = Problem(nvar=nvar, seg_var=segs.seg_var, seg_spin=seg_spin, nspin=nspin, seg_air=segs.seg_air,
+                seg_flutes=flutes_seg, seg_diam=diam_seg, seg_force=seg_force, seg_tool=segs.seg_tool, seg_len=seg_len,
+                fz_grid=fz_grid, load_tab=load_tab, torque_tab=torque_tab, mta=mta, mtb=mtb, f_grid=f_grid,
+                time_tab=time_tab, t_base=np.zeros(S), f0_var=f0_var, n0_spin=n0[:nspin], cycle_before=cycle_before,
+                limits=limits, rates=rates, loss=np.asarray(loss, float), seg_chip=seg_chip)
     # the segments' times at the program's feeds, read off the same tables: a candidate's time
     # is the program's cycle plus the change the tables see, so the table's own interpolation
     # error cancels at (and near) the program's feeds
-    p.t_base = p.seg_time(f0_var[segs.seg_var][None, :])[0]
-    return p
+    return replace(p, t_base=p.seg_time(f0_var[segs.seg_var][None, :])[0])
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -15,7 +15,7 @@ from ..gcode import records as R
 from ..cutting.engagement import GUESSED_STOCK
 from ..motion.path import PAUSE
 from .model import cutting_speed, feed_records, move_times, path_model
-from .problem import CostRates, Limits, build_problem
+from .problem import CostRates, Limits, Runups, build_problem
 from .search import GAOptions, bisect, fixed_spins, genetic
 from .guards import (FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, percentile_by_group,
                      trusted_records)
@@ -297,13 +297,14 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
     if learned:
-        prob.seg_hlim = np.array([levels[int(t)][1] if int(t) in levels else np.inf for t in prob.seg_tool])
-        if opts.objective in ("time", "cost"):
-            prob.f_floor = prob.f0_var.copy()  # nothing is slowed below the program's own feed
+        prob = replace(prob, seg_hlim=np.array([levels[int(t)][1] if int(t) in levels else np.inf
+                                                for t in prob.seg_tool]),
+                       # nothing is slowed below the program's own feed
+                       f_floor=prob.f0_var.copy() if opts.objective in ("time", "cost") else None)
     force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force) if not learned or int(t) in levels}
     limit_notes = _limit_notes(prob, levels, learned, opts, m)
     if spindle_range is not None:
-        _runups(prob, program, plan, segs, m)
+        prob = replace(prob, runups=_runups(prob, program, plan, segs, m))
 
     # ---- a program that breaks a limit even at the lowest feed is reported, not optimised
     # (with learned limits the program's own feeds are the floor and its own levels the limits)
@@ -798,7 +799,7 @@ def _within_machine(rng: tuple, top: float, option: str, unit: str, what: str, p
     return rng
 
 
-def _runups(prob, program, plan, segs, machine) -> None:
+def _runups(prob, program, plan, segs, machine) -> Runups:
     """The spindle run-up pauses of the plan, tied to the spindle variables they depend on."""
     from ..motion.path import CAT_SPINDLE
 
@@ -823,14 +824,11 @@ def _runups(prob, program, plan, segs, machine) -> None:
     running_before = (r > 0) & (rec["spindle_dir"][prev] != 0)
     # a stop (M5) runs down to 0: a fixed speed, from the variable before it
     stopped = rec["spindle_dir"][r] == 0
-    prob.runup_var = np.where(stopped, -2, var_of_rec[r])
-    prob.runup_prev_var = np.where(running_before, var_of_rec[prev], -1)
-    prob.runup_from = np.where(running_before, target[prev], 0.0)
-    prob.runup_dur0 = plan.dur[pauses]
-    keep = (prob.runup_var >= 0) | ((prob.runup_var == -2) & (prob.runup_prev_var >= 0))
-    for name in ("runup_var", "runup_prev_var", "runup_from", "runup_dur0"):
-        setattr(prob, name, getattr(prob, name)[keep])
-    prob.runup_acc = machine.spindle.acceleration
+    var = np.where(stopped, -2, var_of_rec[r])
+    prev_var = np.where(running_before, var_of_rec[prev], -1)
+    keep = (var >= 0) | ((var == -2) & (prev_var >= 0))
+    return Runups(var[keep], prev_var[keep], np.where(running_before, target[prev], 0.0)[keep],
+                  plan.dur[pauses][keep], machine.spindle.acceleration)
 
 
 @dataclass
@@ -1143,16 +1141,12 @@ def _tradeoff(prob, spins) -> list:
     lo = max(10.0, round(base * 0.5 / 10) * 10)
     step = max(10.0, math.ceil((2 * base - lo) / 15 / 10) * 10)
     out = []
-    saved = prob.seg_force.copy()
-    try:
-        for lim in np.arange(lo, base * 2 + 1e-9, step)[:16]:
-            prob.seg_force = saved * (lim / base)
-            f = prob.max_feasible_feed(spins)
-            f = np.where(np.isnan(f), prob.limits.feed[0], f)
-            ev = prob.evaluate(f[None, :], spins[None, :])
-            out.append((float(lim), float(ev["time"][0])))
-    finally:
-        prob.seg_force = saved
+    for lim in np.arange(lo, base * 2 + 1e-9, step)[:16]:
+        at = replace(prob, seg_force=prob.seg_force * (lim / base))
+        f = at.max_feasible_feed(spins)
+        f = np.where(np.isnan(f), prob.limits.feed[0], f)
+        ev = at.evaluate(f[None, :], spins[None, :])
+        out.append((float(lim), float(ev["time"][0])))
     return out
 
 

@@ -6,7 +6,15 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
-from ..errors import MtwinError
+from ..config import interpreter_settings
+from ..cutting.library import parse_box, parse_tool_option
+from ..effects import load_file
+from ..errors import GCodeError, MtwinError, SourceLocation, warning_text
+from ..gcode.interpreter import Program
+from . import Twin
+from .files import load_cutting, load_effects, load_machine
+from .machine import STYLES
+
 
 class Messages:
     """Warnings and notes of a use case, in the order they arose; each is also handed at once
@@ -54,18 +62,11 @@ class TwinSetup:
 
     def settings(self):
         """The interpreter settings: the twin file's, with the switches given over them."""
-        from ..config import interpreter_settings
-
         return interpreter_settings(self.twin, dialect=self.dialect, lenient=self.lenient or None,
                                     skip_block_delete=self.block_delete)
 
     def build(self):
         """The Twin."""
-        from ..effects import load_file
-        from . import Twin
-        from .files import load_cutting, load_effects, load_machine
-        from .machine import STYLES
-
         machine = load_machine(self.twin)
         if self.planner is not None:
             if self.planner not in STYLES:
@@ -76,8 +77,6 @@ class TwinSetup:
         tw = Twin(machine=machine, interpreter=self.settings(), path=self.twin, cutting=load_cutting(self.twin),
                   effects=load_effects(self.twin))
         if self.tools:
-            from ..cutting.library import parse_tool_option
-
             tw = tw.with_tools(dict(parse_tool_option(t) for t in self.tools))
         if self.effects:
             tw = tw.with_effects(*self.effects)
@@ -87,15 +86,12 @@ class TwinSetup:
         """The --stock box as a tuple, or None."""
         if self.stock is None:
             return None
-        from ..cutting.library import parse_box
 
         return parse_box(self.stock, "--stock")
 
 
 def open_twin(twin=None):
     """A Twin from a Twin (as it is), a twin file's path, or None (the default machine)."""
-    from . import Twin
-
     if isinstance(twin, Twin):
         return twin
     if isinstance(twin, TwinSetup):
@@ -107,9 +103,6 @@ def load_part(twin, program, messages: Optional[Messages] = None, need_motion: b
     """The program (a Program as it is; a path, ``-`` for stdin, or bytes read with the twin's
     interpreter settings), its warnings told.  An empty file is an error; one without a move
     is an error where the use case needs motion (``need_motion``), else a warning."""
-    from ..errors import GCodeError, SourceLocation, warning_text
-    from ..gcode.interpreter import Program
-
     if isinstance(program, Program):
         return program
     messages = messages if messages is not None else Messages()
