@@ -124,6 +124,7 @@ def test_a_parameter_the_signals_cannot_see_is_not_identifiable():
     assert r.params["effects.coulomb-friction.fy"] == 0.0 and r.uncertainty["effects.coulomb-friction.fy"] is None
     assert "effects.coulomb-friction.fx" not in r.not_identifiable and r.uncertainty["effects.coulomb-friction.fx"]
     assert cal.as_dict()["not_identifiable"] == r.not_identifiable
+    assert tomllib.loads(cal.twin_text)["journal"][-1]["not_identifiable"] == r.not_identifiable
 
 
 def test_the_fitting_core_on_a_closed_form():

@@ -115,8 +115,8 @@ COMMAND_LINES = 60  # the longest a command function may be
 
 
 def _commands():
-    """(module, function) of every command: functions decorated with ``<typer>.command`` or
-    ``<typer>.callback``."""
+    """(module, function) of every command: functions decorated with ``<typer>.command``,
+    ``<typer>.callback`` or a module's ``…_command`` helper."""
     for path in sorted(CLI.glob("*.py")):
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for fn in tree.body:
@@ -124,7 +124,8 @@ def _commands():
                 continue
             for d in fn.decorator_list:
                 f = d.func if isinstance(d, ast.Call) else d
-                if isinstance(f, ast.Attribute) and f.attr in ("command", "callback"):
+                if (isinstance(f, ast.Attribute) and f.attr in ("command", "callback")) or \
+                        (isinstance(f, ast.Name) and f.id.endswith("_command")):
                     yield path.name, fn
                     break
 

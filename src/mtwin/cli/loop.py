@@ -12,6 +12,16 @@ from .argtypes import check_outputs, check_report, names, write_output
 from .options import ALIGN, JSON, LOOP, MEASURED_PART, OBJECTIVE, PART, READING, SIGNALS, groups
 from .render import emit_json, message, say
 
+def _loop_command(short_help: str):
+    """A command against a measurement: registered, its errors reported, and the twin and
+    measurement options (a TwinSetup ``setup``, a Reading ``reading``)."""
+
+    def decorate(fn):
+        return app.command(short_help=short_help)(reports_errors(groups(setup=LOOP, reading=READING)(fn)))
+
+    return decorate
+
+
 import_app = typer.Typer(help="Read machine logs into the measurement format.", no_args_is_help=True,
                          rich_markup_mode=None)
 app.add_typer(import_app, name="import")
@@ -79,9 +89,7 @@ def synth(
               f"effects: {s.meta['effects']}", soft_wrap=True)
 
 
-@app.command(short_help="Compare the twin with a measurement: errors, and where.")
-@reports_errors
-@groups(setup=LOOP, reading=READING)
+@_loop_command("Compare the twin with a measurement: errors, and where.")
 def compare(
     part: str = MEASURED_PART,
     measurement: str = typer.Argument(..., help="Measurement file (measurement format: CSV or .parquet), or an "
@@ -171,9 +179,7 @@ def _print_blocks(b: dict) -> None:
 
 
 
-@app.command(short_help="Which physical effect is missing from the twin.")
-@reports_errors
-@groups(setup=LOOP, reading=READING)
+@_loop_command("Which physical effect is missing from the twin.")
 def diagnose(
     part: str = MEASURED_PART,
     measurement: str = typer.Argument(..., help="Measurement file."),
@@ -220,9 +226,7 @@ def _print_diagnosis(signals: dict) -> None:
                       soft_wrap=True)
 
 
-@app.command(short_help="Fit effects to a measurement; write the twin file.")
-@reports_errors
-@groups(setup=LOOP, reading=READING)
+@_loop_command("Fit effects to a measurement; write the twin file.")
 def calibrate(
     part: str = MEASURED_PART,
     measurement: str = typer.Argument(..., help="Measurement file, or an MTConnect log."),

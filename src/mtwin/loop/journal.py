@@ -113,6 +113,8 @@ def journal_entry(iteration: int, measurement: str, fit, validation: dict | None
         e["cycle_error_after"] = {c["measurement"]: c["cycle_error"] for c in fit.after["cases"]}
         e["block_rms_before"] = fit.before["rms"]  # per logged block group
         e["block_rms_after"] = fit.after["rms"]
+    if getattr(fit, "not_identifiable", None):  # left at their starts: the signals cannot see them
+        e["not_identifiable"] = list(fit.not_identifiable)
     if validation:
         e["validation"] = validation
     if notes:

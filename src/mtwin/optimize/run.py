@@ -177,10 +177,9 @@ def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progr
 
     Parameters
     ----------
-    twin : Twin, str or None
-        The twin, a twin file's path, or None for the default machine.
-    program : Program, str or bytes
-        The program, or a path (``-`` for stdin) or its text, read with the twin's settings.
+    twin, program
+        As for every use case (:mod:`mtwin.api`): a Twin, a twin file or None; a Program, a
+        path or the program's bytes.
     opts : OptimizeOptions, optional
         Objective, method, limits and ranges (default: time by bisection, learned limits).
     progress : callable, optional
