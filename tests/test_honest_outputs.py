@@ -137,9 +137,11 @@ def test_ctrl_c_says_so_and_writes_nothing(tmp_path):
     from bench_motion import make_program
 
     (tmp_path / "big.nc").write_bytes(make_program(60000))
+    # (SIGINT restored for the child: a test run started in the background ignores it, and a
+    # process that starts with SIGINT ignored keeps ignoring it)
     p = subprocess.Popen([sys.executable, "-m", "mtwin", "optimize", str(tmp_path / "big.nc"), "-o",
                           str(tmp_path / "o.nc")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(4.0)  # (past start-up: the run is simulating or searching)
     if p.poll() is not None:
         pytest.skip("the run finished before the signal")

@@ -19,6 +19,7 @@ from ..loop.fit import rms_by_signal, target
 from ..loop.journal import calibrated_text, journal_entry, read_journal
 from ..loop.measurement import check_against_program, read_measurement
 from ..loop.synth import synthesize as sample
+from ..loop.synth import synthesize_summary
 from ..loop.timing import diagnose_timing, fit_timing, summary, timing_case
 from ..motion.trace import write_columns
 from ..twin.setup import Messages, load_part, open_twin
@@ -70,23 +71,32 @@ class Synthetic:
         write_columns(path, self.columns, self.meta)
 
     def as_dict(self) -> dict:
-        return {"program": self.program.path, "samples": len(self.columns["t"]), "columns": list(self.columns),
-                "meta": self.meta}
+        return {"program": self.program.path, "rows": len(next(iter(self.columns.values()))),
+                "columns": list(self.columns), "meta": self.meta}
 
 
 def synthesize(twin=None, program=None, *, rate: float = 100.0, noise: float = 0.0, seed: int = 0,
-               signals=None, line: bool = True, stock=None, on_message=None) -> Synthetic:
+               signals=None, line: bool = True, stock=None, summary: Optional[str] = None,
+               on_message=None) -> Synthetic:
     """What a machine would record running ``program`` on ``twin`` (with the effects to hide
     in it: ``twin.with_effects(…)``): the signals sampled at ``rate`` Hz, with Gaussian noise
-    of ``noise`` × each signal's RMS (``seed``); ``line=False`` leaves out the line column."""
+    of ``noise`` × each signal's RMS (``seed``); ``line=False`` leaves out the line column.
+    ``summary="line"``: a summary measurement instead — per line the tool cuts on, the mean,
+    RMS and maximum of each signal (``fy_rms`` …), noise on each column."""
     msgs = Messages(on_message)
     tw = open_twin(twin)
     prog = load_part(tw, program, msgs)
-    cols = sample(tw, prog, rate=rate, noise=noise, seed=seed, line=line, stock=stock, signals=signals)
+    if summary not in (None, "line"):
+        raise MtwinError(f"--summary {summary}: expected line (one row per line the tool cuts on)")
+    if summary:
+        cols = synthesize_summary(tw, prog, signals=signals, noise=noise, seed=seed, stock=stock)
+    else:
+        cols = sample(tw, prog, rate=rate, noise=noise, seed=seed, line=line, stock=stock, signals=signals)
     meta = {"source": f"mtwin {__version__} synth", "program": prog.path,
             "effects": "; ".join(f"{e.name}:" + ",".join(f"{k}={v:g}" for k, v in e.resolved().items())
                                  for e in tw.effects) or "none",
-            "noise": f"{noise:g} of each signal's RMS, seed {seed}", "rate_hz": f"{rate:g}"}
+            "noise": f"{noise:g} of each {'column' if summary else 'signal'}'s RMS, seed {seed}"}
+    meta.update({"summary": "one row per line the tool cuts on"} if summary else {"rate_hz": f"{rate:g}"})
     return Synthetic(prog, cols, meta, msgs.items)
 
 

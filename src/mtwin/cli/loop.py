@@ -75,6 +75,8 @@ def synth(
                                           "spindle speed and power, axis torques, forces)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the noise."),
     no_line: bool = typer.Option(False, "--no-line", help="Leave out the line column (a logger that does not record it)."),
+    summary: Optional[str] = typer.Option(None, "--summary", help="line: a summary measurement instead, one row per "
+                                          "line the tool cuts on (mean, RMS, max of each signal)."),
     setup=None,
 ):
     """Write what a machine would record running PART on the twin with extra effects (hidden
@@ -83,10 +85,12 @@ def synth(
 
     check_outputs(output)
     s = synthesize(setup, part, rate=rate, noise=noise, seed=seed, signals=names(signals), line=not no_line,
-                   stock=setup.stock_box(), on_message=message)
+                   stock=setup.stock_box(), summary=summary, on_message=message)
     s.write(output)
-    err.print(f"wrote {output}: {len(s.columns['t']):,} samples at {rate:g} Hz, {len(s.columns) - 1} columns; "
-              f"effects: {s.meta['effects']}", soft_wrap=True)
+    n = len(next(iter(s.columns.values())))
+    err.print(f"wrote {output}: " + (f"{n:,} summary rows, {len(s.columns) - 2} statistic columns" if summary else
+                                     f"{n:,} samples at {rate:g} Hz, {len(s.columns) - 1} columns")
+              + f"; effects: {s.meta['effects']}", soft_wrap=True)
 
 
 @_loop_command("Compare the twin with a measurement: errors, and where.")

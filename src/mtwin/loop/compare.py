@@ -152,7 +152,7 @@ _STAT = {
 def compare_summary(trace, meas, regions: int = 10) -> Comparison:
     """A summary measurement, row by row: each row's statistic of a signal over its line
     range, against the same statistic of the simulated trace over the samples of those lines."""
-    from .measurement import _summary_base
+    from .measurement import summary_base
 
     line = np.asarray(trace.line)
     columns = sorted({c for _, _, st in meas.rows for c in st})
@@ -166,7 +166,7 @@ def compare_summary(trace, meas, regions: int = 10) -> Comparison:
             notes.append(f"lines {first}–{last}: the simulation runs none of them; row left out")
             continue
         for c, v in stats.items():
-            base = _summary_base(c)
+            base = summary_base(c)
             if np.isnan(v) or not _has(trace, base):
                 continue
             stat = c[len(base) + 1:]

@@ -45,21 +45,58 @@ class Target:
     alignment: str
     base: object = None  # the base simulation (full rate)
     stock: tuple | None = None  # the stock box every simulation of the fit uses
+    # a summary measurement: per statistic column (``fy_rms``), the line range of each row
+    rows: dict | None = None
 
     def simulated(self, trace, signals) -> dict:
+        """The model's prediction of each measured value: the simulated signal at each sample's
+        aligned time or, for a summary measurement, each row's statistic of the simulated
+        signal over the samples of its line range."""
+        if self.rows is not None:
+            return row_statistics(trace, {s: self.rows[s] for s in signals})
         ts = np.asarray(trace.t, dtype=np.float64)
         return {s: np.interp(self.t_sim, ts, trace.signal(s)) for s in signals}
+
+
+def row_statistics(trace, rows: dict) -> dict:
+    """Per statistic column (``fy_rms``: the RMS of ``fy``), each row's statistic of the
+    simulated signal over the samples whose line is in the row's range (NaN: none).  The
+    samples are sorted by line once, so each row reads only its own samples."""
+    from .compare import _STAT
+    from .measurement import summary_base
+
+    line = np.asarray(trace.line)
+    order = np.argsort(line, kind="stable")
+    by_line = line[order]
+    out = {}
+    for column, (first, last) in rows.items():
+        base = summary_base(column)
+        values = np.asarray(trace.signal(base), dtype=np.float64)[order]
+        stat = _STAT[column[len(base) + 1:]]
+        a = np.searchsorted(by_line, first, side="left")
+        b = np.searchsorted(by_line, last, side="right")
+        out[column] = np.array([stat(values[i:j]) if j > i else np.nan for i, j in zip(a, b)])
+    return out
+
+
+def _noise(r: np.ndarray, values: np.ndarray) -> float:
+    """A signal's noise level from its residual: the scatter of successive residuals
+    (``std(diff(r))/√2``), which a smooth model error does not reach — for a time series its
+    samples, for a summary measurement its rows in the file's order."""
+    d = np.diff(r[~np.isnan(r)])
+    sigma = float(np.std(d) / math.sqrt(2.0)) if len(d) > 2 else 0.0
+    span = float(np.nanmax(np.abs(values))) if len(values) else 0.0
+    return max(sigma, 1e-9 * max(span, 1.0))
 
 
 def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -> Target:
     """Align ``meas`` with the twin's simulation of ``program`` and estimate each signal's
     noise; ``signals`` limits the signals used (default: every one in both)."""
-    if meas.is_summary:
-        raise MtwinError(f"{meas.path}: diagnose and calibrate need a time series (a summary measurement is "
-                         f"compared row by row with mtwin compare)")
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     cutting = not program.turning_line()
     base = twin.simulate(program, stock=stock, cutting=cutting)
+    if meas.is_summary:
+        return _summary_target(twin, program, meas, signals, stock, base)
     c = compare(base, meas, align)
     missing = [s for s in (signals or ()) if s not in c.measured]
     if missing:
@@ -67,14 +104,93 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
                          f"(in both: {', '.join(c.measured)})")
     use = [s for s in (signals or c.measured) if s in c.measured]
     measured = {s: c.measured[s] for s in use}
-    noise = {}
-    for s in use:
-        r = c.measured[s] - c.simulated[s]
-        d = np.diff(r[~np.isnan(r)])
-        sigma = float(np.std(d) / math.sqrt(2.0)) if len(d) > 2 else 0.0
-        span = float(np.nanmax(np.abs(c.measured[s]))) if len(r) else 0.0
-        noise[s] = max(sigma, 1e-9 * max(span, 1.0))
+    noise = {s: _noise(c.measured[s] - c.simulated[s], c.measured[s]) for s in use}
     return Target(twin, program, meas, c.t_sim, measured, noise, c.alignment, base, stock)
+
+
+def _summary_target(twin, program, meas, signals, stock, base) -> Target:
+    """A summary measurement as a target: each row's value of each statistic column against
+    the same statistic of the simulation over the row's lines (a row whose lines the
+    simulation never runs is left out); the noise per column from the rows, or from the file's
+    ``# noise: COLUMN=VALUE; …`` metadata line."""
+    from .compare import _has
+    from .measurement import summary_base
+
+    _no_unknown_statistics(meas)
+    available = {c for _, _, st in meas.rows for c in st if _has(base, summary_base(c))}
+    missing = [s for s in (signals or ()) if s not in available]
+    if missing:
+        raise MtwinError(f"--signals {', '.join(missing)}: not a statistic column of the measurement that the "
+                         f"twin simulates (there: {', '.join(sorted(available)) or 'none'})")
+    use = [s for s in (signals or sorted(available)) if s in available]
+    ranges = {c: ([], [], []) for c in use}
+    for first, last, stats in meas.rows:
+        for c in use:
+            v = stats.get(c, math.nan)
+            if not math.isnan(v):
+                ranges[c][0].append(first)
+                ranges[c][1].append(last)
+                ranges[c][2].append(v)
+    rows = {c: (np.array(f, np.int64), np.array(la, np.int64)) for c, (f, la, _) in ranges.items()}
+    sim = row_statistics(base, rows)
+    measured, kept = {}, {}
+    for c in use:
+        ran = ~np.isnan(sim[c])  # rows whose lines the simulation runs
+        kept[c] = (rows[c][0][ran], rows[c][1][ran])
+        measured[c] = np.array(ranges[c][2])[ran]
+        sim[c] = sim[c][ran]
+    given = _noise_meta(meas)
+    noise = {c: given.get(c) or _row_noise(measured[c] - sim[c], sim[c], measured[c]) for c in use}
+    return Target(twin, program, meas, np.zeros(0), measured, noise, "line", base, stock, kept)
+
+
+def _no_unknown_statistics(meas) -> None:
+    """A column of a summary measurement that reads as a statistic of a signal but is not one
+    the format knows (``fx_rmsx``, ``fq_rms``) is an error here: fitted, it would be left out
+    silently (compare lists it as ignored)."""
+    from ..errors import SourceLocation
+    from .measurement import _KNOWN, STATS, MeasurementError
+
+    for c in meas.ignored:
+        head, _, tail = c.rpartition("_")
+        if head in _KNOWN or tail in STATS or any(c.startswith(k + "_") for k in _KNOWN):
+            col = meas.header.index(c) + 1 if c in meas.header else 0
+            raise MeasurementError(f"column {c!r} is not a statistic the measurement format knows (SIGNAL_STAT, "
+                                   f"STAT one of {', '.join(STATS)}; signals: docs/measurement-format.md)",
+                                   SourceLocation(meas.path, meas.header_row, col))
+
+
+def _row_noise(r: np.ndarray, sim: np.ndarray, values: np.ndarray) -> float:
+    """A statistic column's noise level from its rows: the scatter of the residual about a
+    smooth model of it — a level, a drift along the rows, a share of the simulated value and a
+    share growing along the rows (what a missing level change, drift or wear leaves) — by
+    least squares; the successive-difference estimate where there are too few rows.  (Rows
+    are different cuts: successive residuals differ by the model's error too, and their
+    scatter alone overstates the noise.)"""
+    ok = ~np.isnan(r) & ~np.isnan(sim)
+    n = int(ok.sum())
+    if n < 12:
+        return _noise(r, values)
+    k = np.linspace(0.0, 1.0, len(r))[ok]
+    s = sim[ok] / max(float(np.max(np.abs(sim[ok]))), 1e-300)
+    X = np.stack([np.ones(n), k, s, s * k], axis=1)
+    coef, *_ = np.linalg.lstsq(X, r[ok], rcond=None)
+    rss = float(np.sum((r[ok] - X @ coef) ** 2))
+    span = float(np.nanmax(np.abs(values))) if len(values) else 0.0
+    return max(math.sqrt(rss / (n - X.shape[1])), 1e-9 * max(span, 1.0))
+
+
+def _noise_meta(meas) -> dict:
+    """``# noise: fy_rms=3.1; fz_rms=1.2`` (the statistic columns' noise, in their units)."""
+    out = {}
+    for part in (meas.meta or {}).get("noise", "").replace(",", ";").split(";"):
+        name, eq, value = part.partition("=")
+        try:
+            if eq and float(value) > 0:
+                out[name.strip()] = float(value)
+        except ValueError:
+            continue
+    return out
 
 
 
@@ -222,7 +338,7 @@ def diagnose(tg: Target, candidates=None) -> dict:
     in_model = {e.name for e in getattr(tg.twin, "effects", ())}
     classes = [c for n, c in available().items() if n not in in_model and (candidates is None or n in candidates)]
     out = {}
-    jobs = [(cls, [s for s in tg.measured if s in cls.signals]) for cls in classes]
+    jobs = [(cls, [s for s in tg.measured if _signal_of(s) in cls.signals]) for cls in classes]
     jobs = [(cls, used) for cls, used in jobs if used and cls.params]
     # candidates are independent; the servo loop and the engagement release the GIL, so two
     # fit at once on a 2-core machine
@@ -255,6 +371,13 @@ def diagnose(tg: Target, candidates=None) -> dict:
         out[s] = {"rms": rms0, "noise": noise, "verdict": said, "candidates": rows, "selected": selected,
                   "rms_after": rms_joint}
     return out
+
+
+def _signal_of(name: str) -> str:
+    """The signal a measured column is of (``fy_rms``: ``fy``)."""
+    from .measurement import summary_base
+
+    return summary_base(name) or name
 
 
 def _workers(jobs: int) -> int:

@@ -62,7 +62,9 @@ class Measurement:
     stops: list = field(default_factory=list)  #: (t0, t1, state) s: program stops the control logged
     complete: bool | None = None  #: whether the run reached its end (None: not known)
     runs: list = field(default_factory=list)  #: the runs of the log (mtconnect.Run)
-    source_line: np.ndarray | None = None  #: the log line of each sample
+    source_line: np.ndarray | None = None  #: the file line of each sample (of each row: a summary)
+    header: tuple = ()  #: a summary measurement's column names, in the file's order
+    header_row: int = 0  #: the file line of its header
 
     @property
     def is_summary(self) -> bool:
@@ -81,7 +83,7 @@ class Measurement:
 
 def signal_unit(name: str) -> str:
     """The unit of a signal or of a summary column (``fx_rms``: N)."""
-    return UNITS.get(name) or UNITS.get(_summary_base(name) or "", "")
+    return UNITS.get(name) or UNITS.get(summary_base(name) or "", "")
 
 
 def parse_maps(maps) -> dict[str, tuple[str, float]]:
@@ -93,7 +95,7 @@ def parse_maps(maps) -> dict[str, tuple[str, float]]:
             raise MtwinError(f"--map {m}: expected SRC=DST or SRC=DST*SCALE")
         dst, _, scale = rest.partition("*")
         dst = dst.strip()
-        base = _summary_base(dst)
+        base = summary_base(dst)
         if dst not in _KNOWN and base is None and dst not in ("t", "line"):
             raise MtwinError(f"--map {m}: {dst!r} is not a signal the twin produces "
                              f"(known: {', '.join(sorted(_KNOWN))})")
@@ -107,7 +109,8 @@ def parse_maps(maps) -> dict[str, tuple[str, float]]:
     return out
 
 
-def _summary_base(name: str) -> str | None:
+def summary_base(name: str) -> str | None:
+    """The signal a statistic column is of (``fy_rms``: ``fy``), or None."""
     for s in STATS:
         if name.endswith("_" + s) and name[:-len(s) - 1] in _KNOWN:
             return name[:-len(s) - 1]
@@ -124,9 +127,17 @@ def check_against_program(meas: Measurement, program, any_program: bool = False)
             raise MeasurementError(f"the log ran {logged}, not {os.path.basename(program.path)}: compare it with that "
                                    f"program (--any-program if this file is it, renamed)",
                                    SourceLocation(meas.path, 0, 0))
+    n = int(program.data.count(b"\n")) + (0 if program.data.endswith(b"\n") else 1)
+    beyond = [k for k, (_, last, _) in enumerate(meas.rows) if last > n]
+    if beyond:
+        k = beyond[0]
+        col = meas.header.index("last_line") + 1 if "last_line" in meas.header else 0
+        raise MeasurementError(f"last_line {meas.rows[k][1]} is beyond the end of {os.path.basename(program.path or '')} "
+                               f"({n} lines): the measurement is of another program",
+                               SourceLocation(meas.path, int(meas.source_line[k]) if meas.source_line is not None
+                                              else 0, col))
     if meas.line is None or not len(meas.line):
         return
-    n = int(program.data.count(b"\n")) + (0 if program.data.endswith(b"\n") else 1)
     beyond = np.flatnonzero(meas.line > n)
     if len(beyond):
         i = int(beyond[0])
@@ -187,7 +198,7 @@ def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
         raise MeasurementError("no time column 't' (and no first_line/last_line of a summary measurement); "
                                "--map SRC=t names another", SourceLocation(name, first_row - 1, 1))
     ignored = [c for c in names if c not in _KNOWN and c not in ("t", "line", "first_line", "last_line")
-               and _summary_base(c) is None and c not in LOG_COLUMNS]
+               and summary_base(c) is None and c not in LOG_COLUMNS]
     # a column the twin does not know is kept out of the numbers: whatever it holds is fine
     data = _numbers(rows, header, name, first_row, [c not in ignored for c in names])
     if summary:
@@ -248,7 +259,7 @@ def log_fields(meta: dict, path: str = "") -> dict:
 
 
 def _unit_scale(unit: str, target: str, path: str, line: int, col: int) -> float:
-    want = UNITS.get(target) or UNITS.get(_summary_base(target) or "", None)
+    want = UNITS.get(target) or UNITS.get(summary_base(target) or "", None)
     if target in ("t",):
         want = "s"
     if want is None:
@@ -344,13 +355,19 @@ def _numbers(rows, header, path, first_row, read) -> np.ndarray:
 def _summary(name, names, cols, data, meta, ignored, first_row) -> Measurement:
     a, b = names.index("first_line"), names.index("last_line")
     rows = []
+    stat_cols = [j for j, (c, _) in enumerate(cols) if summary_base(c) is not None]
     for i in range(len(data)):
         f, l_ = data[i, a], data[i, b]
         if not (f >= 1 and l_ >= f and f == int(f) and l_ == int(l_)):
             raise MeasurementError(f"first_line {f:g} / last_line {l_:g} is not a range of program lines",
                                    SourceLocation(name, first_row + i, a + 1))
-        stats = {c: data[i, j] * s for j, (c, s) in enumerate(cols) if _summary_base(c) is not None}
+        stats = {cols[j][0]: data[i, j] * cols[j][1] for j in stat_cols}
+        if stat_cols and all(math.isnan(v) for v in stats.values()):
+            raise MeasurementError(f"the row of lines {int(f)}–{int(l_)} has no value in any statistic column",
+                                   SourceLocation(name, first_row + i, stat_cols[0] + 1))
         rows.append((int(f), int(l_), stats))
     if not rows:
         raise MeasurementError("no rows (the file has a header but no rows)", SourceLocation(name, first_row, 1))
-    return Measurement(name, None, {}, None, meta, ignored, rows)
+    return Measurement(name, None, {}, None, meta, ignored, rows,
+                       source_line=np.arange(first_row, first_row + len(rows), dtype=np.int64),
+                       header=tuple(names), header_row=first_row - 1)

@@ -54,3 +54,44 @@ def synthesize(twin, program, *, rate: float = 100.0, noise: float = 0.0, signal
         cols[s] = v
     return cols
 
+
+
+#: the statistics a synthetic summary measurement holds per signal
+SUMMARY_STATS = ("mean", "rms", "max")
+
+
+def synthesize_summary(twin, program, *, signals=None, noise: float = 0.0, seed: int = 0, stock=None,
+                       stats=SUMMARY_STATS) -> dict[str, np.ndarray]:
+    """A summary measurement (columns ``first_line``, ``last_line``, ``SIGNAL_STAT``): one row
+    per program line the tool cuts on (every line with samples when there is no cutting
+    model), in the order the lines first run — what a dynamometer post-processed per pass, or
+    a tool monitor, records.  Each statistic is taken over the full-rate simulation of the
+    line's samples; ``noise`` adds Gaussian noise of that fraction of each column's RMS."""
+    from .compare import _STAT
+    from .fit import row_statistics
+
+    signals = tuple(signals or ("fx", "fy", "fz", "spindle_power"))
+    bad = [s for s in stats if s not in _STAT]
+    if bad:
+        raise MtwinError(f"unknown statistic(s) {', '.join(bad)} (known: {', '.join(_STAT)})")
+    if not (0 <= noise < 1):
+        raise MtwinError(f"--noise is a fraction of each column's RMS in [0, 1), got {noise:g}")
+    trace = twin.simulate(program, stock=stock, cutting=not program.turning_line())
+    line = np.asarray(trace.line)
+    run = line > 0
+    if trace.cut is not None:
+        run &= np.asarray(trace.signal("ae")) > 0
+    if not run.any():
+        raise MtwinError(f"{program.path}: no line of the program cuts (no summary rows to write)")
+    first_seen = np.unique(line[run], return_index=True)
+    lines = first_seen[0][np.argsort(first_seen[1])]  # in the order the lines first run
+    rows = {f"{s}_{st}": (lines, lines) for s in signals for st in stats}
+    values = row_statistics(trace, rows)
+    rng = np.random.default_rng(seed)
+    cols: dict[str, np.ndarray] = {"first_line": lines.astype(np.float64), "last_line": lines.astype(np.float64)}
+    for c, v in values.items():
+        if noise > 0:
+            rms = float(np.sqrt(np.nanmean(v * v))) if len(v) else 0.0
+            v = v + rng.normal(0.0, noise * rms, size=v.shape)
+        cols[c] = v
+    return cols
