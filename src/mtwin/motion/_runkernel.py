@@ -259,178 +259,6 @@ def _friction(vk, sv, k):
     return sgn * (fc + strb) + sv[k, SV_B] * vk * 1e-3
 
 
-# ---------------------------------------------------------------------------- the loop's stages
-# Each servo period runs: the profile (segment_point) -> filter_step -> spindle_step -> the
-# cutting load -> drive_forces -> cut_statistics -> plant_step.  Small kernels over arrays and
-# scalars, called from run_twin.
-
-
-@njit
-def filter_step(raw, kstep, nbuf, filt, alpha, still, settle, ring1, ring2, sum1, sum2, yexp, xc):
-    """The acc/dec filter after interpolation, per axis: ``raw`` command in, ``xc`` out
-    (1: a moving average over ``nbuf`` samples, 2: two of them (bell), 3: exponential with
-    factor ``alpha``, 0: none).  A command that has stood still for ``settle`` samples
-    (``still``) has left the filter exactly."""
-    pos = kstep % nbuf
-    if filt == 1 or filt == 2:
-        for k in range(3):
-            sum1[k] += raw[k] - ring1[pos, k]
-            ring1[pos, k] = raw[k]
-        if pos == nbuf - 1:  # re-sum once per window so rounding never accumulates
-            for k in range(3):
-                acc = 0.0
-                for j in range(nbuf):
-                    acc += ring1[j, k]
-                sum1[k] = acc
-        for k in range(3):
-            xc[k] = sum1[k] / nbuf
-        if filt == 2:
-            for k in range(3):
-                sum2[k] += xc[k] - ring2[pos, k]
-                ring2[pos, k] = xc[k]
-            if pos == nbuf - 1:
-                for k in range(3):
-                    acc = 0.0
-                    for j in range(nbuf):
-                        acc += ring2[j, k]
-                    sum2[k] = acc
-            for k in range(3):
-                xc[k] = sum2[k] / nbuf
-    elif filt == 3:
-        for k in range(3):
-            yexp[k] += alpha * (raw[k] - yexp[k])
-            xc[k] = yexp[k]
-    else:
-        for k in range(3):
-            xc[k] = raw[k]
-    # a command that has stood still long enough has left the filter exactly (a running
-    # sum or an exponential never returns the input value to the last bit by itself)
-    if filt != 0 and still >= settle:
-        done = True
-        if filt == 3:
-            for k in range(3):
-                if abs(xc[k] - raw[k]) > 1e-9:
-                    done = False
-        if done:
-            for k in range(3):
-                xc[k] = raw[k]
-                yexp[k] = raw[k]
-
-
-@njit
-def spindle_step(spin, target, dn, dt):
-    """The spindle's speed ``spin[0]`` (rpm) ramps toward ``target`` by at most ``dn`` per
-    period; its angle ``spin[1]`` (rad) turns with it (for tooth-passing forces)."""
-    if spin[0] < target - dn:
-        spin[0] += dn
-    elif spin[0] > target + dn:
-        spin[0] -= dn
-    else:
-        spin[0] = target
-    # spindle angle, for tooth-passing forces
-    spin[1] += 2.0 * math.pi * abs(spin[0]) / 60.0 * dt
-    if spin[1] > 2.0 * math.pi:
-        spin[1] -= 2.0 * math.pi * math.floor(spin[1] / (2.0 * math.pi))
-
-
-@njit
-def drive_forces(sv, xc, xc_prev, x, v, integ, dt, fdrv):
-    """Each axis' cascaded position-P / velocity-PI loop with feed forward: the drive force
-    ``fdrv`` (N), limited to the drive's thrust, without integrating into the limit."""
-    for k in range(3):
-        m = sv[k, SV_MASS]
-        e = xc[k] - x[k]
-        vref = sv[k, SV_KPP] * e + sv[k, SV_FF] * (xc[k] - xc_prev[k]) / dt
-        ev = vref - v[k]
-        integ[k] += ev * dt
-        f = m * sv[k, SV_WV] * (ev + sv[k, SV_WI] * integ[k]) * 1e-3  # N (mm/s^2 -> m/s^2)
-        fmax = sv[k, SV_FMAX]
-        if f > fmax or f < -fmax:
-            f = fmax if f > 0.0 else -fmax
-            if ev * f > 0.0:
-                integ[k] -= ev * dt  # anti-windup: no integration into the torque limit
-        fdrv[k] = f
-
-
-@njit
-def cut_statistics(cstats, ftool, p_cut, torque_sp, mrr, n_abs, loss, spin_curve, line_i, dt):
-    """The cut's running statistics (``CS_*``) after one period; returns the spindle power (W:
-    the cut's and the no-load losses)."""
-    p_sp = p_cut + (loss[0] + loss[1] * n_abs + loss[2] * n_abs * n_abs if n_abs > 0.0 else 0.0)
-    load = math.sqrt(ftool[0] * ftool[0] + ftool[1] * ftool[1])
-    if load > cstats[CS_LOAD] + 1e-9:
-        cstats[CS_LOAD] = load
-        cstats[CS_LOAD_LINE] = line_i
-    if p_sp > cstats[CS_POWER]:
-        cstats[CS_POWER] = p_sp
-        cstats[CS_POWER_LINE] = line_i
-    if p_cut > 0.0:
-        cstats[CS_ENERGY] += p_cut * dt
-        cstats[CS_CUT_TIME] += dt
-        cstats[CS_LOAD_TIME] += load * dt
-    if torque_sp > cstats[CS_TORQUE]:
-        cstats[CS_TORQUE] = torque_sp
-        cstats[CS_TORQUE_LINE] = line_i
-    if mrr > cstats[CS_MRR]:
-        cstats[CS_MRR] = mrr
-    if torque_sp > 0.0:
-        # spindle curve: constant torque up to the base speed, constant power above it
-        t_lim = spin_curve[0] / (2.0 * math.pi * max(n_abs, spin_curve[1]) / 60.0)
-        ratio = torque_sp / t_lim
-        if ratio > cstats[CS_SPINDLE_LOAD]:
-            cstats[CS_SPINDLE_LOAD] = ratio
-            if ratio > 1.0 and cstats[CS_OVERLOAD_LINE] == 0.0:
-                cstats[CS_OVERLOAD_LINE] = line_i
-    return p_sp
-
-
-@njit
-def plant_step(sv, xc, x, v, xc_prev, fdrv, ftool, fd, kstep, dt, store, o, cmd, act, err, vel, trq, max_err,
-               max_trq):
-    """The feed-drive plant, per axis: ``M·ẍ = F − F_friction(ẋ) − F_gravity − F_d + F_tool``
-    for one period (stick-slip at rest, friction never reversing a motion); the sample stored
-    at ``o`` when ``store``; the peaks of following error and torque."""
-    nfd = fd.shape[0]
-    for k in range(3):
-        m = sv[k, SV_MP]
-        e = xc[k] - x[k]
-        f = fdrv[k]
-        fapp = f - sv[k, SV_FG]
-        if kstep < nfd:
-            fapp -= fd[kstep, k]
-        # the force the process puts on the tool acts on the axis carrying it
-        fapp += ftool[k]
-        vk = v[k]
-        if store:
-            cmd[o, k] = xc[k]
-            act[o, k] = x[k]
-            err[o, k] = e
-            vel[o, k] = vk
-            trq[o, k] = f / sv[k, SV_FPT]
-        if abs(vk) < _V_STICK:
-            fs = sv[k, SV_FSP] if fapp > 0.0 else sv[k, SV_FSN]
-            if abs(fapp) <= fs:
-                vnew = 0.0
-            else:
-                sgn = 1.0 if fapp > 0.0 else -1.0
-                vnew = (fapp - sgn * fs) / m * 1e3 * dt
-        else:
-            vnew = vk + (fapp - _friction(vk, sv, k)) / m * 1e3 * dt
-            if vnew * vk < 0.0:
-                # friction cannot reverse the motion: the axis stops (and sticks unless the
-                # drive force alone breaks it away next period)
-                vnew = 0.0
-        x[k] += 0.5 * (vk + vnew) * dt
-        v[k] = vnew
-        ae = abs(e)
-        if ae > max_err[k]:
-            max_err[k] = ae
-        tq = f / sv[k, SV_FPT]
-        if abs(tq) > max_trq[k]:
-            max_trq[k] = abs(tq)
-        xc_prev[k] = xc[k]
-
-
 @njit
 def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
     """Simulate servo periods k0 <= k < k1 (or until the program has ended and the axes are in
@@ -502,7 +330,50 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
             rawprev[k] = raw[k]
         segp[1] = 0 if moved else segp[1] + 1
         # ---- acc/dec after interpolation, per axis
-        filter_step(raw, kstep, nbuf, filt, alpha, segp[1], settle, ring1, ring2, sum1, sum2, yexp, xc)
+        pos = kstep % nbuf
+        if filt == 1 or filt == 2:
+            for k in range(3):
+                sum1[k] += raw[k] - ring1[pos, k]
+                ring1[pos, k] = raw[k]
+            if pos == nbuf - 1:  # re-sum once per window so rounding never accumulates
+                for k in range(3):
+                    acc = 0.0
+                    for j in range(nbuf):
+                        acc += ring1[j, k]
+                    sum1[k] = acc
+            for k in range(3):
+                xc[k] = sum1[k] / nbuf
+            if filt == 2:
+                for k in range(3):
+                    sum2[k] += xc[k] - ring2[pos, k]
+                    ring2[pos, k] = xc[k]
+                if pos == nbuf - 1:
+                    for k in range(3):
+                        acc = 0.0
+                        for j in range(nbuf):
+                            acc += ring2[j, k]
+                        sum2[k] = acc
+                for k in range(3):
+                    xc[k] = sum2[k] / nbuf
+        elif filt == 3:
+            for k in range(3):
+                yexp[k] += alpha * (raw[k] - yexp[k])
+                xc[k] = yexp[k]
+        else:
+            for k in range(3):
+                xc[k] = raw[k]
+        # a command that has stood still long enough has left the filter exactly (a running
+        # sum or an exponential never returns the input value to the last bit by itself)
+        if filt != 0 and segp[1] >= settle:
+            done = True
+            if filt == 3:
+                for k in range(3):
+                    if abs(xc[k] - raw[k]) > 1e-9:
+                        done = False
+            if done:
+                for k in range(3):
+                    xc[k] = raw[k]
+                    yexp[k] = raw[k]
         # ---- interpolator clock: advance, or stand at an exact stop until in position
         last = i == nseg - 1
         end_i = t_start[i] + dur[i]
@@ -535,7 +406,18 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
                 segp[3] = kstep
                 break
         # ---- spindle and cutting load (forces act on the tool; the drives feel them)
-        spindle_step(spin, spin_cmd[i], spin_acc * dt, dt)
+        target = spin_cmd[i]
+        dn = spin_acc * dt
+        if spin[0] < target - dn:
+            spin[0] += dn
+        elif spin[0] > target + dn:
+            spin[0] -= dn
+        else:
+            spin[0] = target
+        # spindle angle, for tooth-passing forces
+        spin[1] += 2.0 * math.pi * abs(spin[0]) / 60.0 * dt
+        if spin[1] > 2.0 * math.pi:
+            spin[1] -= 2.0 * math.pi * math.floor(spin[1] / (2.0 * math.pi))
         ftool[0] = 0.0
         ftool[1] = 0.0
         ftool[2] = 0.0
@@ -616,7 +498,19 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
                 ae = eng_q[m_, Q_AE]
                 ap = eng_q[m_, Q_AP]
         # ---- drive forces of the servo loop, per axis (they do not depend on the process)
-        drive_forces(sv, xc, xc_prev, x, v, integ, dt, fdrv)
+        for k in range(3):
+            m = sv[k, SV_MASS]
+            e = xc[k] - x[k]
+            vref = sv[k, SV_KPP] * e + sv[k, SV_FF] * (xc[k] - xc_prev[k]) / dt
+            ev = vref - v[k]
+            integ[k] += ev * dt
+            f = m * sv[k, SV_WV] * (ev + sv[k, SV_WI] * integ[k]) * 1e-3  # N (mm/s^2 -> m/s^2)
+            fmax = sv[k, SV_FMAX]
+            if f > fmax or f < -fmax:
+                f = fmax if f > 0.0 else -fmax
+                if ev * f > 0.0:
+                    integ[k] -= ev * dt  # anti-windup: no integration into the torque limit
+            fdrv[k] = f
         if cutting:
             # The feed is the axes' velocity along the commanded direction at the end of this
             # period, solved for implicitly: the process force grows with the feed, and taken
@@ -685,7 +579,32 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
             p_cut = torque_sp * 2.0 * math.pi * nrps
             mrr = va * eng_q[m_, Q_AREA]
             hmax = fz_ * ha
-        p_sp = cut_statistics(cstats, ftool, p_cut, torque_sp, mrr, abs(spin[0]), loss, spin_curve, line[i], dt)
+        n_abs = abs(spin[0])
+        p_sp = p_cut + (loss[0] + loss[1] * n_abs + loss[2] * n_abs * n_abs if n_abs > 0.0 else 0.0)
+        load = math.sqrt(ftool[0] * ftool[0] + ftool[1] * ftool[1])
+        if load > cstats[CS_LOAD] + 1e-9:
+            cstats[CS_LOAD] = load
+            cstats[CS_LOAD_LINE] = line[i]
+        if p_sp > cstats[CS_POWER]:
+            cstats[CS_POWER] = p_sp
+            cstats[CS_POWER_LINE] = line[i]
+        if p_cut > 0.0:
+            cstats[CS_ENERGY] += p_cut * dt
+            cstats[CS_CUT_TIME] += dt
+            cstats[CS_LOAD_TIME] += load * dt
+        if torque_sp > cstats[CS_TORQUE]:
+            cstats[CS_TORQUE] = torque_sp
+            cstats[CS_TORQUE_LINE] = line[i]
+        if mrr > cstats[CS_MRR]:
+            cstats[CS_MRR] = mrr
+        if torque_sp > 0.0:
+            # spindle curve: constant torque up to the base speed, constant power above it
+            t_lim = spin_curve[0] / (2.0 * math.pi * max(n_abs, spin_curve[1]) / 60.0)
+            ratio = torque_sp / t_lim
+            if ratio > cstats[CS_SPINDLE_LOAD]:
+                cstats[CS_SPINDLE_LOAD] = ratio
+                if ratio > 1.0 and cstats[CS_OVERLOAD_LINE] == 0.0:
+                    cstats[CS_OVERLOAD_LINE] = line[i]
         if store and has_cut:
             for k in range(3):
                 force_out[o, k] = ftool[k]
@@ -697,8 +616,44 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
             cut_out[o, 5] = mrr
             cut_out[o, 6] = hmax
         # ---- servo loop and feed-drive plant, per axis
-        plant_step(sv, xc, x, v, xc_prev, fdrv, ftool, fd, kstep, dt, store, o, cmd, act, err, vel, trq,
-                   max_err, max_trq)
+        for k in range(3):
+            m = sv[k, SV_MP]
+            e = xc[k] - x[k]
+            f = fdrv[k]
+            fapp = f - sv[k, SV_FG]
+            if kstep < nfd:
+                fapp -= fd[kstep, k]
+            # the force the process puts on the tool acts on the axis carrying it
+            fapp += ftool[k]
+            vk = v[k]
+            if store:
+                cmd[o, k] = xc[k]
+                act[o, k] = x[k]
+                err[o, k] = e
+                vel[o, k] = vk
+                trq[o, k] = f / sv[k, SV_FPT]
+            if abs(vk) < _V_STICK:
+                fs = sv[k, SV_FSP] if fapp > 0.0 else sv[k, SV_FSN]
+                if abs(fapp) <= fs:
+                    vnew = 0.0
+                else:
+                    sgn = 1.0 if fapp > 0.0 else -1.0
+                    vnew = (fapp - sgn * fs) / m * 1e3 * dt
+            else:
+                vnew = vk + (fapp - _friction(vk, sv, k)) / m * 1e3 * dt
+                if vnew * vk < 0.0:
+                    # friction cannot reverse the motion: the axis stops (and sticks unless the
+                    # drive force alone breaks it away next period)
+                    vnew = 0.0
+            x[k] += 0.5 * (vk + vnew) * dt
+            v[k] = vnew
+            ae = abs(e)
+            if ae > max_err[k]:
+                max_err[k] = ae
+            tq = f / sv[k, SV_FPT]
+            if abs(tq) > max_trq[k]:
+                max_trq[k] = abs(tq)
+            xc_prev[k] = xc[k]
         if store:
             t_out[o] = kstep * dt
             line_out[o] = line[i]
