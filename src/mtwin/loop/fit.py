@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import MtwinError
+from ..errors import MtwinError, SourceLocation
 from ..fitting import FIT_FACTOR, STRONG_EVIDENCE, default_scale, delta_bic, solve, verdict
-from .compare import compare
+from .compare import _STAT, _has, compare
+from .measurement import _KNOWN, STATS, MeasurementError, summary_base
 
 MAX_SELECTED = 4  # effects forward selection takes at most, per signal
 TRIAL_EVALUATIONS = 24  # the short fit each candidate of a forward-selection step gets
@@ -62,9 +63,6 @@ def row_statistics(trace, rows: dict) -> dict:
     """Per statistic column (``fy_rms``: the RMS of ``fy``), each row's statistic of the
     simulated signal over the samples whose line is in the row's range (NaN: none).  The
     samples are sorted by line once, so each row reads only its own samples."""
-    from .compare import _STAT
-    from .measurement import summary_base
-
     line = np.asarray(trace.line)
     order = np.argsort(line, kind="stable")
     by_line = line[order]
@@ -113,9 +111,6 @@ def _summary_target(twin, program, meas, signals, stock, base) -> Target:
     the same statistic of the simulation over the row's lines (a row whose lines the
     simulation never runs is left out); the noise per column from the rows, or from the file's
     ``# noise: COLUMN=VALUE; …`` metadata line."""
-    from .compare import _has
-    from .measurement import summary_base
-
     _no_unknown_statistics(meas)
     available = {c for _, _, st in meas.rows for c in st if _has(base, summary_base(c))}
     missing = [s for s in (signals or ()) if s not in available]
@@ -148,9 +143,6 @@ def _no_unknown_statistics(meas) -> None:
     """A column of a summary measurement that reads as a statistic of a signal but is not one
     the format knows (``fx_rmsx``, ``fq_rms``) is an error here: fitted, it would be left out
     silently (compare lists it as ignored)."""
-    from ..errors import SourceLocation
-    from .measurement import _KNOWN, STATS, MeasurementError
-
     for c in meas.ignored:
         head, _, tail = c.rpartition("_")
         if head in _KNOWN or tail in STATS or any(c.startswith(k + "_") for k in _KNOWN):
@@ -375,8 +367,6 @@ def diagnose(tg: Target, candidates=None) -> dict:
 
 def _signal_of(name: str) -> str:
     """The signal a measured column is of (``fy_rms``: ``fy``)."""
-    from .measurement import summary_base
-
     return summary_base(name) or name
 
 

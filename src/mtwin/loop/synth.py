@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MtwinError
+from .compare import _STAT
+from .fit import row_statistics
 
 #: the signals a machine's logger or a dynamometer usually records
 DEFAULT_SIGNALS = ("x", "y", "z", "spindle_speed", "spindle_power", "x_torque", "y_torque", "z_torque",
@@ -67,9 +69,6 @@ def synthesize_summary(twin, program, *, signals=None, noise: float = 0.0, seed:
     model), in the order the lines first run — what a dynamometer post-processed per pass, or
     a tool monitor, records.  Each statistic is taken over the full-rate simulation of the
     line's samples; ``noise`` adds Gaussian noise of that fraction of each column's RMS."""
-    from .compare import _STAT
-    from .fit import row_statistics
-
     signals = tuple(signals or ("fx", "fy", "fz", "spindle_power"))
     bad = [s for s in stats if s not in _STAT]
     if bad:
