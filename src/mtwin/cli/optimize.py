@@ -86,16 +86,17 @@ def optimize(
     writer, prove it cuts the same path and check the limits on its re-simulation."""
     from ..optimize import InfeasibleError, OptimizeOptions
     from ..report.optimize_html import optimize_html
-    from ..twin.setup import Messages, load_part
+    from ..twin.setup import Messages, load_part, open_twin
 
     _check_outputs(output, report, json_out)
     opts = OptimizeOptions(objective, method, force_limit, value_range(feed_range, "--feed-range"),
                            value_range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
                            power_tolerance=power_tolerance, tolerance=tolerance, finish_feed=finish_feed,
                            segmentation=segmentation, min_segment=min_segment, ga=ga)
-    prog = load_part(setup, part, Messages(message))
+    tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
+    prog = load_part(tw, part, Messages(message))
     try:
-        res = _run_with_progress(setup, prog, opts, ga.generations if method == "ga" else 0)
+        res = _run_with_progress(tw, setup.stock_box(), prog, opts, ga.generations if method == "ga" else 0)
     except InfeasibleError as exc:
         if json_out:  # (what was refused, as data, before the message on stderr)
             emit_json({"program": prog.path, "objective": objective, "method": method, "written": False,
@@ -119,14 +120,13 @@ def _check_outputs(output: str, report, json_out: bool) -> None:
     check_outputs(output, report)
 
 
-def _run_with_progress(setup, prog, opts, generations: int):
+def _run_with_progress(tw, stock, prog, opts, generations: int):
     """Run the optimiser with a transient progress display on a terminal's stderr (the stage,
     and the GA's generations), shown once the run has taken a second; plain otherwise."""
     import mtwin
 
-    stock = setup.stock_box()
     if not err.is_terminal:
-        return mtwin.optimize(setup, prog, opts, stock=stock)
+        return mtwin.optimize(tw, prog, opts, stock=stock)
     import threading
 
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -154,7 +154,7 @@ def _run_with_progress(setup, prog, opts, generations: int):
 
     timer.start()
     try:
-        return mtwin.optimize(setup, prog, opts, stock=stock, progress=ga if generations else None, stage=stage)
+        return mtwin.optimize(tw, prog, opts, stock=stock, progress=ga if generations else None, stage=stage)
     finally:
         timer.cancel()
         with lock:

@@ -300,12 +300,7 @@ def build_fitted(twin, effects, keys, x):
 
 def rms_by_signal(tg, trace, signals) -> dict:
     sim = tg.simulated(trace, signals)
-    out = {}
-    for s in signals:
-        r = tg.measured[s] - sim[s]
-        r = r[~np.isnan(r)]
-        out[s] = float(np.sqrt(np.mean(r * r))) if len(r) else 0.0
-    return out
+    return {s: _rms(tg.measured[s], sim[s], ~np.isnan(tg.measured[s] - sim[s])) for s in signals}
 
 
 def _base_value(twin, name: str) -> float:
@@ -396,22 +391,20 @@ def _forward(tg: Target, s: str, rows: list, fits: dict, rms0: float, n: int):
     noise = FIT_FACTOR * tg.noise[s]
     while len(steps) < MAX_SELECTED and (not steps or state.rms > noise):
         residual = np.where(ok, measured - state.sim, 0.0)
-        trials = [(lin.solve([c], residual)[0], c) for c in lin.names if c not in state.names]
+        trials = [(*lin.solve([c], residual), c) for c in lin.names if c not in state.names]
         if not trials:
             break
-        rss_c, name = min(trials)
+        rss_c, values, name = min(trials, key=lambda t: (t[0], t[2]))
         if delta_bic(n, rss_c, n * state.rms ** 2, lin.k[name]) >= STRONG_EVIDENCE:
             break
-        values = lin.solve([name], residual)[1][name]
-        joint = lin.on_twin(tg, state.effects + [lin.effect(name, values)], noise, ok)
+        joint = lin.on_twin(tg, state.effects + [lin.effect(name, values[name])], noise, ok)
         dbic = delta_bic(n, n * joint.rms ** 2, n * state.rms ** 2, lin.k[name])
         if dbic >= STRONG_EVIDENCE:  # the twin does not bear the screening out
             break
         state = joint
         steps.append({"effect": name, "delta_bic": dbic, "rms_after": joint.rms})
         for old in [st["effect"] for st in steps[:-1]]:  # the backward look
-            rest = [copy.deepcopy(e) for e in state.effects if e.name != old]
-            without = lin.on_twin(tg, rest, noise, ok)
+            without = lin.on_twin(tg, [e for e in state.effects if e.name != old], noise, ok)
             if delta_bic(n, n * without.rms ** 2, n * state.rms ** 2, -lin.k[old]) < 0:
                 state = without
                 steps = [st for st in steps if st["effect"] != old]
@@ -535,7 +528,7 @@ class _Linearised:
                 joint = _Joint(again, sim, rms)
         if len(effects) > 1 and joint.rms > noise:
             try:
-                fr = fit(tg, [copy.deepcopy(e) for e in effects], [self.s], max_evaluations=2 * TRIAL_EVALUATIONS)
+                fr = fit(tg, effects, [self.s], max_evaluations=2 * TRIAL_EVALUATIONS)
             except (MtwinError, ValueError, FloatingPointError):
                 return joint
             if fr.rms_after[self.s] < joint.rms:

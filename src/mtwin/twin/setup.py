@@ -3,16 +3,14 @@ command-line options over one) and the program it runs on it, with the messages 
 beside a result (library code never prints)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Optional
 
-from ..config import interpreter_settings
 from ..cutting.library import parse_box, parse_tool_option
 from ..effects import load_file
 from ..errors import GCodeError, MtwinError, SourceLocation, warning_text
 from ..gcode.interpreter import Program
 from . import Twin
-from .files import load_cutting, load_effects, load_machine
 from .machine import STYLES
 
 
@@ -60,22 +58,17 @@ class TwinSetup:
     tools: tuple = ()  # "N=TYPE:DIAMETER[:FLUTES…]"
     stock: Optional[str] = None  # "xmin,ymin,zmin,xmax,ymax,zmax" (mm, work coordinates)
 
-    def settings(self):
-        """The interpreter settings: the twin file's, with the switches given over them."""
-        return interpreter_settings(self.twin, dialect=self.dialect, lenient=self.lenient or None,
-                                    skip_block_delete=self.block_delete)
-
     def build(self):
-        """The Twin."""
-        machine = load_machine(self.twin)
-        if self.planner is not None:
-            if self.planner not in STYLES:
-                raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {self.planner!r}")
-            machine = replace(machine, controller=replace(machine.controller, style=self.planner))
+        """The Twin: the twin file's (its effects may be the user files' ones, loaded first),
+        with the switches, planner, tools and effects given over it."""
+        if self.planner is not None and self.planner not in STYLES:
+            raise MtwinError(f"--planner must be one of {', '.join(STYLES)}, got {self.planner!r}")
         for f in self.effect_files:
             load_file(f)
-        tw = Twin(machine=machine, interpreter=self.settings(), path=self.twin, cutting=load_cutting(self.twin),
-                  effects=load_effects(self.twin))
+        tw = Twin.from_toml(self.twin, dialect=self.dialect, lenient=self.lenient or None,
+                            skip_block_delete=self.block_delete)
+        if self.planner is not None:
+            tw = tw.with_controller(style=self.planner)
         if self.tools:
             tw = tw.with_tools(dict(parse_tool_option(t) for t in self.tools))
         if self.effects:
