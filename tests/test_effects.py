@@ -76,13 +76,17 @@ def test_every_effect_keeps_the_contract(name, twin, pocket, base_pocket):
     same = twin.with_effects(cls()).simulate(pocket)
     assert same.summary.cycle_time == base_pocket.summary.cycle_time
     for s in cls.signals:
+        if s == "vb":  # (the land: a signal only a wear effect's trace has; a new tool's is vb0)
+            assert np.all(same.signal(s) == cls().resolved().get("vb0", 0.0))
+            continue
         np.testing.assert_allclose(same.signal(s), base_pocket.signal(s), rtol=1e-6, atol=1e-9, err_msg=s)
     # away from its defaults it changes what it says it changes ...
     values = {p.name: _typical(p) for p in cls.params}
     tr = twin.with_effects(cls(**values)).simulate(pocket)
     # (a timing effect acts on features the pocket may not have: its closed forms are below)
     if len(tr.t) == len(base_pocket.t) and cls.stage != "plan":
-        changed = [s for s in SIGNALS if not np.allclose(tr.signal(s), base_pocket.signal(s), rtol=1e-9, atol=1e-12)]
+        changed = [s for s in SIGNALS if s != "vb"
+                   and not np.allclose(tr.signal(s), base_pocket.signal(s), rtol=1e-9, atol=1e-12)]
         assert set(changed) & set(cls.signals), name
         # ... and on observation nothing else
         if cls.stage == "observation":

@@ -12,18 +12,19 @@ import os
 import sys
 
 from ..errors import ConfigError
-from .base import Effect, StepInfo
+from .base import Effect, StepInfo, ToolHistory
 from .drives import CoulombFriction, Gravity, Inertia, StribeckFriction, ViscousFriction
 from .observation import Backlash, Runout, ServoDelay, SpindleNoLoad, ThermalDrift
 from .process import SizeEffect, ToolWear
+from .wear import FlankWear
 from .timing import ArcAcceleration, BlockTime, CornerSlowdown, SpindleRunup, ToolChangeTime
 
-__all__ = ["Effect", "StepInfo", "available", "get", "load_file", "register", "parse_effect_spec"]
+__all__ = ["Effect", "StepInfo", "ToolHistory", "available", "get", "load_file", "register", "parse_effect_spec"]
 
 ENTRY_POINT_GROUP = "mtwin.effects"
 
 BUILTIN: tuple[type[Effect], ...] = (
-    SpindleNoLoad, ToolWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
+    SpindleNoLoad, ToolWear, FlankWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
     Backlash, ServoDelay, ThermalDrift, Inertia,
     ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration,
 )

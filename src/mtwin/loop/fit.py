@@ -274,7 +274,10 @@ def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
     free = []  # (key, lower, upper, start)
     for e in effects:
         p = e.resolved()
+        moved = e.fit_names()
         for d in e.params:
+            if d.name not in moved:
+                continue
             start = (starts or {}).get(f"effects.{e.name}.{d.name}", p[d.name])
             free.append((f"effects.{e.name}.{d.name}", d.lower, d.upper, float(start)))
     for name in base_params:
@@ -293,7 +296,8 @@ def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
 def build_fitted(twin, effects, keys, x):
     """(twin with the base values of ``x``, ``effects`` re-made with theirs)."""
     values = dict(zip(keys, x))
-    fitted = [type(e)(**{d.name: values[f"effects.{e.name}.{d.name}"] for d in e.params}) for e in effects]
+    fitted = [e.with_values(**{d.name: values[f"effects.{e.name}.{d.name}"] for d in e.params
+                               if f"effects.{e.name}.{d.name}" in values}) for e in effects]
     base = {k: v for k, v in values.items() if not k.startswith("effects.")}
     return (twin.with_params(base) if base else twin), fitted
 
@@ -462,7 +466,8 @@ class _Linearised:
         whose tangent is zero) gets a column at all."""
         e = fr.effects[0]
         x = np.array(list(fr.params.values()), dtype=np.float64)
-        default = np.array([d.default for d in e.params], dtype=np.float64)
+        defaults = {d.name: d.default for d in e.params}
+        default = np.array([defaults[k.rsplit(".", 1)[-1]] for k in fr.params], dtype=np.float64)
         moved = np.flatnonzero(np.abs(x - default) > 1e-9 * np.maximum(1.0, np.abs(default)))
         if len(moved) == 1:
             j = int(moved[0])
@@ -501,9 +506,10 @@ class _Linearised:
 
     def effect(self, name: str, values):
         """Candidate ``name``'s effect at ``values`` (within its bounds)."""
-        e = self.fit[name].effects[0]
-        lo, hi = self.fit[name].bounds
-        return type(e)(**{d.name: float(np.clip(v, a, b)) for d, v, a, b in zip(e.params, values, lo, hi)})
+        fr = self.fit[name]
+        lo, hi = fr.bounds
+        return fr.effects[0].with_values(**{k.rsplit(".", 1)[-1]: float(np.clip(v, a, b))
+                                            for k, v, a, b in zip(fr.params, values, lo, hi)})
 
     def on_twin(self, tg: Target, effects: list, noise: float, ok) -> _Joint:
         """``effects`` simulated together on the twin.  Where there are several and the residual

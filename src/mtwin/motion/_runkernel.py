@@ -143,8 +143,8 @@ class LoopState(NamedTuple):
 
 class CuttingInputs(NamedTuple):
     """The engagement of the path (steps per segment, force sums, step scalars ``layout.Q_*``),
-    the tools (``layout.T_*`` columns), the material's coefficients and the effects' factors on
-    them, the spindle (command, acceleration, losses, power curve) and, for tooth resolution,
+    the tools (``layout.T_*`` columns), the material's coefficients and, when effects change
+    them along the path, the coefficients per step ((steps, 6); (0, 6): the material's), the spindle (command, acceleration, losses, power curve) and, for tooth resolution,
     the edge profiles and slices."""
 
     first: np.ndarray
@@ -154,7 +154,7 @@ class CuttingInputs(NamedTuple):
     seg_tool: np.ndarray
     tools: np.ndarray
     kc: np.ndarray
-    kscale: np.ndarray
+    kpath: np.ndarray
     hand: np.ndarray
     spin_cmd: np.ndarray
     spin_acc: float
@@ -275,7 +275,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
     t_start, prof, dur, stop_end = profile
     dt, every, filt, nfilt, tfilt, in_position, max_wait, sv, fd = servo
     ring1, ring2, sums, axes, segp, clock, wait, max_err, max_trq = state
-    (eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, kscale, hand, spin_cmd, spin_acc, loss, spin_curve,
+    (eng_first, eng_count, eng_sums, eng_q, seg_tool, tools, kc, kpath, hand, spin_cmd, spin_acc, loss, spin_curve,
      eprof, sl_starts, skind, skap, sr, szlo, szhi, sdrho, tan_helix) = cut
     spin, cstats = cut_state
     t_out, line_out, cmd, act, err, vel, trq, pathv, force_out, cut_out = out
@@ -301,6 +301,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
     tooth = eprof.shape[0] > 0
     ftool = np.zeros(3)
     tout = np.zeros(5)
+    kk = np.zeros(6)  # the cutting coefficients at the current step
     fa = np.zeros(3)  # process force per mm of feed per tooth, N/mm
     fb = np.zeros(3)  # its edge (feed-independent) part, N
     fdrv = np.zeros(3)  # drive forces of this period, N
@@ -451,40 +452,37 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
                     tb = 0.0
                     ha = 0.0
                 else:
+                    # the coefficients at this step: the material's, or those the effects make
+                    # of them along the path (tool wear: the edge ones grow with the wear land)
+                    if kpath.shape[0] > 0:
+                        for k in range(6):
+                            kk[k] = kpath[m_, k]
+                    else:
+                        for k in range(6):
+                            kk[k] = kc[k]
                     if tooth:
                         tt = seg_tool[i]
                         a0 = sl_starts[tt]
                         a1 = sl_starts[tt + 1]
                         tooth_forces(eprof[m_], eng_q[m_], spin[1], 0.0, fl, tools[tt, T_RADIUS], tan_helix[tt],
                                      skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
-                                     eprof.shape[2], kc, tout)
+                                     eprof.shape[2], kk, tout)
                         bx, by, bz, tb = tout[0], tout[1], tout[2], tout[3] * 1e-3
                         tooth_forces(eprof[m_], eng_q[m_], spin[1], 1.0, fl, tools[tt, T_RADIUS], tan_helix[tt],
                                      skind[a0:a1], skap[a0:a1], sr[a0:a1], szlo[a0:a1], szhi[a0:a1], sdrho[a0:a1],
-                                     eprof.shape[2], kc, tout)
+                                     eprof.shape[2], kk, tout)
                         ax_, ay_, az_, ta = tout[0] - bx, tout[1] - by, tout[2] - bz, tout[3] * 1e-3 - tb
                         ha = tout[4]
                     else:
-                        ax_ = kc[K_TC] * S[SX_TC] + kc[K_RC] * S[SX_RC] + kc[K_AC] * S[SX_AC]
-                        bx = kc[K_TE] * S[SX_TE] + kc[K_RE] * S[SX_RE] + kc[K_AE] * S[SX_AE]
-                        ay_ = kc[K_TC] * S[SY_TC] + kc[K_RC] * S[SY_RC] + kc[K_AC] * S[SY_AC]
-                        by = kc[K_TE] * S[SY_TE] + kc[K_RE] * S[SY_RE] + kc[K_AE] * S[SY_AE]
-                        az_ = kc[K_RC] * S[SZ_RC] + kc[K_AC] * S[SZ_AC]
-                        bz = kc[K_RE] * S[SZ_RE] + kc[K_AE] * S[SZ_AE]
-                        ta = kc[K_TC] * S[ST_TC] * 1e-3  # N*m per mm of feed per tooth
-                        tb = kc[K_TE] * S[ST_TE] * 1e-3
+                        ax_ = kk[K_TC] * S[SX_TC] + kk[K_RC] * S[SX_RC] + kk[K_AC] * S[SX_AC]
+                        bx = kk[K_TE] * S[SX_TE] + kk[K_RE] * S[SX_RE] + kk[K_AE] * S[SX_AE]
+                        ay_ = kk[K_TC] * S[SY_TC] + kk[K_RC] * S[SY_RC] + kk[K_AC] * S[SY_AC]
+                        by = kk[K_TE] * S[SY_TE] + kk[K_RE] * S[SY_RE] + kk[K_AE] * S[SY_AE]
+                        az_ = kk[K_RC] * S[SZ_RC] + kk[K_AC] * S[SZ_AC]
+                        bz = kk[K_RE] * S[SZ_RE] + kk[K_AE] * S[SZ_AE]
+                        ta = kk[K_TC] * S[ST_TC] * 1e-3  # N*m per mm of feed per tooth
+                        tb = kk[K_TE] * S[ST_TE] * 1e-3
                         ha = eng_q[m_, Q_WMAX]
-                    if kscale.size > 0:
-                        # effects that change the cutting coefficients along the path (tool wear)
-                        ks = kscale[m_]
-                        ax_ *= ks
-                        ay_ *= ks
-                        az_ *= ks
-                        bx *= ks
-                        by *= ks
-                        bz *= ks
-                        ta *= ks
-                        tb *= ks
                     dxv = eng_q[m_, Q_DX]
                     dyv = eng_q[m_, Q_DY]
                     yxv = -dyv * hand[i]

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -92,10 +93,10 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
         z = np.zeros(nseg, np.int64)
         z1 = np.zeros(1)
         return None, RK.CuttingInputs(z, z, np.zeros((0, 18), np.float32), np.zeros((0, 8), np.float32), z,
-                                      np.zeros((1, 3)), np.zeros(6), np.zeros(0), hand, spin_cmd,
+                                      np.zeros((1, 3)), np.zeros(6), np.zeros((0, 6)), hand, spin_cmd,
                                       float(m.spindle.acceleration), np.zeros(3), curve,
                                       np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64),
-                                      z1, z1, z1, z1, z1, z1)
+                                      z1, z1, z1, z1, z1, z1), None
     turning = program.turning_line()
     if turning:
         raise MtwinError(f"{program.path}:{turning}: this is a turning program (lathe cycle G70-G72, G96 constant "
@@ -107,31 +108,107 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
-    kscale = _cutting_scale(eng, plan, loop_effects, program)
-    return eng, RK.CuttingInputs(eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, kscale, hand,
-                                 spin_cmd, float(m.spindle.acceleration), np.array(cut.spindle_loss), curve, prof,
-                                 *eng.slices, eng.helix)
+    tfx = _tool_effects(eng, plan, loop_effects, program, twin)
+    return eng, RK.CuttingInputs(eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, tfx.coefficients,
+                                 hand, spin_cmd, float(m.spindle.acceleration), np.array(cut.spindle_loss), curve,
+                                 prof, *eng.slices, eng.helix), tfx
 
 
-def _cutting_scale(eng, plan, loop_effects, program=None) -> np.ndarray:
-    """The product of the in-loop effects' factors on the cutting coefficients, per engagement
-    step (empty: none changes them)."""
+@dataclass
+class ToolEffects:
+    """What the in-loop effects make of the engagement steps: the six cutting coefficients per
+    step (``coefficients``, (steps, 6); empty: the material's everywhere), the
+    flank-wear land per step (``land``, mm; None: no effect models it) and the steps
+    themselves (their histories, for the tool ledger)."""
+
+    coefficients: np.ndarray
+    land: np.ndarray | None
+    steps: object
+
+
+def _tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffects:
+    """The cutting coefficients per engagement step — the material's times the in-loop effects'
+    factors (``cutting_scale``) plus their increments (``cutting_add``) — and the wear land of
+    the effect that models one."""
     from ..effects import Effect, StepInfo
 
     users = [(e, p) for e, p in loop_effects if type(e).cutting_scale is not Effect.cutting_scale]
-    if not users or not len(eng.q):
-        return np.zeros(0)
-    steps = StepInfo.from_engagement(eng, plan, program)
-    scale = np.ones(len(eng.q))
+    adders = [(e, p) for e, p in loop_effects if type(e).cutting_add is not Effect.cutting_add]
+    landers = [(e, p) for e, p in loop_effects if type(e).wear_land is not Effect.wear_land]
+    start = getattr(twin, "tool_state", None) or {}
+    if not len(eng.q) or (not users and not adders and not landers and not start):
+        return ToolEffects(np.zeros((0, 6)), None, None)
+    kc = np.zeros(6)
+    if twin is not None and program is not None:
+        mat = _program_cutting(twin, program).material
+        kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
+    steps = StepInfo.from_engagement(eng, plan, program, kc=kc, start=start)
+    scale = np.ones((len(eng.q), 6))
+    changed = False
     for e, p in users:
         f = e.cutting_scale(steps, p)
-        if f is not None:
-            f = np.asarray(f, dtype=np.float64)
-            if f.shape != scale.shape or not np.isfinite(f).all() or (f < 0).any():
-                raise MtwinError(f"effect {e.name}: cutting_scale must give one finite factor >= 0 per "
-                                 f"engagement step ({scale.size}), got shape {f.shape}")
-            scale *= f
-    return scale
+        if f is None:
+            continue
+        f = np.asarray(f, dtype=np.float64)
+        if f.ndim == 1:
+            f = f[:, None]  # one factor on all six
+        if f.shape[0] != scale.shape[0] or f.shape[1] not in (1, 6) or not np.isfinite(f).all() or (f < 0).any():
+            raise MtwinError(f"effect {e.name}: cutting_scale must give one finite factor >= 0 per engagement "
+                             f"step ({scale.shape[0]}), or six per step, got shape {f.shape}")
+        scale *= f
+        changed = True
+    k = scale * kc
+    for e, p in adders:
+        f = e.cutting_add(steps, p)
+        if f is None:
+            continue
+        f = np.asarray(f, dtype=np.float64)
+        if f.shape != k.shape or not np.isfinite(f).all():
+            raise MtwinError(f"effect {e.name}: cutting_add must give six finite increments per engagement step "
+                             f"({k.shape[0]}, 6), got shape {f.shape}")
+        k = k + f
+        changed = True
+    if changed and (k < 0).any():
+        raise MtwinError("the effects make a cutting coefficient negative along the path")
+    land = landers[-1][0].wear_land(steps, landers[-1][1]) if landers else None
+    return ToolEffects(k if changed else np.zeros((0, 6)), land, steps)
+
+
+def _wear_table(tfx: ToolEffects, program) -> dict:
+    """Per tool number: the land at its first and last cut steps (mm) and its edge sliding
+    before the program and in it (m)."""
+    st = tfx.steps
+    out = {}
+    for t in np.unique(st.tool_number):
+        m = np.flatnonzero((st.tool_number == t) & (st.slide > 0))
+        if not m.size:
+            continue
+        before = float(st.sliding[m[0]] - 0.5 * st.slide[m[0]])
+        out[int(t)] = {"vb_start": round(float(tfx.land[m[0]]), 6), "vb_end": round(float(tfx.land[m[-1]]), 6),
+                       "sliding_before": round(before, 6), "sliding": round(float(st.slide[m].sum()), 6)}
+    return out
+
+
+def _land_by_sample(eng, plan, program, land: np.ndarray, record: np.ndarray) -> np.ndarray:
+    """The wear land of the tool in the spindle at each sample (mm): the land after the
+    record's last step, carried over the records that do not cut."""
+    seg = plan.seg
+    nrec = len(program.records)
+    has = np.flatnonzero(eng.count > 0)
+    step_rec = np.empty(len(eng.q), np.int64)
+    for i in has:
+        a, c = int(eng.first[i]), int(eng.count[i])
+        step_rec[a:a + c] = seg["rec"][i]
+    rec_land = np.full(nrec, -1.0)
+    np.maximum.at(rec_land, step_rec, land)
+    tool = program.records["tool"]
+    for t in np.unique(tool):
+        m = tool == t
+        v = rec_land[m]
+        known = v >= 0
+        first = float(v[known][0]) if known.any() else 0.0
+        rec_land[m] = np.maximum.accumulate(np.where(known, v, first))
+    return rec_land[np.clip(record, 0, max(nrec - 1, 0))] if nrec else np.zeros(len(record))
 
 
 def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
@@ -205,7 +282,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         path = RK.PathArrays(np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z,
                              np.zeros(1, np.int32))
         profile = RK.Profile(z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
-    eng, cut_args = _cutting_args(twin, program, plan, stock, cutting, tooth, loop_effects)
+    eng, cut_args, tfx = _cutting_args(twin, program, plan, stock, cutting, tooth, loop_effects)
     cut_state = RK.CutState(np.zeros(2), np.zeros(16))  # spindle speed (rpm) and angle (rad); statistics
     cstats = cut_state.cstats
     state = RK.new_state(nfilt, x0, sv, len(seg))
@@ -330,6 +407,11 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     kt = np.array([ax.torque_constant for ax in machine.axes])
     trace = Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
                   force if eng is not None else None, cut if eng is not None else None, eng, record)
+    if tfx is not None and tfx.steps is not None:
+        trace.tool_use = tfx.steps.history()
+        if tfx.land is not None:
+            trace.vb = _land_by_sample(eng, plan, program, tfx.land, record).astype(np.float32)
+            summary.cutting.tool_wear = _wear_table(tfx, program)
     changed: set[str] = set()
     for e, p in observed:
         if eng is None and any(s in CUT_SIGNALS for s in e.signals):

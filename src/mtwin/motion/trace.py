@@ -39,6 +39,9 @@ class CuttingSummary:
     defaults: list[str]
     tools: list = field(default_factory=list)  # dicts: cutting.library.tools_used
     spindle_stopped_line: int = 0  # first line where feed moves cut with the spindle stopped (0: none)
+    # per tool number, with a wear effect: the flank-wear land at the program's first and last
+    # cut steps (mm) and the edge sliding before and in the program (m)
+    tool_wear: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -84,6 +87,9 @@ class Summary:
                 "peak_spindle_torque")})
             d["cutting"] = dict(c.__dict__)
             d["tools"] = c.tools
+            wear = d["cutting"].pop("tool_wear")
+            if wear:
+                d["tool_wear"] = {str(k): v for k, v in wear.items()}
         # a line 0 does not exist: "no such place" (nothing cut, no feed move) is null
         for sub in (d, d.get("cutting") or {}):
             for k, v in sub.items():
@@ -99,6 +105,8 @@ def _source(name: str) -> tuple[str, int]:
     """(Trace attribute, column) of a measurement-format signal."""
     if name == "feed":
         return "feed", 0
+    if name == "vb":
+        return "vb", -1
     if name in _CUT_SIGNALS:
         return "cut", _CUT_SIGNALS.index(name)
     if name in ("fx", "fy", "fz"):
@@ -129,6 +137,8 @@ class Trace:
     cut: np.ndarray | None = None  # (n, 7) spindle speed, torque, power, ae, ap, mrr, h_max
     engagement: object = None  # the cutting.engagement.Engagement used (stock, steps)
     record: np.ndarray | None = None  # index of the motion record (Program.records) being run, -1 none
+    vb: np.ndarray | None = None  # (n,) mm, flank-wear land of the tool in the spindle (a wear effect)
+    tool_use: dict | None = None  # tool number -> effects.ToolHistory: what the program cut with it
 
     def __len__(self) -> int:
         return len(self.t)
@@ -143,7 +153,7 @@ class Trace:
         if n and idx[-1] != n - 1:
             idx = np.append(idx, n - 1)
         pick = {k: (getattr(self, k)[idx] if getattr(self, k) is not None else None)
-                for k in ("t", "line", "cmd", "act", "err", "vel", "torque", "path_speed", "force", "cut", "record")}
+                for k in ("t", "line", "cmd", "act", "err", "vel", "torque", "path_speed", "force", "cut", "record", "vb")}
         return replace(self, every=every, **pick)
 
     def signal(self, name: str) -> np.ndarray:
@@ -160,8 +170,11 @@ class Trace:
         if a is None:
             from ..errors import MtwinError
 
+            if attr == "vb":
+                raise MtwinError("signal 'vb' (the flank-wear land) needs a wear effect in the twin "
+                                 "(--effect flank-wear:rate=…, or [effects.flank-wear] in the twin file)")
             raise MtwinError(f"signal {name!r} needs the cutting model (this trace has none)")
-        return a[:, col]
+        return a if col < 0 else a[:, col]
 
     def set_signal(self, name: str, values: np.ndarray) -> None:
         """Replace one signal (a new array: the old one may be shared).  A measured position
@@ -169,6 +182,9 @@ class Trace:
         attr, col = _source(name)
         if attr in ("feed", "current", "t", "line"):
             raise ValueError(f"signal {name!r} is derived from others and cannot be set")
+        if col < 0:
+            setattr(self, attr, np.asarray(values, dtype=np.float32).copy())
+            return
         a = getattr(self, attr).copy()
         a[:, col] = values
         setattr(self, attr, a)
@@ -186,7 +202,8 @@ class Trace:
         """The trace as measurement-format columns (name -> array)."""
         cols: dict[str, np.ndarray] = {"t": self.t, "line": self.line}
         for name in SIGNALS:
-            if self.cut is not None or _source(name)[0] not in ("cut", "force"):
+            src = _source(name)[0]
+            if (self.cut is not None or src not in ("cut", "force")) and (src != "vb" or self.vb is not None):
                 cols[name] = self.columns_of(name)
         if self.record is not None:
             # not a measurement column (readers keep and ignore it): which record of the

@@ -52,8 +52,9 @@ class PathModel:
         return (fz * self.ta + self.tb) * self.cutting
 
 
-def path_model(twin, program, plan, eng, kscale=None) -> PathModel:
-    """The fast model of a program from its plan and (cached) engagement."""
+def path_model(twin, program, plan, eng, kstep=None) -> PathModel:
+    """The fast model of a program from its plan and (cached) engagement; ``kstep``: the
+    cutting coefficients per step when effects change them along the path ((steps, 6))."""
     from ..motion.simulate import _program_cutting
 
     seg = plan.seg
@@ -90,15 +91,14 @@ def path_model(twin, program, plan, eng, kscale=None) -> PathModel:
     S, q = eng.sums, eng.q  # (float32 step tables: only the columns used are widened)
     mat = _program_cutting(twin, program).material
     k = (mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae)
+    if kstep is not None and len(kstep):
+        k = tuple(kstep[:, j] for j in range(6))  # (tool wear: the edge ones grow along the path)
     ax = k[0] * _f64(S, EK.SX_TC) + k[1] * _f64(S, EK.SX_RC) + k[2] * _f64(S, EK.SX_AC)
     bx = k[3] * _f64(S, EK.SX_TE) + k[4] * _f64(S, EK.SX_RE) + k[5] * _f64(S, EK.SX_AE)
     ay = k[0] * _f64(S, EK.SY_TC) + k[1] * _f64(S, EK.SY_RC) + k[2] * _f64(S, EK.SY_AC)
     by = k[3] * _f64(S, EK.SY_TE) + k[4] * _f64(S, EK.SY_RE) + k[5] * _f64(S, EK.SY_AE)
     ta = k[0] * _f64(S, EK.ST_TC) * 1e-3
     tb = k[3] * _f64(S, EK.ST_TE) * 1e-3
-    if kscale is not None and len(kscale):
-        for v in (ax, bx, ay, by, ta, tb):
-            v *= kscale
     hand = np.where(program.records["spindle_dir"][step_rec] < 0, -1.0, 1.0)
     dx, dy = _f64(q, EK.Q_DX), _f64(q, EK.Q_DY)
     yx, yy = -dy * hand, dx * hand

@@ -207,7 +207,7 @@ def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progr
 def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> OptimizeResult:
     from ..gcode.verify import compare
     from ..gcode.writer import rewrite
-    from ..motion.simulate import _cutting_scale, _program_cutting, simulate_plan
+    from ..motion.simulate import _program_cutting, _tool_effects, simulate_plan
 
     t_start = time.perf_counter()
     m = twin.machine
@@ -241,10 +241,10 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         pool.shutdown(wait=False)  # (the job runs on; the executor takes no more)
     before = simulate_plan(twin, program, plan, stock=stock)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
-    # effects that scale the cutting coefficients along the path (tool wear) act on the estimate too
+    # effects that change the cutting coefficients along the path (tool wear) act on the estimate too
     resolved = [(e, e.resolved()) for e in twin.effects if e.stage == "loop"]
-    kscale = _cutting_scale(eng, plan, resolved, program)
-    model = path_model(twin, program, plan, eng, kscale)
+    kstep = _tool_effects(eng, plan, resolved, program, twin).coefficients
+    model = path_model(twin, program, plan, eng, kstep)
     # the program's own simulation's warnings (a spindle speed clamped to the machine's, a
     # travel limit…) hold for the optimiser's figures too
     warnings: list = list(getattr(before.summary, "warnings", []) or [])

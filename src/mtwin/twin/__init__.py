@@ -19,7 +19,7 @@ class Twin:
     """A machine twin: its configuration and the stages that run a program on it."""
 
     def __init__(self, machine: Machine | None = None, interpreter=None, path: str | None = None, cutting=None,
-                 effects=()):
+                 effects=(), tool_state=None):
         from ..cutting.library import Cutting, cutting_from_dict
         from ..gcode.interpreter import InterpreterSettings
 
@@ -30,17 +30,20 @@ class Twin:
         # the base model's physical effects, in order (mtwin.effects); the twin file's
         # [effects.NAME] tables, or with_effects
         self.effects: tuple = tuple(effects)
+        # tool number -> effects.ToolHistory: what each tool has cut before the program (the
+        # tool ledger's record), so wear effects start from the tool's state, not a new tool
+        self.tool_state: dict = dict(tool_state or {})
         from ..cutting.engagement import EngagementCache
 
         # engagement depends only on the path: kept between simulations of this twin
         self.engagement_cache = EngagementCache()
 
     def replace(self, *, share_cache: bool = True, **changes) -> "Twin":
-        """A copy with some of ``machine``, ``interpreter``, ``path``, ``cutting`` and
-        ``effects`` replaced (by name, never by position).  ``share_cache``: keep this twin's
+        """A copy with some of ``machine``, ``interpreter``, ``path``, ``cutting``, ``effects``
+        and ``tool_state`` replaced (by name, never by position).  ``share_cache``: keep this twin's
         engagement cache (right when the path cannot change: effects, tools, drive
         parameters); a new, empty one otherwise."""
-        known = ("machine", "interpreter", "path", "cutting", "effects")
+        known = ("machine", "interpreter", "path", "cutting", "effects", "tool_state")
         unknown = sorted(set(changes) - set(known))
         if unknown:
             raise TypeError(f"Twin.replace: unknown field(s) {', '.join(unknown)} (known: {', '.join(known)})")
@@ -68,6 +71,11 @@ class Twin:
         for e in new:
             e.resolved()
         return self.replace(effects=self.effects + new)
+
+    def with_tool_state(self, state: dict) -> "Twin":
+        """A copy whose tools start with these histories (tool number -> ``ToolHistory``) over
+        the twin's own; the engagement cache is shared (the path does not change)."""
+        return self.replace(tool_state={**self.tool_state, **{int(k): v for k, v in state.items()}})
 
     def with_tools(self, tools: dict) -> "Twin":
         """A copy that knows these tools (number -> ``mtwin.cutting.library.Tool``, or a
