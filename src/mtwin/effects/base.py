@@ -26,8 +26,10 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import ConfigError
-from ..layout import Q_AE, Q_AP, Q_AREA, Q_WMAX, T_FLUTES, T_RADIUS
+from ..layout import Q_AE, Q_AP, Q_AREA, Q_WMAX, ST_TE, T_FLUTES, T_RADIUS
 from ..params import Param
+
+_ANGLE_BINS = 180  # the engagement's angle bins per revolution (cutting.engagement.N_BINS)
 
 STAGES = ("loop", "observation", "plan")
 
@@ -142,8 +144,8 @@ class StepInfo:
     * ``cut_length``: path its tool has spent in the material before it (mm, at the step's
       middle; each tool counts its own, from the tool's history when the twin has one);
     * ``sliding``: the same history as each flute's edge sliding over the workpiece (m): per
-      revolution a flute's edge passes through the engaged arc R·Δφ, and a path step ds takes
-      ds/(f_z·z) revolutions (Δφ = arccos(1 − a_e/R), the arc a radial width a_e engages);
+      revolution a point of the edge passes through the engaged arc R·Δφ, and a path step ds
+      takes ds/(f_z·z) revolutions;
     * ``area`` (chip area, mm² per mm of feed per tooth), ``h_max`` (largest chip thickness at
       the programmed feed per tooth, mm), ``tool`` (the step's row of the tool table),
       ``tool_number`` (its T number), ``line``, ``ds`` (path mm), ``time`` (s at the
@@ -200,12 +202,17 @@ class StepInfo:
         d = np.where(inside, ds, 0.0)
         radius = np.asarray(eng.tools[tool, T_RADIUS], dtype=np.float64) if n else np.zeros(0)
         flutes = np.asarray(eng.tools[tool, T_FLUTES], dtype=np.float64) if n else np.zeros(0)
-        ae = np.asarray(eng.q[:, Q_AE], dtype=np.float64)
-        arc = np.arccos(np.clip(1.0 - ae / np.maximum(radius, 1e-9), -1.0, 1.0))  # engaged angle, rad
-        # edge sliding per flute (m): revolutions ds/(fz·z) times the engaged arc R·Δφ
-        slide = np.where(inside & (fz > 0), d * radius * arc / np.maximum(fz * flutes, 1e-12), 0.0) * 1e-3
+        ap = np.asarray(eng.q[:, Q_AP], dtype=np.float64)
+        # the engaged arc each point of the edge slides through per revolution (mm): from the
+        # engagement's edge sum Σ r·db·dφ·z/2π over the engaged angle bins, per mm of engaged
+        # edge (ap), plus half a bin (a bin counts when its centre is engaged: the arc's end lies
+        # half a bin beyond on average); an end face alone (ap 0) slides π·R on average
+        arc = np.where(ap > 0, 2.0 * np.pi * np.asarray(eng.sums[:, ST_TE], dtype=np.float64)
+                       / np.maximum(flutes * ap, 1e-12) + radius * np.pi / _ANGLE_BINS, np.pi * radius)
+        # edge sliding per flute (m): ds/(fz·z) revolutions of that arc
+        slide = np.where(inside & (fz > 0), d * arc / np.maximum(fz * flutes, 1e-12), 0.0) * 1e-3
         time = np.where(inside & (feed > 0), d / np.maximum(feed, 1e-12), 0.0)  # (segment feeds are mm/s)
-        volume = d * ae * np.asarray(eng.q[:, Q_AP], dtype=np.float64)
+        volume = d * np.asarray(eng.q[:, Q_AE], dtype=np.float64) * ap
         length = np.zeros(n)
         sliding = np.zeros(n)
         start = start or {}
