@@ -17,7 +17,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 PASSES = 200
-AE, FEED, RPM, RADIUS, FLUTES = 1.0, 2400.0, 12000.0, 3.0, 2
+AE, FEED, RPM, RADIUS, FLUTES = 1.0, 1600.0, 8000.0, 3.0, 2
 HIDDEN = {"rate": 0.003, "break_in": 0.05}  # mm/m of edge sliding, mm
 SIGMA, MU = 400.0, 0.5  # the land's stresses: the force law the twin knows (flank-wear's defaults)
 SECOND_RATE = 1.25 * HIDDEN["rate"]

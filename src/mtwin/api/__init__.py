@@ -31,8 +31,8 @@ from .loop import (
                    objective_for,
                    synthesize,
 )
-from .simulate import Scaled, Simulation, scale, simulate
+from .simulate import Scaled, Simulation, scale, simulate, simulate_runs
 
 __all__ = ["Calibration", "Comparison", "Diagnosis", "Messages", "Reading", "SI_UNITS", "Scaled", "Simulation",
            "Synthetic", "TwinSetup", "calibrate", "compare", "diagnose", "load_part", "measured_program",
-           "objective_for", "open_twin", "scale", "simulate", "synthesize"]
+           "objective_for", "open_twin", "scale", "simulate", "simulate_runs", "synthesize"]

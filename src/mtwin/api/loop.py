@@ -332,7 +332,26 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     text = calibrated_text(source, effects, journal_entry(len(previous) + 1, label, res, validation, notes), previous,
                            base, tw)
     inputs = [str(p) for pair in pairs for p in pair if isinstance(p, (str, os.PathLike))]
+    _to_ledger(twin, effects, res, str(measurement), msgs)
     return Calibration(how, res, validation, text, inputs, tuple(params), msgs.items)
+
+
+def _to_ledger(setup, effects, res, measurement: str, msgs) -> None:
+    """With a ledger (``--ledger FILE --tool-id T3=ID``): the calibrated flank-wear law becomes
+    the mapped tools' law, with the journal entry (the error before and after)."""
+    ledger = getattr(setup, "ledger", None)
+    if not ledger:
+        return
+    from ..ledger import Ledger
+
+    wear = [e for e in effects if e.name == "flank-wear"]
+    if not wear:
+        raise MtwinError("--ledger with calibrate keeps a tool's wear law: fit flank-wear (--fit flank-wear)")
+    law = wear[-1].resolved()
+    with Ledger(ledger) as lg:
+        for ident in setup.tool_map.values():
+            lg.set_law(ident, law, measurement=measurement, rms_before=res.rms_before, rms_after=res.rms_after)
+            msgs.note(f"{ledger}: tool {ident}'s wear law is the calibrated one now")
 
 
 def _fit_set(tw, new: list, refit: bool):

@@ -28,6 +28,9 @@ class Simulation:
 
     every: int = 1  # servo samples per trace sample
     twin: object = None
+    # several runs of the program on the same tools (simulate_runs): per run, its figures
+    runs: list = field(default_factory=list)
+    recorded: list = field(default_factory=list)  # tool ids whose runs went into the ledger
 
     def write_trace(self, path: str, source: str = "simulate") -> None:
         """Write the trace in the measurement format (.csv, .parquet, or '-'), its metadata
@@ -48,6 +51,10 @@ class Simulation:
         d["si_units"] = SI_UNITS
         d["program_units"] = "inch" if self.inch else "mm"
         d["program"] = self.program.path
+        if self.runs:
+            d["runs"] = self.runs
+        if self.recorded:
+            d["recorded"] = self.recorded
         return d
 
 
@@ -95,6 +102,45 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
     for w in trace.summary.warnings:
         msgs.warn(w)
     return Simulation(prog, trace, msgs.items, every, tw)
+
+
+def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, stock=None, cutting: bool = True,
+                  on_message=None) -> Simulation:
+    """``runs`` runs of a program one after another on the same tools, each starting where the
+    run before left them (a batch of parts: the wear carried from part to part).
+
+    ``setup``: a TwinSetup (its ``ledger`` and ``tool_ids`` start the mapped tools in their
+    recorded state); ``record``: add each run to the ledger as it finishes.  Returns the last
+    run's Simulation with ``runs``: per run its cycle time, loads and each tool's land."""
+    from ..effects import ToolHistory
+    from ..ledger import record_trace
+
+    if runs < 1:
+        raise MtwinError(f"--runs must be at least 1, got {runs}")
+    ledger = getattr(setup, "ledger", None)
+    if record and not ledger:
+        raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
+    if record and not cutting:
+        raise MtwinError("--record needs the cutting model (what the tool cut): do not combine it with --no-cutting")
+    msgs = Messages(on_message)
+    tw = open_twin(setup)
+    prog = load_part(tw, program, msgs)
+    plan = tw.plan(prog)
+    table, recorded = [], []
+    for k in range(runs):
+        trace = simulate_plan(tw, prog, plan, cutting=cutting, stock=stock)
+        c = trace.summary.cutting
+        if record:
+            recorded = record_trace(ledger, setup.tool_map, trace, program=prog.path,
+                                    material=c.material if c is not None else "")
+        table.append({"run": k + 1, "cycle_time": trace.summary.cycle_time,
+                      "peak_load": c.peak_load if c else None, "mean_load": c.mean_load if c else None,
+                      "tool_wear": {str(t): w for t, w in (c.tool_wear if c else {}).items()}})
+        used = trace.tool_use or {}
+        tw = tw.with_tool_state({n: tw.tool_state.get(n, ToolHistory()) + u for n, u in used.items()})
+    for w in trace.summary.warnings:
+        msgs.warn(w)
+    return Simulation(prog, trace, msgs.items, 1, tw, runs=table if runs > 1 else [], recorded=recorded)
 
 
 def _every(every: Optional[int], rate: Optional[float], dt: float) -> int:

@@ -55,11 +55,12 @@ MIN_SEGMENT = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of
 REPORT = typer.Option(None, "--report", help="Write a self-contained HTML report (.html).")
 JSON_OUT = typer.Option(False, "--json", help="Result as JSON on stdout.")
 IN_PLACE = typer.Option(False, "--in-place", help="Allow -o to be the input file.")
+RECORD = typer.Option(False, "--record", help="Add the optimised program's run to the --ledger tools' history.")
 
 
 @app.command(short_help="Optimise F and S under the load and machine limits.")
 @reports_errors
-@groups(setup=twin_options(stock=True, planner=True, tools=True), ga=GA)
+@groups(setup=twin_options(stock=True, planner=True, tools=True, ledger=True), ga=GA)
 def optimize(
     part: str = PART,
     output: str = OUTPUT,
@@ -79,6 +80,7 @@ def optimize(
     report: Optional[str] = REPORT,
     json_out: bool = JSON_OUT,
     in_place: bool = IN_PLACE,
+    record: bool = RECORD,
     setup=None, ga=None,
 ):
     """Segment the predicted power curve, choose F (and S) per segment for the objective under
@@ -86,9 +88,12 @@ def optimize(
     writer, prove it cuts the same path and check the limits on its re-simulation."""
     from ..optimize import InfeasibleError, OptimizeOptions
     from ..report.optimize_html import optimize_html
+    from ..ledger import record_trace
     from ..twin.setup import Messages, load_part, open_twin
 
     _check_outputs(output, report, json_out)
+    if record and not setup.ledger:
+        raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
     opts = OptimizeOptions(objective, method, force_limit, value_range(feed_range, "--feed-range"),
                            value_range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
                            power_tolerance=power_tolerance, tolerance=tolerance, finish_feed=finish_feed,
@@ -105,6 +110,8 @@ def optimize(
     for w in res.warnings:
         message("warning", w)
     write_output(res.output, output, [part], in_place)
+    if record:  # the optimised program's run, as re-simulated, into the tools' history
+        record_trace(setup.ledger, setup.tool_map, res.trace_after, program=output, source="optimize")
     if report:
         write_output(optimize_html(res, prog.path), report, [part])
     if json_out:

@@ -77,26 +77,35 @@ TOOL = (Optional[list[str]], typer.Option(None, "--tool", metavar="N=TYPE:DIAMET
                                                "over the twin file's table and the program's comments."))
 
 
-def twin_options(effects: bool = False, stock: bool = False, planner: bool = False, tools: bool = False) -> Group:
+LEDGER = (Optional[str], typer.Option(None, "--ledger", help="A tool ledger (SQLite; created by --record): the "
+                                                              "--tool-id tools start in their recorded wear state "
+                                                              "under their calibrated law."))
+TOOL_ID = (Optional[list[str]], typer.Option(None, "--tool-id", metavar="T3=ID",
+                                             help="Which physical tool of the ledger a program tool is (repeatable)."))
+
+
+def twin_options(effects: bool = False, stock: bool = False, planner: bool = False, tools: bool = False,
+                 ledger: bool = False) -> Group:
     """The twin options a command takes: always the twin file and the interpreter switches;
     the effects (``--effect``, ``--effect-file``), ``--stock``, ``--planner`` and ``--tool``
     where it uses them.  The object is a TwinSetup."""
     from_flags = {"planner": (planner, PLANNER), "tools": (tools, TOOL), "effects": (effects, EFFECT),
-                  "effect_files": (effects, EFFECT_FILE), "stock": (stock, STOCK)}
+                  "effect_files": (effects, EFFECT_FILE), "stock": (stock, STOCK), "ledger": (ledger, LEDGER),
+                  "tool_ids": (ledger, TOOL_ID)}
     options = {k: v for k, (on, v) in from_flags.items() if on}
     options.update(twin=TWIN, dialect=DIALECT, lenient=LENIENT, block_delete=BLOCK_DELETE)
 
     def build(**values):
         from ..twin.setup import TwinSetup
 
-        return TwinSetup(**{k: tuple(v or ()) if k in ("effects", "effect_files", "tools") else v
+        return TwinSetup(**{k: tuple(v or ()) if k in ("effects", "effect_files", "tools", "tool_ids") else v
                             for k, v in values.items()})
 
     return Group(options, build)
 
 
 PROGRAM = twin_options()  # a program read as the twin file says: parse, scale, verify
-LOOP = twin_options(effects=True, stock=True)  # synth, compare, diagnose, calibrate
+LOOP = twin_options(effects=True, stock=True, ledger=True)  # synth, compare, diagnose, calibrate
 
 
 # ---------------------------------------------------------------------- the measurement options

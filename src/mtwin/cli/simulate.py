@@ -17,7 +17,7 @@ PROGRESS_FROM = 300_000  # servo samples from which a terminal shows a progress 
 
 @app.command(short_help="Run a program through the twin: time, errors, loads.")
 @reports_errors
-@groups(setup=twin_options(effects=True, stock=True, planner=True, tools=True))
+@groups(setup=twin_options(effects=True, stock=True, planner=True, tools=True, ledger=True))
 def simulate(
     part: str = PART,
     output: Optional[str] = typer.Option(None, "-o", "--output",
@@ -33,10 +33,13 @@ def simulate(
                                             help="Write the stock after the last cut: .png height map or .stl surface."),
     tooth_resolution: bool = typer.Option(False, "--tooth-resolution",
                                           help="Instantaneous tooth-passing forces instead of revolution averages."),
+    runs: int = typer.Option(1, "--runs", help="Run the program N times on the same tools (a batch of parts: the "
+                             "wear carried from part to part); the figures are the last run's."),
+    record: bool = typer.Option(False, "--record", help="Add each run's cut to the --ledger tools' history."),
     setup=None,
 ):
     """Run a program through the twin: cycle time, following errors, motor torques, trace."""
-    from ..api import simulate as run_simulate
+    from ..api import simulate as run_simulate, simulate_runs
     from ..report.plots import plot_format, power_svg
     from ..report.stock import stock_bytes
 
@@ -46,10 +49,15 @@ def simulate(
     if stock_out and no_cutting:
         raise MtwinError("--stock-out needs the cutting model (do not combine it with --no-cutting)")
     check_outputs(output, plot, stock_out)
-    with _progress() as progress:
-        run = run_simulate(setup, part, stock=setup.stock_box(), cutting=not no_cutting, every=every, rate=decimate,
-                           tooth_resolution=tooth_resolution, progress=None if json_out else progress,
-                           progress_from=PROGRESS_FROM, on_message=message)
+    if runs > 1 or record:
+        run = simulate_runs(setup, part, runs, record=record, stock=setup.stock_box(), cutting=not no_cutting,
+                            on_message=message)
+    else:
+        with _progress() as progress:
+            run = run_simulate(setup, part, stock=setup.stock_box(), cutting=not no_cutting, every=every,
+                               rate=decimate, tooth_resolution=tooth_resolution,
+                               progress=None if json_out else progress, progress_from=PROGRESS_FROM,
+                               on_message=message)
     if output:
         run.write_trace(output)
     if stock_out:
@@ -59,6 +67,7 @@ def simulate(
     if json_out:
         emit_json({**run.as_dict(), "trace": output, "plot": plot})
         return
+    _print_runs(run)
     _print_simulation(run.program.path, run.summary, output, run.inch)
 
 
@@ -143,3 +152,22 @@ def _print_simulation(path: str, s, output, inch: bool = False) -> None:
     if output:
         t.add_row("trace", str(output))
     err.print(t)
+
+
+def _print_runs(run) -> None:
+    """The runs of a batch, one row each: loads and each tool's land; the tools recorded."""
+    from .render import table
+
+    if run.runs:
+        tools = sorted({t for r in run.runs for t in r["tool_wear"]})
+        rows = [[str(r["run"]), hms(r["cycle_time"]), f"{r['mean_load']:.1f}" if r["mean_load"] is not None else "-",
+                 f"{r['peak_load']:.1f}" if r["peak_load"] is not None else "-"]
+                + [f"{r['tool_wear'][t]['vb_end']:.3f}" if t in r["tool_wear"] else "-" for t in tools]
+                for r in run.runs]
+        t = table(*((c, "right") for c in ["run", "cycle", "mean load N", "peak load N"]
+                    + [f"VB T{n} mm" for n in tools]), title="runs on the same tools")
+        for r in rows:
+            t.add_row(*r)
+        err.print(t)
+    if run.recorded:
+        err.print(f"recorded the run(s) in the ledger for: {', '.join(run.recorded)}")

@@ -122,3 +122,15 @@ def life(vb_limit: float, p: dict, vb_start: float | None = None) -> float:
     if vb_limit <= start:
         return 0.0
     return float(sliding_to(vb_limit, start, p))
+
+
+def parts_to_limit(p: dict, vb_now: float, sliding_per_part: float, vb_limit: float) -> int | None:
+    """Whole parts (each sliding ``sliding_per_part`` m) a tool at the land ``vb_now`` cuts before
+    the land passes ``vb_limit``; None when the law does not wear it (rate 0) or a part does
+    not slide."""
+    if vb_now >= vb_limit:
+        return 0
+    left = float(sliding_to(vb_limit, vb_now, p))
+    if not np.isfinite(left) or sliding_per_part <= 0:
+        return None
+    return int(left // sliding_per_part)

@@ -136,6 +136,9 @@ class OptimizeResult:
     contour_error: dict = field(default_factory=dict)  # before/after max contour error in feed moves, mm
     spindle: dict = field(default_factory=dict)  # tool -> chosen S (rpm), with --spindle-range
     tradeoff_source: str = "estimated"  # the trade-off curve's times: "estimated" (fast model)
+    # per tool with a wear effect: the land the plan starts and ends with, and the parts like
+    # this one left before the land reaches the end-of-life limit (ISO 8688-2: 0.3 mm)
+    tool_wear: dict = field(default_factory=dict)
 
     @property
     def tools(self) -> list:
@@ -168,6 +171,7 @@ class OptimizeResult:
                 "tools": self.tools, "segments": self.segments,
                 "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in self.tradeoff],
                 "tradeoff_source": self.tradeoff_source,
+                **({"tool_wear": {str(k): v for k, v in self.tool_wear.items()}} if self.tool_wear else {}),
                 "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in self.changed_lines]}
 
 
@@ -283,7 +287,14 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
 
     # ---- the limits: given, or learned per tool from the program as written
     learned = opts.force_limit is None
-    levels = learned_levels(model, fz0, ok[model.rec]) if learned else {}
+    # the load the program as written puts on a new tool is the load it may have: a tool that
+    # starts worn (a ledger's) is held to it, so its feeds come down (docs/wear.md)
+    new_tool = model
+    worn = any(h.sliding > 0 for h in twin.tool_state.values())
+    if learned and worn:
+        fresh = twin.replace(tool_state={})
+        new_tool = path_model(fresh, program, plan, eng, _tool_effects(eng, plan, resolved, program, fresh).coefficients)
+    levels = learned_levels(new_tool, fz0, ok[model.rec]) if learned else {}
 
     def force_of_tool(tool, diameter):
         if not learned:
@@ -298,8 +309,10 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     if learned:
         prob = replace(prob, seg_hlim=np.array([levels[int(t)][1] if int(t) in levels else np.inf
                                                 for t in prob.seg_tool]),
-                       # nothing is slowed below the program's own feed
-                       f_floor=prob.f0_var.copy() if opts.objective in ("time", "cost") else None)
+                       # nothing is slowed below the program's own feed — unless a tool starts
+                       # worn (a ledger's state): held to the load of a new tool, it slows down
+                       f_floor=prob.f0_var.copy() if opts.objective in ("time", "cost") and not worn
+                       else None)
     force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force) if not learned or int(t) in levels}
     limit_notes = _limit_notes(prob, levels, learned, opts, m)
     if spindle_range is not None:
@@ -666,7 +679,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                           "" if not learned else "learned from the program (95th percentile of each tool's engaged "
                           "steps at its programmed F and S); --force-limit sets one",
                           list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
-                          spindle_chosen)
+                          spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings))
 
 
 def _worse(objective: str, before: Figures, after: Figures) -> bool:
@@ -693,6 +706,31 @@ def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limi
                           before, before, None, None, warnings, 0, None, "", list(c.defaults or []) if c else [], 0.0,
                           limits or [], kept, {"before": cmax, "after": cmax, "tolerance": opts.tolerance,
                                                "worst_segment_increase": 0.0}, {})
+
+
+def _wear_warnings(plan: dict, warnings: list) -> dict:
+    for t, w in plan.items():
+        if w["parts_left"] == 0:
+            warnings.append(f"tool T{t} ends this program with a flank-wear land of {w['vb_end']:.3f} mm, at or past "
+                            f"the end of its life ({w['vb_limit']:g} mm): change it before the next part")
+    return plan
+
+
+def wear_plan(twin, trace, vb_limit: float | None = None) -> dict:
+    """Per tool with a wear effect: the land at the first and last cut (mm), and how many more
+    parts like this one the tool cuts before the land reaches ``vb_limit`` (the tool-change
+    recommendation)."""
+    from ..effects.wear import parts_to_limit
+    from ..ledger import VB_LIMIT
+
+    c = trace.summary.cutting if trace is not None else None
+    laws = [e for e in twin.effects if e.name == "flank-wear"]
+    if c is None or not c.tool_wear or not laws:
+        return {}
+    p = laws[-1].resolved()
+    limit = VB_LIMIT if vb_limit is None else vb_limit
+    return {t: {**w, "vb_limit": limit, "parts_left": parts_to_limit(p, w["vb_end"], w["sliding"], limit)}
+            for t, w in c.tool_wear.items()}
 
 
 def _feed_samples(trace, program) -> np.ndarray:

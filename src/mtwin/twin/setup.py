@@ -57,6 +57,8 @@ class TwinSetup:
     planner: Optional[str] = None  # fanuc | linuxcnc | grbl
     tools: tuple = ()  # "N=TYPE:DIAMETER[:FLUTES…]"
     stock: Optional[str] = None  # "xmin,ymin,zmin,xmax,ymax,zmax" (mm, work coordinates)
+    ledger: Optional[str] = None  # a tool ledger: the mapped tools start in their recorded state
+    tool_ids: tuple = ()  # "T3=ID": which physical tool of the ledger each tool number is
 
     def build(self):
         """The Twin: the twin file's (its effects may be the user files' ones, loaded first),
@@ -73,7 +75,22 @@ class TwinSetup:
             tw = tw.with_tools(dict(parse_tool_option(t) for t in self.tools))
         if self.effects:
             tw = tw.with_effects(*self.effects)
+        if self.tool_ids and not self.ledger:
+            raise MtwinError("--tool-id maps tools to a ledger's: give --ledger FILE too")
+        if self.ledger:
+            from ..ledger import apply, parse_tool_ids
+
+            ids = parse_tool_ids(self.tool_ids)
+            if not ids:
+                raise MtwinError(f"--ledger {self.ledger}: say which tools are the ledger's with --tool-id T3=ID")
+            tw = apply(tw, self.ledger, ids)
         return tw
+
+    @property
+    def tool_map(self) -> dict:
+        from ..ledger import parse_tool_ids
+
+        return parse_tool_ids(self.tool_ids)
 
     def stock_box(self):
         """The --stock box as a tuple, or None."""

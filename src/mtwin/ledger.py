@@ -1,0 +1,242 @@
+"""The tool ledger: what each physical tool has cut, its wear, and its calibrated wear law.
+
+A physical tool has an id the user gives (``T3#A1742``) and is mapped to a program's tool
+number per run (``--tool-id T3=T3#A1742``).  The ledger holds, per tool, every run recorded
+with it (program, tool number, material, path in the material, edge sliding, time in the cut,
+volume, the land before and after), the flank-wear law calibrated for it and the journal of
+those calibrations (the error before and after each: the error falling).  A tool's history is
+the sum of its runs; its wear state is that history under its law (``effects.wear``).
+
+SQLite, from the standard library: several processes (a batch of simulations, two machines'
+post-processors) record to one ledger at once and none loses an entry — each write is one
+transaction (``BEGIN IMMEDIATE``, waiting for the other writer), a crash leaves the last
+committed state, and a file that is not a ledger is refused, never reset.  A TOML file would
+need a lock file and a rewrite of the whole file per run.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import sqlite3
+from dataclasses import dataclass
+
+from .effects.base import ToolHistory
+from .errors import MtwinError
+
+FORMAT = "mtwin-ledger 1"
+#: ISO 8688-2's criterion for the end of an end mill's life: a uniform flank-wear land of 0.3 mm
+VB_LIMIT = 0.3
+_TIMEOUT = 60.0  # s a writer waits for another
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS tools (id TEXT PRIMARY KEY, created TEXT NOT NULL, law TEXT);
+CREATE TABLE IF NOT EXISTS runs (
+    n INTEGER PRIMARY KEY AUTOINCREMENT, tool TEXT NOT NULL REFERENCES tools(id), at TEXT NOT NULL,
+    program TEXT NOT NULL, tool_number INTEGER NOT NULL, material TEXT NOT NULL,
+    length REAL NOT NULL, sliding REAL NOT NULL, time REAL NOT NULL, volume REAL NOT NULL,
+    vb_start REAL, vb_end REAL, source TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS calibrations (
+    n INTEGER PRIMARY KEY AUTOINCREMENT, tool TEXT NOT NULL REFERENCES tools(id), at TEXT NOT NULL,
+    law TEXT NOT NULL, measurement TEXT NOT NULL, rms_before TEXT NOT NULL, rms_after TEXT NOT NULL);
+"""
+
+
+def parse_tool_ids(specs) -> dict[int, str]:
+    """``["T3=T3#A1742", "1=EM6-07"]`` -> {3: "T3#A1742", 1: "EM6-07"}."""
+    out: dict[int, str] = {}
+    for spec in specs or ():
+        number, eq, ident = str(spec).partition("=")
+        number = number.strip().upper().removeprefix("T")
+        if not eq or not number.isdigit() or not ident.strip():
+            raise MtwinError(f"--tool-id {spec}: expected T<number>=<tool id>, e.g. T3=T3#A1742")
+        if int(number) in out:
+            raise MtwinError(f"--tool-id {spec}: tool T{number} is mapped twice")
+        out[int(number)] = ident.strip()
+    return out
+
+
+@dataclass
+class ToolRecord:
+    """One tool as the ledger knows it."""
+
+    id: str
+    created: str
+    law: dict | None
+    history: ToolHistory
+    runs: int
+    last_run: dict | None
+
+    def wear(self, vb_limit: float = VB_LIMIT) -> dict:
+        """The land now, the sliding left to ``vb_limit`` and the parts (runs like the last) it
+        leaves — under the tool's law (None where it has none)."""
+        if not self.law:
+            # no law of its own: the land its last run ended with, under the twin's law then
+            vb = (self.last_run or {}).get("vb_end")
+            return {"vb": vb, "vb_limit": vb_limit, "sliding_left": None, "parts_left": None}
+        from .effects.wear import land, sliding_to
+
+        p = _law(self.law)
+        vb = float(land(self.history.sliding, p["vb0"], p))
+        left = max(float(sliding_to(vb_limit, vb, p)), 0.0) if vb < vb_limit else 0.0
+        per = (self.last_run or {}).get("sliding") or 0.0
+        parts = int(left // per) if per > 0 and left != float("inf") else None
+        return {"vb": round(vb, 6), "vb_limit": vb_limit, "sliding_left": None if left == float("inf") else
+                round(left, 6), "parts_left": parts}
+
+
+def _law(values: dict) -> dict:
+    from .effects.wear import FlankWear
+
+    return FlankWear(**values).resolved()
+
+
+class Ledger:
+    """A tool ledger file (created on the first write)."""
+
+    def __init__(self, path: str, *, create: bool = True):
+        self.path = str(path)
+        if not os.path.exists(self.path) and not create:
+            raise MtwinError(f"{self.path}: no such tool ledger (one is created by simulate/optimize --record)")
+        try:
+            self._db = sqlite3.connect(self.path, timeout=_TIMEOUT, isolation_level=None)
+            with self._write():
+                have = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+                if have and "meta" not in have:
+                    raise MtwinError(f"{self.path}: an SQLite file, but not an mtwin tool ledger (tables: "
+                                     f"{', '.join(sorted(have))}); it is left as it is")
+                for stmt in filter(None, (s.strip() for s in _SCHEMA.split(";"))):
+                    self._db.execute(stmt)
+                row = self._db.execute("SELECT value FROM meta WHERE key='format'").fetchone()
+                if row is None:
+                    self._db.execute("INSERT INTO meta VALUES ('format', ?)", (FORMAT,))
+                elif row[0] != FORMAT:
+                    raise MtwinError(f"{self.path}: a tool ledger of format {row[0]!r}; this mtwin reads {FORMAT!r}")
+        except sqlite3.DatabaseError as exc:
+            raise MtwinError(f"{self.path}: not a readable tool ledger ({exc}); it is left as it is — restore it "
+                             f"from a backup or give another --ledger file") from None
+
+    def close(self) -> None:
+        self._db.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _write(self):
+        db = self._db
+
+        class _Tx:
+            def __enter__(self_):
+                db.execute("BEGIN IMMEDIATE")  # the write lock now: another writer waits
+
+            def __exit__(self_, kind, value, tb):
+                db.execute("COMMIT" if kind is None else "ROLLBACK")
+                return False
+
+        return _Tx()
+
+    # ---------------------------------------------------------------- reading
+    def ids(self) -> list[str]:
+        return [r[0] for r in self._db.execute("SELECT id FROM tools ORDER BY id")]
+
+    def tool(self, ident: str) -> ToolRecord:
+        row = self._db.execute("SELECT id, created, law FROM tools WHERE id=?", (ident,)).fetchone()
+        if row is None:
+            raise MtwinError(f"{self.path}: no tool {ident!r} (tools: {', '.join(self.ids()) or 'none yet'})")
+        s = self._db.execute("SELECT COUNT(*), COALESCE(SUM(length),0), COALESCE(SUM(sliding),0), "
+                             "COALESCE(SUM(time),0), COALESCE(SUM(volume),0) FROM runs WHERE tool=?",
+                             (ident,)).fetchone()
+        last = self.runs(ident)[-1:]
+        return ToolRecord(row[0], row[1], json.loads(row[2]) if row[2] else None,
+                          ToolHistory(s[1], s[2], s[3], s[4]), int(s[0]), last[0] if last else None)
+
+    def history(self, ident: str) -> ToolHistory:
+        """What the tool has cut (a new id: nothing)."""
+        return self.tool(ident).history if ident in self.ids() else ToolHistory()
+
+    def runs(self, ident: str) -> list[dict]:
+        cols = ("n", "at", "program", "tool_number", "material", "length", "sliding", "time", "volume", "vb_start",
+                "vb_end", "source")
+        return [dict(zip(cols, r)) for r in self._db.execute(
+            f"SELECT {', '.join(cols)} FROM runs WHERE tool=? ORDER BY n", (ident,))]
+
+    def calibrations(self, ident: str) -> list[dict]:
+        cols = ("n", "at", "law", "measurement", "rms_before", "rms_after")
+        out = []
+        for r in self._db.execute(f"SELECT {', '.join(cols)} FROM calibrations WHERE tool=? ORDER BY n", (ident,)):
+            d = dict(zip(cols, r))
+            for k in ("law", "rms_before", "rms_after"):
+                d[k] = json.loads(d[k])
+            out.append(d)
+        return out
+
+    # ---------------------------------------------------------------- writing
+    def _ensure(self, ident: str) -> None:
+        self._db.execute("INSERT OR IGNORE INTO tools (id, created) VALUES (?, ?)", (ident, _now()))
+
+    def record(self, ident: str, *, program: str, tool_number: int, material: str, use: ToolHistory,
+               vb_start: float | None = None, vb_end: float | None = None, source: str = "simulate") -> None:
+        """Add one run of a program to the tool's history."""
+        with self._write():
+            self._ensure(ident)
+            self._db.execute("INSERT INTO runs (tool, at, program, tool_number, material, length, sliding, time, "
+                             "volume, vb_start, vb_end, source) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+                             (ident, _now(), program, int(tool_number), material, use.length, use.sliding, use.time,
+                              use.volume, vb_start, vb_end, source))
+
+    def set_law(self, ident: str, law: dict, *, measurement: str, rms_before: dict, rms_after: dict) -> None:
+        """The tool's wear law from a calibration, with its journal entry."""
+        _law(law)  # checked against the effect's declarations
+        with self._write():
+            self._ensure(ident)
+            self._db.execute("UPDATE tools SET law=? WHERE id=?", (json.dumps(law), ident))
+            self._db.execute("INSERT INTO calibrations (tool, at, law, measurement, rms_before, rms_after) "
+                             "VALUES (?,?,?,?,?,?)", (ident, _now(), json.dumps(law), measurement,
+                                                      json.dumps(rms_before), json.dumps(rms_after)))
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def apply(twin, ledger_path: str, tool_ids: dict[int, str], messages=None):
+    """The twin with each mapped tool starting in its recorded state and, where the ledger has
+    a calibrated law for it, that flank-wear law."""
+    from .effects.wear import FlankWear
+
+    with Ledger(ledger_path) as lg:
+        state = {n: lg.history(i) for n, i in tool_ids.items()}
+        laws = {i: lg.tool(i).law for i in tool_ids.values() if i in lg.ids() and lg.tool(i).law}
+    twin = twin.with_tool_state(state)
+    if laws:
+        distinct = {json.dumps(v, sort_keys=True) for v in laws.values()}
+        law = next(iter(laws.values()))
+        if len(distinct) > 1 and messages is not None:
+            messages.warn(f"{ledger_path}: the tools {', '.join(laws)} have different wear laws; the twin has one "
+                          f"flank-wear law per material: using {next(iter(laws))}'s")
+        effects = [e for e in twin.effects if e.name != FlankWear.name] + [FlankWear(**law)]
+        twin = twin.replace(effects=effects)
+    return twin
+
+
+def record_trace(ledger_path: str, tool_ids: dict[int, str], trace, *, program: str, material: str | None = None,
+                 source: str = "simulate") -> list[str]:
+    """Record what a simulated run cut with each mapped tool; returns the ids recorded."""
+    use = trace.tool_use or {}
+    c = trace.summary.cutting
+    wear = c.tool_wear if c is not None else {}
+    material = material if material is not None else (c.material if c is not None else "")
+    done = []
+    with Ledger(ledger_path) as lg:
+        for number, ident in tool_ids.items():
+            if number not in use:
+                continue
+            w = wear.get(number, {})
+            lg.record(ident, program=program, tool_number=number, material=material, use=use[number],
+                      vb_start=w.get("vb_start"), vb_end=w.get("vb_end"), source=source)
+            done.append(ident)
+    return done
