@@ -113,6 +113,8 @@ def test_diagnose_ranks_flank_wear_first_and_calibrate_recovers_the_law(data, tm
     for s in ("fx_rms", "fy_rms"):
         assert d[s]["candidates"][0]["effect"] == "flank-wear", [c["effect"] for c in d[s]["candidates"][:4]]
         assert d[s]["selected"][0]["effect"] == "flank-wear"
+        ev = d[s]["candidates"][0]["evidence"]
+        assert "grows with the tool's cumulative cut" in ev and "break-in (its growth" in ev, ev
     twin = str(tmp_path / "worn.toml")
     cal = json.loads(_mtwin("calibrate", data["program"], data["a"], "--fit", "flank-wear", "--signals", sig,
                             "-o", twin, "--validate", data["b"], "--json").stdout)

@@ -353,7 +353,8 @@ def diagnose(tg: Target, candidates=None) -> dict:
                          "rms_after": fr.rms_after[s],
                          "evidence": (f"{s} residual RMS {rms0:.4g} → {fr.rms_after[s]:.4g} with {name} "
                                       f"({', '.join(f'{k_}={v:.4g}' for k_, v in p.items())}): "
-                                      f"{max(ev, 0.0):.0%} of it explained, ΔBIC {dbic:+.1f}")})
+                                      f"{max(ev, 0.0):.0%} of it explained, ΔBIC {dbic:+.1f}")
+                                      + (_wear_evidence(tg, s, name, fr) if ev > 0.5 else "")})
         rows.sort(key=lambda r: r["delta_bic"])
         noise = tg.noise[s]
         said = verdict(rms0, noise, rows[0]["delta_bic"] if rows else None,
@@ -362,6 +363,34 @@ def diagnose(tg: Target, candidates=None) -> dict:
         out[s] = {"rms": rms0, "noise": noise, "verdict": said, "candidates": rows, "selected": selected,
                   "rms_after": rms_joint}
     return out
+
+
+def _wear_evidence(tg: Target, s: str, name: str, fr) -> str:
+    """For a wear effect that explains most of a per-cut residual: how the statistic grows along
+    the tool's cuts, and over how many cuts the break-in lasts — until the fitted share's slope
+    falls to twice its slope over the last third (in the Archard law the rate is twice the
+    steady one where the land's load equals the sharp edge's, VB = b)."""
+    if tg.rows is None or "wear" not in name or s not in fr.simulated:
+        return ""
+    base = tg.simulated(tg.base, [s])[s]
+    share = np.asarray(fr.simulated[s], dtype=np.float64) - base
+    ok = ~np.isnan(tg.measured[s])
+    share = share[ok]
+    n = len(share)
+    if n < 10 or not np.any(share):
+        return ""
+    tenth = max(n // 10, 1)
+    first, last = float(np.mean(share[:tenth])), float(np.mean(share[-tenth:]))
+    text = (f"; {s} per cut grows with the tool's cumulative cut: the wear's share rises from {first:.3g} "
+            f"over the first tenth of the {n} cuts to {last:.3g} over the last")
+    if "effects." + name + ".break_in" in fr.params:
+        w = max(n // 20, 2)
+        slope = np.convolve(np.diff(share), np.ones(w) / w, mode="valid")
+        steady = float(np.mean(slope[-max(len(slope) // 3, 1):]))
+        if steady > 0 and slope[0] > 2 * steady:
+            k = int(np.argmax(slope <= 2 * steady))
+            text += f", break-in (its growth above twice its final rate) over the first {k + w // 2} cuts"
+    return text
 
 
 def _signal_of(name: str) -> str:

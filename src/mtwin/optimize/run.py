@@ -325,7 +325,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         spins_try = np.full(prob.nspin, spindle_range[1])
     low = prob.evaluate(np.full((1, prob.nvar), feed_range[0]), spins_try[None, :])
     over = (~prob.seg_air) & ((low["load"][0] > prob.seg_force) | (low["power"][0] > limits.power))
-    if over.any() and opts.objective != "air" and not learned:
+    if over.any() and opts.objective != "air" and (not learned or worn):
         lines = segs.seg_lines(program)
         reasons = []
         for s in np.flatnonzero(over):
@@ -344,8 +344,11 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                               f"at the lowest feed {feed_range[0]:g} mm/min"
                               + (f" and {spins_try.max():g} rpm" if spindle_range else "") + ": "
                               + "; ".join(parts) + (" …" if len(reasons) > 8 else "")
-                              + " — take a smaller depth or width of cut there, or a larger --force-limit "
-                              "(or leave it out: the limits are then learned from the program); nothing was written",
+                              + (" — the tool starts worn (its ledger's history): the land's edge force alone is "
+                                 "over the load the program puts on a new tool, which it is held to; change the tool, "
+                                 "or give a --force-limit; nothing was written" if learned else
+                                 " — take a smaller depth or width of cut there, or a larger --force-limit "
+                                 "(or leave it out: the limits are then learned from the program); nothing was written"),
                               reasons=reasons)
 
     # ---- target power for smoothing
