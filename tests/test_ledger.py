@@ -162,3 +162,18 @@ def test_calibrate_keeps_the_law_in_the_ledger(shop, tmp_path):
     assert show["law"]["rate"] == pytest.approx(0.002, rel=0.1)
     cal = show["calibrations"][0]
     assert cal["rms_after"]["fy_rms"] < 0.5 * cal["rms_before"]["fy_rms"]
+
+
+def test_the_cost_objective_prices_tool_life_by_the_wear_law(shop):
+    from mtwin.twin import Twin
+
+    out = json.loads(_mtwin("optimize", "p30.nc", "--twin", "wear.toml", "--objective", "cost", "-o", "cost.nc",
+                            "--json", cwd=shop).stdout)
+    sim = json.loads(_mtwin("simulate", "p30.nc", "--twin", "wear.toml", "--json", cwd=shop).stdout)
+    c = Twin.from_toml(None).machine.cost
+    r, b = LAW["rate"], LAW["break_in"]
+    life = (0.3 - b * math.log((b + 0.3) / b)) / r  # m of sliding from new to VB 0.3 mm
+    lives = sim["tool_wear"]["1"]["sliding"] / life
+    rate = c.machine_rate + c.labour_rate
+    want = rate * sim["cycle_time"] / 3600 + lives * (c.tool_price + rate * c.tool_replace_time / 3600)
+    assert out["before"]["cost"] == pytest.approx(want, rel=1e-3)

@@ -45,6 +45,9 @@ class CostRates:
     taylor_n: float
     taylor_c: float  # m/min for one minute of life
     currency: str = "$"
+    # with a calibrated flank-wear law: a tool's life as each flute's edge sliding (m) from new
+    # to the end-of-life land; tool life is then used by sliding, not by Taylor's time
+    slide_life: float | None = None
 
     @property
     def rate(self) -> float:
@@ -114,6 +117,10 @@ class Problem:
     # per variable, the lowest feed the answer may have (0: the feed range's; the program's
     # own feed when the limits are learned from it: nothing is slowed)
     f_floor: np.ndarray | None = None
+    # per segment, the arc each flute's edge slides through per revolution (mm; R·Δφ of its
+    # engagement): with ``rates.slide_life`` the tool life a segment uses is its sliding,
+    # seconds × rev/s × arc, over the life
+    seg_arc: np.ndarray | None = None
 
     # ---- the model -------------------------------------------------------------------
     def _interp(self, tab: np.ndarray, fz: np.ndarray) -> np.ndarray:
@@ -176,7 +183,11 @@ class Problem:
         cut = ~self.seg_air
         v_load, v_power, v_torque, v_chip = (np.maximum(x, 0.0) for x in self._excess(load, power, torque, t_lim, fz))
         # cost (Gilbert): rate x time + per tool (cut time / life) x (price + rate x change time)
-        wear = np.where(cut, self.rates.lives_used(ts, cutting_speed(self.seg_diam, n)), 0.0).sum(axis=1)
+        if self.seg_arc is not None and self.rates.slide_life:
+            used = ts * (n / 60.0) * self.seg_arc * 1e-3 / self.rates.slide_life  # the wear law's life
+        else:
+            used = self.rates.lives_used(ts, cutting_speed(self.seg_diam, n))
+        wear = np.where(cut, used, 0.0).sum(axis=1)
         cost = self.rates.cost(time, wear)
         return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
                 "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque + v_chip,

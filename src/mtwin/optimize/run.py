@@ -302,7 +302,8 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         return max(levels[tool][0], 1e-3) if tool in levels else max(m.cost.force_per_diameter * diameter, 1e-3)
 
     c = m.cost
-    rates = CostRates(c.machine_rate, c.labour_rate, c.tool_price, c.tool_replace_time, c.taylor_n, c.taylor_c)
+    rates = CostRates(c.machine_rate, c.labour_rate, c.tool_price, c.tool_replace_time, c.taylor_n, c.taylor_c,
+                      slide_life=_slide_life(twin))
     limits = Limits(None, m.spindle.rated_power, m.spindle.base_speed, feed_range, spindle_range, opts.margin)
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
@@ -313,6 +314,8 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                        # worn (a ledger's state): held to the load of a new tool, it slows down
                        f_floor=prob.f0_var.copy() if opts.objective in ("time", "cost") and not worn
                        else None)
+    if rates.slide_life:
+        prob = replace(prob, seg_arc=_segment_arcs(model, segs, prob))
     force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force) if not learned or int(t) in levels}
     limit_notes = _limit_notes(prob, levels, learned, opts, m)
     if spindle_range is not None:
@@ -709,6 +712,34 @@ def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limi
                           before, before, None, None, warnings, 0, None, "", list(c.defaults or []) if c else [], 0.0,
                           limits or [], kept, {"before": cmax, "after": cmax, "tolerance": opts.tolerance,
                                                "worst_segment_increase": 0.0}, {})
+
+
+def _slide_life(twin) -> float | None:
+    """A tool's life as edge sliding (m) under the twin's flank-wear law, from a new tool to the
+    end-of-life land (ISO 8688-2's 0.3 mm); None without a law that wears."""
+    from ..effects.wear import life
+    from ..ledger import VB_LIMIT
+
+    laws = [e for e in twin.effects if e.name == "flank-wear"]
+    if not laws:
+        return None
+    p = laws[-1].resolved()
+    if not p["rate"]:
+        return None
+    s = life(VB_LIMIT, p)
+    return s if 0 < s < float("inf") else None
+
+
+def _segment_arcs(model, segs, prob) -> np.ndarray:
+    """Per segment, the length-weighted engaged arc R·arccos(1 − a_e/R) of its cutting steps (mm)."""
+    radius = 0.5 * model.diameter
+    arc = radius * np.arccos(np.clip(1.0 - model.ae / np.maximum(radius, 1e-9), -1.0, 1.0))
+    inside = segs.step_seg >= 0
+    w = np.where(model.cutting & inside, model.length, 0.0)
+    k = np.maximum(segs.step_seg, 0)
+    tot = np.bincount(k, weights=w * arc, minlength=len(prob.seg_diam))
+    cnt = np.bincount(k, weights=w, minlength=len(prob.seg_diam))
+    return np.where(cnt > 0, tot / np.maximum(cnt, 1e-12), 0.0)
 
 
 def _wear_warnings(plan: dict, warnings: list) -> dict:
@@ -1132,6 +1163,10 @@ def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray, load: np.ndarra
     tool = prog.records["tool"][np.clip(np.asarray(trace.record, np.int64), 0, len(prog.records) - 1)]
     wear = 0.0
     diam = {int(t): float(d) for t, d in zip(prob.seg_tool, prob.seg_diam)}
+    if rates.slide_life and trace.tool_use:
+        # the wear law's life: what each tool slid in this program over its sliding life
+        wear = sum(h.sliding for h in trace.tool_use.values()) / rates.slide_life
+        engaged = np.zeros_like(engaged)
     for t in np.unique(tool[engaged]):
         m = engaged & (tool == t)
         wear += float(np.sum(rates.lives_used(dt, cutting_speed(diam.get(int(t), 6.0), n[m]))))
