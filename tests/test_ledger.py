@@ -177,3 +177,40 @@ def test_the_cost_objective_prices_tool_life_by_the_wear_law(shop):
     rate = c.machine_rate + c.labour_rate
     want = rate * sim["cycle_time"] / 3600 + lives * (c.tool_price + rate * c.tool_replace_time / 3600)
     assert out["before"]["cost"] == pytest.approx(want, rel=1e-3)
+
+
+def test_rows_of_several_runs_are_predicted_run_by_run(shop, tmp_path):
+    # three parts cut one after the other with one tool, rows named by their run: the twin
+    # predicts run k with the tool as the k-1 runs before left it
+    from mtwin.effects.wear import FlankWear
+    from mtwin.loop.fit import row_statistics
+    from mtwin.twin import Twin
+
+    hidden = Twin.from_toml(None).with_effects(FlankWear(rate=0.002))
+    prog = hidden.load((shop / "p30.nc").read_bytes(), path=str(shop / "p30.nc"))
+    runs = hidden.simulate_batch(prog, 3)
+    assert runs[2].summary.cutting.tool_wear[1]["vb_start"] > runs[0].summary.cutting.tool_wear[1]["vb_end"]
+    cut_lines = sorted({int(x) for x in runs[0].line[np.hypot(runs[0].signal("fx"), runs[0].signal("fy")) > 0]})
+    rng = np.random.default_rng(5)
+    text = ["# format: mtwin-measurement 1", "first_line,last_line,run,fx_rms,fy_rms"]
+    for k, tr in enumerate(runs, start=1):
+        ln = np.array(cut_lines)
+        st = row_statistics(tr, {"fx_rms": (ln, ln), "fy_rms": (ln, ln)})
+        for i, line in enumerate(cut_lines):
+            text.append(f"{line},{line},{k},{st['fx_rms'][i] * (1 + 0.01 * rng.normal()):.6g},"
+                        f"{st['fy_rms'][i] * (1 + 0.01 * rng.normal()):.6g}")
+    meas = tmp_path / "batch.csv"
+    meas.write_text("\n".join(text) + "\n")
+    cal = json.loads(_mtwin("calibrate", "p30.nc", str(meas), "--fit", "flank-wear:fit=rate", "--signals",
+                            "fx_rms,fy_rms", "-o", str(tmp_path / "t.toml"), "--json", cwd=shop).stdout)
+    assert cal["params"]["effects.flank-wear.rate"] == pytest.approx(0.002, rel=0.03)
+    # compare reads the runs too: the hidden twin meets every run's rows at the noise
+    (tmp_path / "h.toml").write_text("[effects.flank-wear]\nrate = 0.002\n")
+    cmp = json.loads(_mtwin("compare", "p30.nc", str(meas), "--twin", str(tmp_path / "h.toml"), "--json",
+                           cwd=shop).stdout)["signals"]
+    assert cmp["fy_rms"]["nrmse"] < 0.02
+    bad = tmp_path / "bad.csv"
+    bad.write_text("first_line,last_line,run,fy_rms\n11,11,1,5.0\n15,15,0,5.0\n")
+    r = _mtwin("calibrate", "p30.nc", str(bad), "--fit", "flank-wear", "-o", str(tmp_path / "u.toml"), code=2,
+               cwd=shop)
+    assert f"{bad}:3:3:" in r.stderr

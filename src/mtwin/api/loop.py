@@ -148,7 +148,12 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     msgs = Messages(on_message)
     tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
-    trace = tw.simulate(prog, stock=stock, cutting=not prog.turning_line(), tooth_resolution=tooth_resolution)
+    runs = int(meas.row_runs.max()) if meas.row_runs is not None else 1
+    if runs > 1:  # per-cut rows of several runs on the same tools: the batch, the wear carried
+        trace = tw.simulate_batch(prog, runs, stock=stock, cutting=not prog.turning_line(),
+                                  tooth_resolution=tooth_resolution)
+    else:
+        trace = tw.simulate(prog, stock=stock, cutting=not prog.turning_line(), tooth_resolution=tooth_resolution)
     res = run_compare(trace, meas, align, xcorr_signal, program=prog)
     for n in res.notes:
         msgs.note(n)

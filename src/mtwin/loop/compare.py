@@ -154,13 +154,20 @@ def compare_summary(trace, meas, regions: int = 10) -> Comparison:
     range, against the same statistic of the simulated trace over the samples of those lines."""
     from .measurement import summary_base
 
-    line = np.asarray(trace.line)
+    batch = trace if isinstance(trace, list) else [trace]
+    lines = [np.asarray(tr.line) for tr in batch]
+    run_of = meas.row_runs if meas.row_runs is not None else np.ones(len(meas.rows), np.int64)
+    if int(run_of.max()) > len(batch):
+        from ..errors import MtwinError
+
+        raise MtwinError(f"{meas.path}: rows of run {int(run_of.max())}, and {len(batch)} run(s) simulated")
     columns = sorted({c for _, _, st in meas.rows for c in st})
     notes = []
     measured = {c: [] for c in columns}
     simulated = {c: [] for c in columns}
     where = {c: [] for c in columns}
-    for first, last, stats in meas.rows:
+    for (first, last, stats), run in zip(meas.rows, run_of):
+        trace, line = batch[run - 1], lines[run - 1]
         sel = (line >= first) & (line <= last)
         if not sel.any():
             notes.append(f"lines {first}–{last}: the simulation runs none of them; row left out")

@@ -62,7 +62,17 @@ class Target:
 def row_statistics(trace, rows: dict) -> dict:
     """Per statistic column (``fy_rms``: the RMS of ``fy``), each row's statistic of the
     simulated signal over the samples whose line is in the row's range (NaN: none).  The
-    samples are sorted by line once, so each row reads only its own samples."""
+    samples are sorted by line once, so each row reads only its own samples.  Rows given as
+    (first, last, run) with a batch of runs (``twin.RunTraces``) read their own run's trace."""
+    if any(len(r) == 3 for r in rows.values()):
+        out = {c: np.full(len(r[0]), np.nan) for c, r in rows.items()}
+        runs = trace if isinstance(trace, list) else [trace]
+        for k, tr in enumerate(runs, start=1):
+            part = {c: (r[0][r[2] == k], r[1][r[2] == k]) for c, r in rows.items()}
+            got = row_statistics(tr, part)
+            for c, r in rows.items():
+                out[c][r[2] == k] = got[c]
+        return out
     line = np.asarray(trace.line)
     order = np.argsort(line, kind="stable")
     by_line = line[order]
@@ -92,7 +102,11 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
     noise; ``signals`` limits the signals used (default: every one in both)."""
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     cutting = not program.turning_line()
-    base = twin.simulate(program, stock=stock, cutting=cutting)
+    runs = int(meas.row_runs.max()) if getattr(meas, "row_runs", None) is not None else 1
+    if runs > 1:  # rows of several runs of the program on the same tools: the batch, run by run
+        base = twin.simulate_batch(program, runs, stock=stock, cutting=cutting)
+    else:
+        base = twin.simulate(program, stock=stock, cutting=cutting)
     if meas.is_summary:
         return _summary_target(twin, program, meas, signals, stock, base)
     c = compare(base, meas, align)
@@ -118,20 +132,24 @@ def _summary_target(twin, program, meas, signals, stock, base) -> Target:
         raise MtwinError(f"--signals {', '.join(missing)}: not a statistic column of the measurement that the "
                          f"twin simulates (there: {', '.join(sorted(available)) or 'none'})")
     use = [s for s in (signals or sorted(available)) if s in available]
-    ranges = {c: ([], [], []) for c in use}
-    for first, last, stats in meas.rows:
+    ranges = {c: ([], [], [], []) for c in use}
+    run_of = meas.row_runs if meas.row_runs is not None else np.ones(len(meas.rows), np.int64)
+    for (first, last, stats), run in zip(meas.rows, run_of):
         for c in use:
             v = stats.get(c, math.nan)
             if not math.isnan(v):
                 ranges[c][0].append(first)
                 ranges[c][1].append(last)
                 ranges[c][2].append(v)
-    rows = {c: (np.array(f, np.int64), np.array(la, np.int64)) for c, (f, la, _) in ranges.items()}
+                ranges[c][3].append(run)
+    batch = isinstance(base, list)
+    rows = {c: (np.array(f, np.int64), np.array(la, np.int64)) + ((np.array(r, np.int64),) if batch else ())
+            for c, (f, la, _, r) in ranges.items()}
     sim = row_statistics(base, rows)
     measured, kept = {}, {}
     for c in use:
         ran = ~np.isnan(sim[c])  # rows whose lines the simulation runs
-        kept[c] = (rows[c][0][ran], rows[c][1][ran])
+        kept[c] = tuple(a[ran] for a in rows[c])
         measured[c] = np.array(ranges[c][2])[ran]
         sim[c] = sim[c][ran]
     given = _noise_meta(meas)
@@ -189,6 +207,9 @@ def _noise_meta(meas) -> dict:
 def _trace_with(tg: Target, twin, effects) -> object:
     """The simulation with ``effects`` added to ``twin`` — re-using the base simulation when
     they all act on observation and the twin is the target's."""
+    if isinstance(tg.base, list):  # a batch of runs on the same tools: the batch again
+        return twin.with_effects(*effects).simulate_batch(tg.program, len(tg.base), stock=tg.stock,
+                                                          cutting=tg.base.cut is not None)
     if twin is tg.twin and all(e.stage == "observation" for e in effects):
         tr = copy.copy(tg.base)
         for e in effects:

@@ -65,6 +65,9 @@ class Measurement:
     source_line: np.ndarray | None = None  #: the file line of each sample (of each row: a summary)
     header: tuple = ()  #: a summary measurement's column names, in the file's order
     header_row: int = 0  #: the file line of its header
+    #: a summary measurement's ``run`` column: the execution of the program (1, 2, …: a batch
+    #: on the same tools) each row was cut in; None: every row is of one run
+    row_runs: np.ndarray | None = None
 
     @property
     def is_summary(self) -> bool:
@@ -198,6 +201,7 @@ def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
         raise MeasurementError("no time column 't' (and no first_line/last_line of a summary measurement); "
                                "--map SRC=t names another", SourceLocation(name, first_row - 1, 1))
     ignored = [c for c in names if c not in _KNOWN and c not in ("t", "line", "first_line", "last_line")
+               and not (summary and c == "run")
                and summary_base(c) is None and c not in LOG_COLUMNS]
     # a column the twin does not know is kept out of the numbers: whatever it holds is fine
     data = _numbers(rows, header, name, first_row, [c not in ignored for c in names])
@@ -354,6 +358,8 @@ def _numbers(rows, header, path, first_row, read) -> np.ndarray:
 
 def _summary(name, names, cols, data, meta, ignored, first_row) -> Measurement:
     a, b = names.index("first_line"), names.index("last_line")
+    k_run = names.index("run") if "run" in names else None
+    runs = []
     rows = []
     stat_cols = [j for j, (c, _) in enumerate(cols) if summary_base(c) is not None]
     for i in range(len(data)):
@@ -366,8 +372,15 @@ def _summary(name, names, cols, data, meta, ignored, first_row) -> Measurement:
             raise MeasurementError(f"the row of lines {int(f)}–{int(l_)} has no value in any statistic column",
                                    SourceLocation(name, first_row + i, stat_cols[0] + 1))
         rows.append((int(f), int(l_), stats))
+        if k_run is not None:
+            r = data[i, k_run]
+            if not (r >= 1 and r == int(r)):
+                raise MeasurementError(f"run {r:g}: the run of a row is the execution of the program it was cut in, "
+                                       f"1, 2, …", SourceLocation(name, first_row + i, k_run + 1))
+            runs.append(int(r))
     if not rows:
         raise MeasurementError("no rows (the file has a header but no rows)", SourceLocation(name, first_row, 1))
     return Measurement(name, None, {}, None, meta, ignored, rows,
                        source_line=np.arange(first_row, first_row + len(rows), dtype=np.int64),
-                       header=tuple(names), header_row=first_row - 1)
+                       header=tuple(names), header_row=first_row - 1,
+                       row_runs=np.array(runs, np.int64) if k_run is not None else None)

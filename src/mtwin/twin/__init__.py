@@ -77,6 +77,20 @@ class Twin:
         the twin's own; the engagement cache is shared (the path does not change)."""
         return self.replace(tool_state={**self.tool_state, **{int(k): v for k, v in state.items()}})
 
+    def simulate_batch(self, program, runs: int, **kw) -> "RunTraces":
+        """``runs`` runs of a program on the same tools, each starting with the tools' histories
+        after the runs before (the wear carried from part to part); ``kw`` as for simulate."""
+        from ..effects import ToolHistory
+
+        out = RunTraces()
+        tw = self
+        for _ in range(int(runs)):
+            tr = tw.simulate(program, **kw)
+            out.append(tr)
+            used = tr.tool_use or {}
+            tw = tw.with_tool_state({n: tw.tool_state.get(n, ToolHistory()) + u for n, u in used.items()})
+        return out
+
     def with_tools(self, tools: dict) -> "Twin":
         """A copy that knows these tools (number -> ``mtwin.cutting.library.Tool``, or a
         ``"TYPE:DIAMETER[:FLUTES[:CORNER_RADIUS]]"`` string in mm) over the twin file's table and
@@ -173,6 +187,15 @@ class Twin:
         program = _with_overrides(program, feeds, spindles)
         return simulate_plan(self, program, self.plan(program), every=every, disturbance=disturbance,
                              progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution)
+
+
+class RunTraces(list):
+    """The traces of one program run several times on the same tools (a batch of parts: each
+    run starts where the one before left the tools), first run first.  Where one trace is
+    expected it stands for its first run."""
+
+    def __getattr__(self, name):
+        return getattr(self[0], name)
 
 
 def _with_overrides(program, feeds, spindles):
