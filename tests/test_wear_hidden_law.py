@@ -1,8 +1,8 @@
 """Flank wear found and fitted from per-cut force statistics made by a hidden law that this
-test writes itself (issue 21): 200 side-milling passes of one cutter, the land growing along
+test writes itself (issue 21): 300 side-milling passes of one cutter, the land growing along
 Archard's break-in curve — integrated here with scipy, from the edge sliding this test counts
 on the samples — and the land's contact forces added to the sharp tool's by superposition of
-unit edge-coefficient simulations, 3 % noise.  diagnose must rank the wear effect first,
+unit edge-coefficient simulations, 3 % noise (300 passes).  diagnose must rank the wear effect first,
 calibrate recover the law within 10 %, and the calibrated twin carry over to a second cutter
 that wears 25 % faster."""
 from __future__ import annotations
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-PASSES = 200
+PASSES = 300
 AE, FEED, RPM, RADIUS, FLUTES = 1.0, 1600.0, 8000.0, 3.0, 2
-HIDDEN = {"rate": 0.003, "break_in": 0.05}  # mm/m of edge sliding, mm
+HIDDEN = {"rate": 0.0015, "break_in": 0.05}  # mm/m of edge sliding, mm
 SIGMA, MU = 400.0, 0.5  # the land's stresses: the force law the twin knows (flank-wear's defaults)
 SECOND_RATE = 1.25 * HIDDEN["rate"]
 
@@ -103,6 +103,7 @@ def data(tmp_path_factory):
 
 def test_the_hidden_cutter_wears_like_a_real_one(data):
     assert data["rows"] >= 200
+    assert data["rows"] >= 300
     assert 0.12 < data["vb_a"] < 0.3  # a worn but usable land (ISO 8688-2 ends a tool's life at 0.3 mm)
     assert data["rise_a"] > 1.3  # the force per cut grows by a third or more
 
@@ -118,14 +119,12 @@ def test_diagnose_ranks_flank_wear_first_and_calibrate_recovers_the_law(data, tm
     twin = str(tmp_path / "worn.toml")
     cal = json.loads(_mtwin("calibrate", data["program"], data["a"], "--fit", "flank-wear", "--signals", sig,
                             "-o", twin, "--validate", data["b"], "--json").stdout)
-    # the rate within 10 %; the break-in shows in the first ~60 passes only, and 3 % noise
-    # leaves it a 1-sigma uncertainty of about 10 % (measured: 0.0437 +- 0.0047 for 0.05 on
-    # this seed; noise-free below, 0.5 %): it must lie within 10 % or 2.5 of its sigmas
-    rate = cal["params"]["effects.flank-wear.rate"]
-    assert rate == pytest.approx(HIDDEN["rate"], rel=0.10)
-    assert cal["uncertainty"]["effects.flank-wear.rate"] < 0.1 * HIDDEN["rate"]
-    b, sb = cal["params"]["effects.flank-wear.break_in"], cal["uncertainty"]["effects.flank-wear.break_in"]
-    assert abs(b - HIDDEN["break_in"]) < max(0.1 * HIDDEN["break_in"], 2.5 * sb) and sb < 0.15 * HIDDEN["break_in"]
+    # both within 10 %.  The break-in shows only in the passes before the land reaches b (here
+    # about the first half): with 200 passes at twice the rate it spanned ~60 passes and 3 %
+    # noise left it a 1-sigma uncertainty of 11 % (0.0437 +- 0.0047); this design measures it
+    for k, v in HIDDEN.items():
+        assert cal["params"][f"effects.flank-wear.{k}"] == pytest.approx(v, rel=0.10), k
+        assert cal["uncertainty"][f"effects.flank-wear.{k}"] < 0.1 * v
     for s in ("fx_rms", "fy_rms"):
         assert cal["rms_after"][s] <= 1.5 * cal["noise"][s]
     # the second cutter wears 25 % faster: the calibrated twin is far nearer it than the as-built one
