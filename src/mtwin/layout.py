@@ -33,6 +33,9 @@ N_Q = 8
 SX_TC, SX_RC, SX_AC, SY_TC, SY_RC, SY_AC, SZ_RC, SZ_AC, ST_TC = range(9)
 SX_TE, SX_RE, SX_AE, SY_TE, SY_RE, SY_AE, SZ_RE, SZ_AE, ST_TE = range(9, 18)
 N_SUMS = 18
+#: angular bins per revolution of the engagement (2°; PHYSICS.md §2: 1-2°): its force sums
+#: count an angle when a bin's centre is engaged
+ANGLE_BINS = 180
 #: columns of the engagement's tool table (``Engagement.tools``): radius, nose radius (mm), flutes
 T_RADIUS, T_NOSE, T_FLUTES = range(3)
 _CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")

@@ -203,21 +203,18 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def apply(twin, ledger_path: str, tool_ids: dict[int, str], messages=None):
+def apply(twin, ledger_path: str, tool_ids: dict[int, str]):
     """The twin with each mapped tool starting in its recorded state and, where the ledger has
-    a calibrated law for it, that flank-wear law."""
+    a calibrated law for one, that flank-wear law (the twin has one: the first mapped tool's
+    with a law)."""
     from .effects.wear import FlankWear
 
     with Ledger(ledger_path) as lg:
-        state = {n: lg.history(i) for n, i in tool_ids.items()}
-        laws = {i: lg.tool(i).law for i in tool_ids.values() if i in lg.ids() and lg.tool(i).law}
-    twin = twin.with_tool_state(state)
-    if laws:
-        distinct = {json.dumps(v, sort_keys=True) for v in laws.values()}
-        law = next(iter(laws.values()))
-        if len(distinct) > 1 and messages is not None:
-            messages.warn(f"{ledger_path}: the tools {', '.join(laws)} have different wear laws; the twin has one "
-                          f"flank-wear law per material: using {next(iter(laws))}'s")
+        known = set(lg.ids())
+        records = {n: lg.tool(i) for n, i in tool_ids.items() if i in known}
+    twin = twin.with_tool_state({n: records[n].history if n in records else ToolHistory() for n in tool_ids})
+    law = next((r.law for r in records.values() if r.law), None)
+    if law:
         effects = [e for e in twin.effects if e.name != FlankWear.name] + [FlankWear(**law)]
         twin = twin.replace(effects=effects)
     return twin

@@ -13,6 +13,7 @@ from ..errors import MtwinError
 from ..io import write_bytes
 from ..loop.asrun import as_run
 from ..loop.compare import compare as run_compare
+from ..loop.compare import simulate_measured
 from ..loop.fit import diagnose as run_diagnose
 from ..loop.fit import fit as run_fit
 from ..loop.fit import rms_by_signal, target
@@ -148,12 +149,8 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     msgs = Messages(on_message)
     tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
-    runs = int(meas.row_runs.max()) if meas.row_runs is not None else 1
-    if runs > 1:  # per-cut rows of several runs on the same tools: the batch, the wear carried
-        trace = tw.simulate_batch(prog, runs, stock=stock, cutting=not prog.turning_line(),
-                                  tooth_resolution=tooth_resolution)
-    else:
-        trace = tw.simulate(prog, stock=stock, cutting=not prog.turning_line(), tooth_resolution=tooth_resolution)
+    trace = simulate_measured(tw, prog, meas, stock=stock, cutting=not prog.turning_line(),
+                              tooth_resolution=tooth_resolution)
     res = run_compare(trace, meas, align, xcorr_signal, program=prog)
     for n in res.notes:
         msgs.note(n)
@@ -349,10 +346,11 @@ def _to_ledger(setup, effects, res, measurement: str, msgs) -> None:
         return
     from ..ledger import Ledger
 
-    wear = [e for e in effects if e.name == "flank-wear"]
-    if not wear:
+    from ..effects.wear import law_of
+
+    law = law_of(effects)
+    if law is None:
         raise MtwinError("--ledger with calibrate keeps a tool's wear law: fit flank-wear (--fit flank-wear)")
-    law = wear[-1].resolved()
     with Ledger(ledger) as lg:
         for ident in setup.tool_map.values():
             lg.set_law(ident, law, measurement=measurement, rms_before=res.rms_before, rms_after=res.rms_after)

@@ -112,7 +112,6 @@ def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, s
     ``setup``: a TwinSetup (its ``ledger`` and ``tool_ids`` start the mapped tools in their
     recorded state); ``record``: add each run to the ledger as it finishes.  Returns the last
     run's Simulation with ``runs``: per run its cycle time, loads and each tool's land."""
-    from ..effects import ToolHistory
     from ..ledger import record_trace
 
     if runs < 1:
@@ -125,19 +124,18 @@ def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, s
     msgs = Messages(on_message)
     tw = open_twin(setup)
     prog = load_part(tw, program, msgs)
-    plan = tw.plan(prog)
     table, recorded = [], []
-    for k in range(runs):
-        trace = simulate_plan(tw, prog, plan, cutting=cutting, stock=stock)
+
+    def each(k, trace):  # (recorded as each run finishes: a later run's failure keeps the earlier)
+        nonlocal recorded
         c = trace.summary.cutting
         if record:
-            recorded = record_trace(ledger, setup.tool_map, trace, program=prog.path,
-                                    material=c.material if c is not None else "")
-        table.append({"run": k + 1, "cycle_time": trace.summary.cycle_time,
+            recorded = record_trace(ledger, setup.tool_map, trace, program=prog.path)
+        table.append({"run": k, "cycle_time": trace.summary.cycle_time,
                       "peak_load": c.peak_load if c else None, "mean_load": c.mean_load if c else None,
                       "tool_wear": {str(t): w for t, w in (c.tool_wear if c else {}).items()}})
-        used = trace.tool_use or {}
-        tw = tw.with_tool_state({n: tw.tool_state.get(n, ToolHistory()) + u for n, u in used.items()})
+
+    trace = tw.simulate_batch(prog, runs, stock=stock, cutting=cutting, on_run=each)[-1]
     for w in trace.summary.warnings:
         msgs.warn(w)
     return Simulation(prog, trace, msgs.items, 1, tw, runs=table if runs > 1 else [], recorded=recorded)

@@ -18,12 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, GCodeError, SourceLocation
-from ..layout import PAUSE
+from ..layout import ANGLE_BINS, PAUSE
 from . import _engagekernel as EK
 from .library import Cutting, parse_box
 
 MAX_CELLS = 60_000_000  # 240 MB of float32 heights
-N_BINS = 180  # 2° angular bins (PHYSICS.md §2: 1-2°)
+N_BINS = ANGLE_BINS  # 2° angular bins (layout: the wear's sliding counts them too)
 
 
 @dataclass

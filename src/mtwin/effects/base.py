@@ -26,10 +26,8 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import ConfigError
-from ..layout import Q_AE, Q_AP, Q_AREA, Q_WMAX, ST_TE, T_FLUTES, T_RADIUS
+from ..layout import ANGLE_BINS, Q_AE, Q_AP, Q_AREA, Q_WMAX, ST_TE, T_FLUTES, T_RADIUS
 from ..params import Param
-
-_ANGLE_BINS = 180  # the engagement's angle bins per revolution (cutting.engagement.N_BINS)
 
 STAGES = ("loop", "observation", "plan")
 
@@ -208,7 +206,7 @@ class StepInfo:
         # edge (ap), plus half a bin (a bin counts when its centre is engaged: the arc's end lies
         # half a bin beyond on average); an end face alone (ap 0) slides π·R on average
         arc = np.where(ap > 0, 2.0 * np.pi * np.asarray(eng.sums[:, ST_TE], dtype=np.float64)
-                       / np.maximum(flutes * ap, 1e-12) + radius * np.pi / _ANGLE_BINS, np.pi * radius)
+                       / np.maximum(flutes * ap, 1e-12) + radius * np.pi / ANGLE_BINS, np.pi * radius)
         # edge sliding per flute (m): ds/(fz·z) revolutions of that arc
         slide = np.where(inside & (fz > 0), d * arc / np.maximum(fz * flutes, 1e-12), 0.0) * 1e-3
         time = np.where(inside & (feed > 0), d / np.maximum(feed, 1e-12), 0.0)  # (segment feeds are mm/s)

@@ -116,6 +116,13 @@ class FlankWear(Effect):
         return add
 
 
+def law_of(effects) -> dict | None:
+    """The resolved parameters of the last flank-wear effect among ``effects`` (a twin's), or
+    None."""
+    laws = [e for e in effects if e.name == FlankWear.name]
+    return laws[-1].resolved() if laws else None
+
+
 def life(vb_limit: float, p: dict, vb_start: float | None = None) -> float:
     """Sliding (m) from ``vb_start`` (default the new tool's land) to the land ``vb_limit``."""
     start = p["vb0"] if vb_start is None else vb_start

@@ -51,6 +51,15 @@ class Comparison:
         return out
 
 
+def simulate_measured(twin, program, meas, **kw):
+    """The simulation a measurement is held against: one run, or for summary rows of several
+    runs the batch (``Twin.simulate_batch``: the tools' wear carried from run to run).  ``kw``
+    as for ``Twin.simulate`` (stock, cutting, tooth_resolution)."""
+    if meas.batch > 1:
+        return twin.simulate_batch(program, meas.batch, **kw)
+    return twin.simulate(program, **kw)
+
+
 def compare(trace, meas, align: str = "auto", xcorr_signal: str | None = None, regions: int = 10,
             program=None) -> Comparison:
     """Compare a full-rate simulated ``trace`` with a time-series measurement ``meas``.  With
@@ -156,11 +165,9 @@ def compare_summary(trace, meas, regions: int = 10) -> Comparison:
 
     batch = trace if isinstance(trace, list) else [trace]
     lines = [np.asarray(tr.line) for tr in batch]
-    run_of = meas.row_runs if meas.row_runs is not None else np.ones(len(meas.rows), np.int64)
-    if int(run_of.max()) > len(batch):
-        from ..errors import MtwinError
-
-        raise MtwinError(f"{meas.path}: rows of run {int(run_of.max())}, and {len(batch)} run(s) simulated")
+    run_of = meas.run_of_rows()
+    if meas.batch > len(batch):
+        raise MtwinError(f"{meas.path}: rows of run {meas.batch}, and {len(batch)} run(s) simulated")
     columns = sorted({c for _, _, st in meas.rows for c in st})
     notes = []
     measured = {c: [] for c in columns}

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import MtwinError, SourceLocation
 from ..fitting import FIT_FACTOR, STRONG_EVIDENCE, default_scale, delta_bic, solve, verdict
-from .compare import _STAT, _has, compare
+from .compare import _STAT, _has, compare, simulate_measured
 from .measurement import _KNOWN, STATS, MeasurementError, summary_base
 
 MAX_SELECTED = 4  # effects forward selection takes at most, per signal
@@ -102,11 +102,7 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
     noise; ``signals`` limits the signals used (default: every one in both)."""
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     cutting = not program.turning_line()
-    runs = int(meas.row_runs.max()) if getattr(meas, "row_runs", None) is not None else 1
-    if runs > 1:  # rows of several runs of the program on the same tools: the batch, run by run
-        base = twin.simulate_batch(program, runs, stock=stock, cutting=cutting)
-    else:
-        base = twin.simulate(program, stock=stock, cutting=cutting)
+    base = simulate_measured(twin, program, meas, stock=stock, cutting=cutting)
     if meas.is_summary:
         return _summary_target(twin, program, meas, signals, stock, base)
     c = compare(base, meas, align)
@@ -133,8 +129,7 @@ def _summary_target(twin, program, meas, signals, stock, base) -> Target:
                          f"twin simulates (there: {', '.join(sorted(available)) or 'none'})")
     use = [s for s in (signals or sorted(available)) if s in available]
     ranges = {c: ([], [], [], []) for c in use}
-    run_of = meas.row_runs if meas.row_runs is not None else np.ones(len(meas.rows), np.int64)
-    for (first, last, stats), run in zip(meas.rows, run_of):
+    for (first, last, stats), run in zip(meas.rows, meas.run_of_rows()):
         for c in use:
             v = stats.get(c, math.nan)
             if not math.isnan(v):

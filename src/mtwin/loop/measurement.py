@@ -73,6 +73,15 @@ class Measurement:
     def is_summary(self) -> bool:
         return self.t is None
 
+    def run_of_rows(self) -> np.ndarray:
+        """Each summary row's run (all 1 without a ``run`` column)."""
+        return self.row_runs if self.row_runs is not None else np.ones(len(self.rows), np.int64)
+
+    @property
+    def batch(self) -> int:
+        """How many runs of the program the measurement's rows come from (1: one run)."""
+        return int(self.row_runs.max()) if self.row_runs is not None and len(self.row_runs) else 1
+
     def write(self, path: str) -> None:
         """Write a time series in the measurement format (t, line, the signals, then the
         control's columns), its metadata as the file's comment lines."""

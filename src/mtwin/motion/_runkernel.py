@@ -144,8 +144,9 @@ class LoopState(NamedTuple):
 class CuttingInputs(NamedTuple):
     """The engagement of the path (steps per segment, force sums, step scalars ``layout.Q_*``),
     the tools (``layout.T_*`` columns), the material's coefficients and, when effects change
-    them along the path, the coefficients per step ((steps, 6); (0, 6): the material's), the spindle (command, acceleration, losses, power curve) and, for tooth resolution,
-    the edge profiles and slices."""
+    them along the path, the coefficients per step ((steps, 6); (0, 6): the material's), the
+    spindle (command, acceleration, losses, power curve) and, for tooth resolution, the edge
+    profiles and slices."""
 
     first: np.ndarray
     count: np.ndarray

@@ -174,7 +174,7 @@ def _tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffec
     return ToolEffects(k if changed else np.zeros((0, 6)), land, steps)
 
 
-def _wear_table(tfx: ToolEffects, program) -> dict:
+def _wear_table(tfx: ToolEffects) -> dict:
     """Per tool number: the land at its first and last cut steps (mm) and its edge sliding
     before the program and in it (m)."""
     st = tfx.steps
@@ -411,7 +411,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         trace.tool_use = tfx.steps.history()
         if tfx.land is not None:
             trace.vb = _land_by_sample(eng, plan, program, tfx.land, record).astype(np.float32)
-            summary.cutting.tool_wear = _wear_table(tfx, program)
+            summary.cutting.tool_wear = _wear_table(tfx)
     changed: set[str] = set()
     for e, p in observed:
         if eng is None and any(s in CUT_SIGNALS for s in e.signals):

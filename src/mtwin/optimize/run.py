@@ -717,14 +717,11 @@ def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limi
 def _slide_life(twin) -> float | None:
     """A tool's life as edge sliding (m) under the twin's flank-wear law, from a new tool to the
     end-of-life land (ISO 8688-2's 0.3 mm); None without a law that wears."""
-    from ..effects.wear import life
+    from ..effects.wear import law_of, life
     from ..ledger import VB_LIMIT
 
-    laws = [e for e in twin.effects if e.name == "flank-wear"]
-    if not laws:
-        return None
-    p = laws[-1].resolved()
-    if not p["rate"]:
+    p = law_of(twin.effects)
+    if p is None or not p["rate"]:
         return None
     s = life(VB_LIMIT, p)
     return s if 0 < s < float("inf") else None
@@ -754,14 +751,13 @@ def wear_plan(twin, trace, vb_limit: float | None = None) -> dict:
     """Per tool with a wear effect: the land at the first and last cut (mm), and how many more
     parts like this one the tool cuts before the land reaches ``vb_limit`` (the tool-change
     recommendation)."""
-    from ..effects.wear import parts_to_limit
+    from ..effects.wear import law_of, parts_to_limit
     from ..ledger import VB_LIMIT
 
     c = trace.summary.cutting if trace is not None else None
-    laws = [e for e in twin.effects if e.name == "flank-wear"]
-    if c is None or not c.tool_wear or not laws:
+    p = law_of(twin.effects)
+    if c is None or not c.tool_wear or p is None:
         return {}
-    p = laws[-1].resolved()
     limit = VB_LIMIT if vb_limit is None else vb_limit
     return {t: {**w, "vb_limit": limit, "parts_left": parts_to_limit(p, w["vb_end"], w["sliding"], limit)}
             for t, w in c.tool_wear.items()}

@@ -77,16 +77,22 @@ class Twin:
         the twin's own; the engagement cache is shared (the path does not change)."""
         return self.replace(tool_state={**self.tool_state, **{int(k): v for k, v in state.items()}})
 
-    def simulate_batch(self, program, runs: int, **kw) -> "RunTraces":
+    def simulate_batch(self, program, runs: int, *, stock=None, cutting: bool = True,
+                       tooth_resolution: bool = False, on_run=None) -> "RunTraces":
         """``runs`` runs of a program on the same tools, each starting with the tools' histories
-        after the runs before (the wear carried from part to part); ``kw`` as for simulate."""
+        after the runs before (the wear carried from part to part); planned once (the tools'
+        state does not change the plan).  ``on_run(k, trace)`` is called as run k finishes."""
         from ..effects import ToolHistory
+        from ..motion.simulate import simulate_plan
 
+        plan = self.plan(program)
         out = RunTraces()
         tw = self
-        for _ in range(int(runs)):
-            tr = tw.simulate(program, **kw)
+        for k in range(1, int(runs) + 1):
+            tr = simulate_plan(tw, program, plan, cutting=cutting, stock=stock, tooth=tooth_resolution)
             out.append(tr)
+            if on_run is not None:
+                on_run(k, tr)
             used = tr.tool_use or {}
             tw = tw.with_tool_state({n: tw.tool_state.get(n, ToolHistory()) + u for n, u in used.items()})
         return out
