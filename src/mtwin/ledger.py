@@ -209,9 +209,11 @@ def apply(twin, ledger_path: str, tool_ids: dict[int, str]):
     with a law)."""
     from .effects.wear import FlankWear
 
-    with Ledger(ledger_path) as lg:
-        known = set(lg.ids())
-        records = {n: lg.tool(i) for n, i in tool_ids.items() if i in known}
+    records = {}
+    if os.path.exists(ledger_path):  # (a ledger not yet written: new tools; --record creates it)
+        with Ledger(ledger_path, create=False) as lg:
+            known = set(lg.ids())
+            records = {n: lg.tool(i) for n, i in tool_ids.items() if i in known}
     twin = twin.with_tool_state({n: records[n].history if n in records else ToolHistory() for n in tool_ids})
     law = next((r.law for r in records.values() if r.law), None)
     if law:
