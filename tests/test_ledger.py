@@ -147,6 +147,8 @@ def test_a_corrupt_ledger_is_refused_and_left_as_it_is(tmp_path, shop):
         db.execute("CREATE TABLE parts (id TEXT)")
     assert "not an mtwin tool ledger" in _mtwin("tools", "--ledger", str(other), code=2).stderr
     assert "--tool-id" in _mtwin("simulate", "p30.nc", "--ledger", "x.db", code=2, cwd=shop).stderr
+    assert "--runs must be at least 1" in _mtwin("simulate", "p30.nc", "--runs", "0", code=2, cwd=shop).stderr
+    assert "--vb-limit" in _mtwin("tools", "--ledger", str(other), "--vb-limit", "-1", code=2).stderr
     # a ledger not yet written is read as new tools, and not created unless a run is recorded
     _mtwin("simulate", "p30.nc", "--ledger", str(tmp_path / "none.db"), "--tool-id", "T1=X", cwd=shop)
     assert not (tmp_path / "none.db").exists()

@@ -49,7 +49,7 @@ def simulate(
     if stock_out and no_cutting:
         raise MtwinError("--stock-out needs the cutting model (do not combine it with --no-cutting)")
     check_outputs(output, plot, stock_out)
-    if runs > 1 or record:
+    if runs != 1 or record:  # (simulate_runs refuses a count below 1)
         run = simulate_runs(setup, part, runs, record=record, stock=setup.stock_box(), cutting=not no_cutting,
                             on_message=message)
     else:

@@ -5,6 +5,7 @@ from typing import Optional
 
 import typer
 
+from ..errors import MtwinError
 from .app import app, err, reports_errors
 from .options import JSON
 from .render import emit_json, table
@@ -25,12 +26,12 @@ def tools_list(ctx: typer.Context, ledger: str = LEDGER, vb_limit: Optional[floa
     """List the ledger's tools: runs, path cut, the land now and the parts left to the limit."""
     from ..ledger import Ledger, VB_LIMIT as LIMIT
 
-    ctx.obj = {"ledger": ledger, "vb_limit": vb_limit if vb_limit is not None else LIMIT, "json": json_out}
+    limit = vb_limit if vb_limit is not None else LIMIT
+    if not limit > 0:
+        raise MtwinError(f"--vb-limit must be a positive land in mm, got {limit:g}")
+    ctx.obj = {"ledger": ledger, "vb_limit": limit, "json": json_out}
     if ctx.invoked_subcommand is not None:
         return
-    limit = ctx.obj["vb_limit"]
-    if not limit > 0:
-        raise typer.BadParameter(f"--vb-limit must be a positive land in mm, got {limit:g}")
     with Ledger(ledger, create=False) as lg:
         tools = [lg.tool(i) for i in lg.ids()]
     rows = [{"id": t.id, "runs": t.runs, "length_mm": round(t.history.length, 3),
