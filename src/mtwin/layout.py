@@ -24,9 +24,11 @@ AXIS_X, AXIS_Y, AXIS_Z = range(3)
 
 #: columns of the engagement's per-step scalars (``Engagement.q``): the chip's cross-section
 #: (mm² per mm of feed per tooth), radial and axial depth, the widest chip's factor, the feed
-#: direction (unit x, y) and the uncut heights
-Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY, Q_UH, Q_UZ = range(8)
-N_Q = 8
+#: direction (unit x, y), the uncut heights and the cosines of the engaged arc's ends on the
+#: flank (bin centres; the chatter model's entry and exit angles: φ from the tool frame's +y,
+#: clockwise, x along the feed — 2 and −2 where no flank cuts)
+Q_AREA, Q_AE, Q_AP, Q_WMAX, Q_DX, Q_DY, Q_UH, Q_UZ, Q_CMIN, Q_CMAX = range(10)
+N_Q = 10
 #: columns of the engagement's force sums (``Engagement.sums``): (component, coefficient)
 #: pairs — x: tangential, radial, axial | y: the same | z: radial, axial | spindle torque:
 #: tangential; C the cutting (× feed per tooth), E the edge part

@@ -25,7 +25,7 @@ from .._jit import njit
 
 # force-sum and per-step columns (mtwin.layout: the run kernel, the optimiser and the effects
 # read them by the same names)
-from ..layout import (N_Q, N_SUMS, Q_AE, Q_AP, Q_AREA, Q_DX, Q_DY, Q_UH, Q_UZ, Q_WMAX, ST_TC, ST_TE,  # noqa: E402,F401
+from ..layout import (N_Q, N_SUMS, Q_AE, Q_AP, Q_AREA, Q_CMAX, Q_CMIN, Q_DX, Q_DY, Q_UH, Q_UZ, Q_WMAX, ST_TC, ST_TE,  # noqa: E402,F401
                       SX_AC, SX_AE, SX_RC, SX_RE, SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC, SY_TE, SZ_AC,
                       SZ_AE, SZ_RC, SZ_RE)
 
@@ -217,6 +217,8 @@ def engage_step(H, x0, y0, dx, cx, cy, cz, ux, uy, uz, hand, nbins, flutes,
     q[Q_DY] = xy
     q[Q_UH] = uh
     q[Q_UZ] = uz
+    q[Q_CMIN] = cmin
+    q[Q_CMAX] = cmax
 
 
 @njit

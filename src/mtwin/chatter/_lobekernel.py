@@ -1,0 +1,441 @@
+"""Kernels of the chatter model: the zero-order approximation's limit per speed, the
+semi-discretisation's Floquet multipliers, and the regenerative time-domain integration.
+
+Conventions (docs/chatter.md): the tool frame has x along the feed and y to its left, φ the
+tooth angle from +y, clockwise (the engagement's); a tooth at φ cuts the chip
+h = f_z·sin φ + [sin φ, cos φ]·(u(t) − u(t − T)) and the force on the tool is
+F = a·K_t·h·[−cos φ − K_r sin φ, sin φ − K_r cos φ].  Per unit depth the dynamic force is
+a·H(t)·(u(t) − u(t − T)); its mean over a revolution is the directional matrix D.  Units SI.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+
+
+@njit
+def arc_integral(p0, p1, kr, out):
+    """Adds ∫_{p0}^{p1} a(φ) dφ (the tool-frame directional matrix per unit K_t) to ``out``."""
+    if p1 <= p0:
+        return
+    s0, c0 = math.sin(p0), math.cos(p0)
+    s1, c1 = math.sin(p1), math.cos(p1)
+    iss = 0.5 * (p1 - p0) - 0.25 * (math.sin(2.0 * p1) - math.sin(2.0 * p0))
+    icc = 0.5 * (p1 - p0) + 0.25 * (math.sin(2.0 * p1) - math.sin(2.0 * p0))
+    isc = 0.5 * (s1 * s1 - s0 * s0)
+    out[0, 0] += -isc - kr * iss
+    out[0, 1] += -icc - kr * isc
+    out[1, 0] += iss - kr * isc
+    out[1, 1] += isc - kr * icc
+    _ = c0 + c1  # (cosines only through the double angles)
+
+
+@njit
+def _arc_in_window(a0, a1, pst, pex, kr, out):
+    """Adds the integral over the part of the angle interval [a0, a1] (any real angles,
+    a1 − a0 < 2π) that lies in the engaged arc [pst, pex] ⊂ [0, 2π)."""
+    two_pi = 2.0 * math.pi
+    k = math.floor(a0 / two_pi)
+    b0 = a0 - k * two_pi
+    b1 = a1 - k * two_pi
+    for shift in (0.0, two_pi):
+        lo = max(b0, pst + shift)
+        hi = min(b1, pex + shift)
+        if hi > lo:
+            arc_integral(lo - shift, hi - shift, kr, out)
+
+
+@njit
+def frf_at(f, mfn, mz, mk, mdir, tf, txx, tyy):
+    """Φxx, Φyy (m/N) at frequency f (Hz): the table (linear interpolation) when it has rows,
+    else the modes' sum."""
+    hx = 0.0 + 0.0j
+    hy = 0.0 + 0.0j
+    if tf.shape[0] > 0:
+        if f < tf[0] or f > tf[-1]:
+            return hx, hy
+        j = np.searchsorted(tf, f) - 1
+        if j < 0:
+            j = 0
+        if j > tf.shape[0] - 2:
+            j = tf.shape[0] - 2
+        a = (f - tf[j]) / (tf[j + 1] - tf[j])
+        return txx[j] * (1.0 - a) + txx[j + 1] * a, tyy[j] * (1.0 - a) + tyy[j + 1] * a
+    for i in range(mfn.shape[0]):
+        r = f / mfn[i]
+        h = 1.0 / (mk[i] * (1.0 - r * r + 2j * mz[i] * r))
+        if mdir[i] == 0:
+            hx += h
+        else:
+            hy += h
+    return hx, hy
+
+
+@njit
+def _eig_mu(f, D, mfn, mz, mk, mdir, tf, txx, tyy, branch):
+    """One eigenvalue (branch 0 or 1) of Φ(f)·D."""
+    hx, hy = frf_at(f, mfn, mz, mk, mdir, tf, txx, tyy)
+    m00 = hx * D[0, 0]
+    m01 = hx * D[0, 1]
+    m10 = hy * D[1, 0]
+    m11 = hy * D[1, 1]
+    tr = m00 + m11
+    det = m00 * m11 - m01 * m10
+    disc = np.sqrt(0.25 * tr * tr - det + 0.0j)
+    return 0.5 * tr + disc if branch == 0 else 0.5 * tr - disc
+
+
+@njit
+def _g(f, T, D, mfn, mz, mk, mdir, tf, txx, tyy, branch):
+    mu = _eig_mu(f, D, mfn, mz, mk, mdir, tf, txx, tyy, branch)
+    w = 2.0 * math.pi * f * T
+    c = complex(1.0 - math.cos(w), math.sin(w))  # 1 − e^{−iωT}
+    return mu * c
+
+
+@njit(python_limit=20_000, python_fast=2_000)
+def zoa_limits(speeds, flutes, D, fgrid, mfn, mz, mk, mdir, tf, txx, tyy, depth, freq):
+    """Zero-order approximation: per spindle speed (rpm) the smallest depth (m) at which
+    det[I − a(1 − e^{−iωT})Φ(ω)D] = 0 has a real root a > 0, and its chatter frequency (Hz).
+    For every eigenvalue μ(ω) of Φ·D the boundary is where μ·(1 − e^{−iωT}) is real and
+    positive (a = 1/that); its sign changes are bracketed on ``fgrid`` (μ computed there once
+    for all speeds) and refined by false position (Illinois) with the FRF evaluated exactly.
+    inf where no frequency of the grid gives a boundary."""
+    nf = fgrid.shape[0]
+    MU = np.empty((2, nf), np.complex128)
+    for br in range(2):
+        for i in range(nf):
+            MU[br, i] = _eig_mu(fgrid[i], D, mfn, mz, mk, mdir, tf, txx, tyy, br)
+    for s in range(speeds.shape[0]):
+        T = 60.0 / (flutes * speeds[s])
+        best = np.inf
+        bf = np.nan
+        for br in range(2):
+            w = 2.0 * math.pi * fgrid[0] * T
+            g_prev = MU[br, 0] * complex(1.0 - math.cos(w), math.sin(w))
+            for i in range(1, nf):
+                w = 2.0 * math.pi * fgrid[i] * T
+                g = MU[br, i] * complex(1.0 - math.cos(w), math.sin(w))
+                if g.imag * g_prev.imag < 0.0 and (g.real > 0.0 or g_prev.real > 0.0):
+                    # the interpolated root's depth: refine only a candidate for the minimum
+                    t = g_prev.imag / (g_prev.imag - g.imag)
+                    re = g_prev.real + t * (g.real - g_prev.real)
+                    if re > 0.0 and 1.0 / re < 1.5 * best:
+                        lo = fgrid[i - 1]
+                        hi = fgrid[i]
+                        ylo = g_prev.imag
+                        yhi = g.imag
+                        gm = g
+                        mid = hi
+                        side = 0
+                        for _ in range(30):
+                            mid = (lo * yhi - hi * ylo) / (yhi - ylo)
+                            gm = _g(mid, T, D, mfn, mz, mk, mdir, tf, txx, tyy, br)
+                            if abs(gm.imag) <= 1e-9 * abs(gm):
+                                break
+                            if gm.imag * ylo < 0.0:
+                                hi = mid
+                                yhi = gm.imag
+                                if side == -1:
+                                    ylo *= 0.5
+                                side = -1
+                            else:
+                                lo = mid
+                                ylo = gm.imag
+                                if side == 1:
+                                    yhi *= 0.5
+                                side = 1
+                        # a branch jump (the eigenvalues swapping) is no root: the residual stays large
+                        if gm.real > 0.0 and abs(gm.imag) <= 1e-6 * abs(gm):
+                            a = 1.0 / gm.real
+                            if a < best:
+                                best = a
+                                bf = mid
+                g_prev = g
+        depth[s] = best
+        freq[s] = bf
+
+
+@njit
+def _expm(A):
+    """Matrix exponential by scaling and squaring with an order-16 Taylor series (the
+    matrices here are small and their scaled norm ≤ 0.5: error below 1e-16)."""
+    n = A.shape[0]
+    nrm = 0.0
+    for i in range(n):
+        r = 0.0
+        for j in range(n):
+            r += abs(A[i, j])
+        nrm = max(nrm, r)
+    sq = 0
+    if nrm > 0.5:
+        sq = int(math.ceil(math.log2(nrm / 0.5)))
+    X = A / (2.0 ** sq)
+    E = np.eye(n)
+    for k in range(16, 0, -1):
+        E = np.eye(n) + (X @ E) / k
+    for _ in range(sq):
+        E = E @ E
+    return E
+
+
+@njit
+def _window_H(n_rpm, flutes, pst, pex, kt, kr, R, steps):
+    """The cut window of one tooth period and the mean directional matrix (machine frame, per
+    unit depth, N/m²) of each of its ``steps`` steps; returns (H (steps,2,2), dt, t_free)."""
+    omega = 2.0 * math.pi * n_rpm / 60.0
+    T = 60.0 / (flutes * n_rpm)
+    pitch = 2.0 * math.pi / flutes
+    arc = pex - pst
+    if arc >= pitch:
+        tc = T
+    else:
+        tc = arc / omega
+    dt = tc / steps
+    H = np.zeros((steps, 2, 2))
+    tmp = np.zeros((2, 2))
+    for i in range(steps):
+        tmp[:, :] = 0.0
+        a0 = pst + omega * dt * i
+        a1 = pst + omega * dt * (i + 1)
+        for j in range(flutes):
+            _arc_in_window(a0 + j * pitch, a1 + j * pitch, pst, pex, kr, tmp)
+        scale = kt / (omega * dt)  # mean over the step's time
+        Ht = tmp * scale
+        H[i] = R @ Ht @ R.T
+    return H, dt, T - tc
+
+
+@njit
+def _monodromy_radius(s, H, dt, mfn, mz, mk, mloc, act, Pfree):
+    """Spectral radius and dominant multiplier of the semi-discretised one-period map at
+    depth s (m).  Only the machine directions that have modes (``act``; ``mloc``: each mode's
+    index in it) carry a delayed displacement: the state is the modes' (q, q̇) and the
+    previous period's displacement at the steps' ends."""
+    nm = mfn.shape[0]
+    nd = act.shape[0]
+    n = 2 * nm
+    steps = H.shape[0]
+    dim = n + nd * (steps + 1)
+    E = np.zeros((nd, nm))
+    minv = np.zeros(nm)
+    A0 = np.zeros((n, n))
+    for j in range(nm):
+        E[mloc[j], j] = 1.0
+        w = 2.0 * math.pi * mfn[j]
+        minv[j] = w * w / mk[j]
+        A0[j, nm + j] = 1.0
+        A0[nm + j, j] = -w * w
+        A0[nm + j, nm + j] = -2.0 * mz[j] * w
+    Y = np.zeros((n, dim))
+    for i in range(n):
+        Y[i, i] = 1.0
+    Phi = np.zeros((dim, dim))
+    aug = np.zeros((n + 2 * nd, n + 2 * nd))
+    K = np.zeros((nd, nd))
+    for i in range(steps):
+        # u_i = E q_i: this period's displacement at the step's start
+        for r in range(nd):
+            for j in range(nm):
+                if mloc[j] == r:
+                    for c in range(dim):
+                        Phi[n + nd * i + r, c] += Y[j, c]
+        for a in range(nd):
+            for b in range(nd):
+                K[a, b] = H[i, act[a], act[b]]
+        aug[:, :] = 0.0
+        aug[:n, :n] = A0 * dt
+        for a in range(nm):
+            for b in range(nm):
+                aug[nm + a, b] += s * minv[a] * K[mloc[a], mloc[b]] * dt
+            for b in range(nd):
+                aug[nm + a, n + b] = -s * minv[a] * K[mloc[a], b] * dt
+        for b in range(nd):
+            aug[n + b, n + nd + b] = 1.0
+        Ex = _expm(aug)
+        P = np.ascontiguousarray(Ex[:n, :n])
+        Yn = P @ Y
+        for r in range(n):
+            for c in range(nd):
+                ga = Ex[r, n + c]
+                gb = Ex[r, n + nd + c]
+                Yn[r, n + nd * i + c] += ga - gb
+                Yn[r, n + nd * (i + 1) + c] += gb
+        Y = Yn
+    for r in range(nd):
+        for j in range(nm):
+            if mloc[j] == r:
+                for c in range(dim):
+                    Phi[n + nd * steps + r, c] += Y[j, c]
+    Phi[:n, :] = Pfree @ Y
+    ev = np.linalg.eigvals(Phi.astype(np.complex128))
+    k = 0
+    for i in range(ev.shape[0]):
+        if abs(ev[i]) > abs(ev[k]):
+            k = i
+    return abs(ev[k]), ev[k]
+
+
+@njit(python_limit=0)
+def sdm_limits(speeds, flutes, pst, pex, kt, kr, R, mfn, mz, mk, mdir, steps, s_hi, scan, iters,
+               depth, flip, mult):
+    """Semi-discretisation (first order: the periodic coefficients averaged over each step, the
+    delayed displacement interpolated linearly, the free flight integrated exactly): per speed
+    the smallest depth (m) whose one-period map has a multiplier outside the unit circle —
+    ``scan`` depths up to ``s_hi[s]`` (then up to 4× it), then ``iters`` bisections in the
+    first unstable bracket; ``flip`` where the critical multiplier is real negative (period
+    doubling); ``mult`` its argument (rad).  inf where every scanned depth is stable."""
+    nm = mfn.shape[0]
+    n = 2 * nm
+    used = np.zeros(2, np.bool_)
+    for j in range(nm):
+        used[mdir[j]] = True
+    nd = int(used[0]) + int(used[1])
+    act = np.empty(nd, np.int64)
+    k = 0
+    for d in range(2):
+        if used[d]:
+            act[k] = d
+            k += 1
+    mloc = np.empty(nm, np.int64)
+    for j in range(nm):
+        mloc[j] = 0 if (nd == 1 or mdir[j] == 0) else 1
+    A0 = np.zeros((n, n))
+    for j in range(nm):
+        w = 2.0 * math.pi * mfn[j]
+        A0[j, nm + j] = 1.0
+        A0[nm + j, j] = -w * w
+        A0[nm + j, nm + j] = -2.0 * mz[j] * w
+    for si in range(speeds.shape[0]):
+        H, dt, tfree = _window_H(speeds[si], flutes, pst, pex, kt, kr, R, steps)
+        Pfree = _expm(A0 * tfree) if tfree > 0.0 else np.eye(n)
+        lo = 0.0
+        hi = -1.0
+        top = s_hi[si]
+        for rnd in range(2):
+            base = lo
+            for kk in range(1, scan + 1):
+                a = base + (top - base) * kk / scan
+                rad, _ = _monodromy_radius(a, H, dt, mfn, mz, mk, mloc, act, Pfree)
+                if rad > 1.0:
+                    hi = a
+                    break
+                lo = a
+            if hi > 0.0:
+                break
+            top = 4.0 * top
+        if hi < 0.0:
+            depth[si] = np.inf
+            flip[si] = False
+            mult[si] = np.nan
+            continue
+        for _ in range(iters):
+            mid = 0.5 * (lo + hi)
+            rad, _ = _monodromy_radius(mid, H, dt, mfn, mz, mk, mloc, act, Pfree)
+            if rad > 1.0:
+                hi = mid
+            else:
+                lo = mid
+        rad, ev = _monodromy_radius(hi, H, dt, mfn, mz, mk, mloc, act, Pfree)
+        depth[si] = 0.5 * (lo + hi)
+        ang = math.atan2(ev.imag, ev.real)
+        mult[si] = ang
+        flip[si] = abs(abs(ang) - math.pi) < 1e-3
+
+
+@njit(python_limit=0)
+def regen_time(n_rpm, flutes, ap, fz, pst, pex, kt, kr, R, mfn, mz, mk, mdir, steps_per_tooth, teeth, u0,
+               amp, ux, uy):
+    """Regenerative milling in the time domain at constant speed, depth ``ap`` (m), feed per
+    tooth ``fz`` (m) and arc [pst, pex]: the modes integrated exactly over each step with the
+    force at the step's middle (displacements extrapolated: second order), the chip from the
+    surface the previous tooth left (u one tooth period back), zero where the tooth leaves
+    the cut (h < 0).  ``amp[k]``: RMS over tooth period k of u(t) − u(t − T), the regenerative
+    part (zero in a stable cut once the start transient has died); ``ux``, ``uy``: the tool's
+    displacement (m) at every step.  ``u0``: initial displacement (m, both axes)."""
+    nm = mfn.shape[0]
+    m = steps_per_tooth
+    omega = 2.0 * math.pi * n_rpm / 60.0
+    T = 60.0 / (flutes * n_rpm)
+    dt = T / m
+    pitch = 2.0 * math.pi / flutes
+    # exact zero-order-hold discretisation of every mode: x' = A x + [0, F/m]
+    Ad = np.zeros((nm, 2, 2))
+    Bd = np.zeros((nm, 2))
+    for j in range(nm):
+        w = 2.0 * math.pi * mfn[j]
+        A = np.zeros((4, 4))
+        A[0, 1] = 1.0
+        A[1, 0] = -w * w
+        A[1, 1] = -2.0 * mz[j] * w
+        A[1, 2] = w * w / mk[j]  # force in N over the modal mass
+        A[2, 3] = 0.0
+        Ex = _expm(A * dt)
+        Ad[j] = Ex[:2, :2]
+        Bd[j, 0] = Ex[0, 2]
+        Bd[j, 1] = Ex[1, 2]
+    q = np.zeros((nm, 2))
+    for j in range(nm):
+        q[j, 0] = u0
+    nsteps = m * teeth
+    hist = np.zeros((m + 1, 2))  # u at the last m+1 steps (ring)
+    for k in range(nsteps):
+        t = k * dt
+        ucur = np.zeros(2)
+        for j in range(nm):
+            ucur[mdir[j]] += q[j, 0]
+        # velocity-based extrapolation to the step's middle: u + v·dt/2
+        umid = np.zeros(2)
+        for j in range(nm):
+            umid[mdir[j]] += q[j, 0] + 0.5 * dt * q[j, 1]
+        ring = k % (m + 1)
+        hist[ring, 0] = ucur[0]
+        hist[ring, 1] = ucur[1]
+        # one tooth back: step k − m (and k − m + 1 for the middle)
+        if k >= m:
+            a = hist[(k - m) % (m + 1)]
+            b = hist[(k - m + 1) % (m + 1)]
+            udel = 0.5 * (a + b)
+        else:
+            udel = np.zeros(2)
+            for j in range(nm):
+                udel[mdir[j]] += 0.0
+        # regenerative difference in the machine frame, then the tool frame
+        dmx = umid[0] - udel[0]
+        dmy = umid[1] - udel[1]
+        dtx = R[0, 0] * dmx + R[1, 0] * dmy
+        dty = R[0, 1] * dmx + R[1, 1] * dmy
+        ftx = 0.0
+        fty = 0.0
+        phase = omega * (t + 0.5 * dt)
+        for z in range(flutes):
+            phi = (pst + phase + z * pitch) % (2.0 * math.pi)
+            if phi < pst or phi > pex:
+                continue
+            sp = math.sin(phi)
+            cp = math.cos(phi)
+            h = fz * sp + sp * dtx + cp * dty
+            if h <= 0.0:
+                continue
+            ft = kt * ap * h
+            ftx += -ft * cp - kr * ft * sp
+            fty += ft * sp - kr * ft * cp
+        fx = R[0, 0] * ftx + R[0, 1] * fty
+        fy = R[1, 0] * ftx + R[1, 1] * fty
+        for j in range(nm):
+            fj = fx if mdir[j] == 0 else fy
+            q0 = Ad[j, 0, 0] * q[j, 0] + Ad[j, 0, 1] * q[j, 1] + Bd[j, 0] * fj
+            q1 = Ad[j, 1, 0] * q[j, 0] + Ad[j, 1, 1] * q[j, 1] + Bd[j, 1] * fj
+            q[j, 0] = q0
+            q[j, 1] = q1
+        ux[k] = ucur[0]
+        uy[k] = ucur[1]
+        if k >= m:
+            ex = ucur[0] - hist[(k - m) % (m + 1)][0]
+            ey = ucur[1] - hist[(k - m) % (m + 1)][1]
+            amp[k // m] += (ex * ex + ey * ey) / m
+    for i in range(amp.shape[0]):
+        amp[i] = math.sqrt(amp[i])
