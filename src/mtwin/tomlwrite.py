@@ -46,15 +46,26 @@ def inline_table(d: dict) -> str:
 def dump_tables(d: dict, prefix: str = "") -> list[str]:
     """A parsed TOML document (no effects, no journal) written back: scalars and lists first,
     then each sub-table as [a.b]."""
-    out, scalars, tables = [], [], []
+    out, scalars, tables, arrays = [], [], [], []
     for k, v in d.items():
-        (tables if isinstance(v, dict) else scalars).append((k, v))
+        if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            arrays.append((k, v))  # an array of tables ([[tools.1.modes]])
+        else:
+            (tables if isinstance(v, dict) else scalars).append((k, v))
     if prefix and scalars:
         out.append(f"[{prefix}]")
     for k, v in scalars:
         out.append(f"{toml_key(k)} = {toml_value(v)}")
     if scalars:
         out.append("")
+    if prefix and not scalars and arrays and not tables:
+        out += [f"[{prefix}]", ""]  # (the table itself, before its arrays)
+    for k, v in arrays:
+        name = f"{prefix}.{toml_key(k)}" if prefix else toml_key(k)
+        for item in v:
+            out.append(f"[[{name}]]")
+            out += [f"{toml_key(a)} = {toml_value(b)}" for a, b in item.items() if not isinstance(b, dict)]
+            out.append("")
     for k, v in tables:
         out += dump_tables(v, f"{prefix}.{toml_key(k)}" if prefix else toml_key(k))
     return out

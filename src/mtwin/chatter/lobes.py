@@ -15,6 +15,7 @@ elsewhere.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -155,7 +156,7 @@ def speed_grid(lo: float, hi: float, count: int = 0) -> np.ndarray:
 
 
 def lobes(dyn: Dynamics, cut: Cut, flutes: int, ktc: float, krc: float, speeds: np.ndarray,
-          method: str = "auto", steps: int = 40) -> Lobes:
+          method: str = "auto", steps: int = 40, refine: bool = True) -> Lobes:
     """The stability lobes of a cut (``ktc``, ``krc``: the material's coefficients, N/mm²)."""
     if not dyn:
         raise ConfigError("the tool has no dynamics: give it [[tools.N.modes]] or tools.N.frf in the twin file")
@@ -172,41 +173,84 @@ def lobes(dyn: Dynamics, cut: Cut, flutes: int, ktc: float, krc: float, speeds: 
     if method == "auto":
         chosen = "sdm" if (cut.phi_ex - cut.phi_st) < pitch / 3.0 and dyn.modes and dyn.frf is None else "zoa"
         notes.append(f"auto: {chosen} ({'engaged arc under a third of the tooth pitch' if chosen == 'sdm' else 'arc wide enough for the mean directional matrix'})")
+    if chosen == "sdm" and (not dyn.modes or dyn.frf is not None):
+        raise ConfigError("the semi-discretisation needs the tool's modes (a measured FRF has no state-space "
+                          "model): fit them with mtwin calibrate-frf and put them in the twin file")
     D = directional(cut, flutes, kt, kr)
     mfn, mz, mk, mdir = dyn.mode_arrays()
     tf, txx, tyy = dyn.table()
-    depth = np.empty(len(speeds))
-    freq = np.empty(len(speeds))
-    LK.zoa_limits.auto(len(speeds) * 4000, speeds, float(flutes), D, dyn.frequency_grid(), mfn, mz, mk, mdir,
-                       tf, txx, tyy, depth, freq)
-    if chosen == "zoa":
-        return Lobes(speeds, depth * 1e3, np.zeros(len(speeds), bool), freq, "zoa", cut, flutes, notes)
-    if not dyn.modes or dyn.frf is not None:
-        raise ConfigError("the semi-discretisation needs the tool's modes (a measured FRF has no state-space "
-                          "model): fit them with mtwin calibrate-frf and put them in the twin file")
-    zmin = np.nanmin(np.where(np.isfinite(depth), depth, np.nan)) if np.isfinite(depth).any() else 1e-3
-    # flip lobes lie below the zoa's limit, Hopf lobes near it: scan up to 1.6× of it
-    s_hi = np.where(np.isfinite(depth), np.minimum(1.6 * depth, 40.0 * zmin), 40.0 * zmin)
-    sdepth = np.empty(len(speeds))
-    flip = np.zeros(len(speeds), np.bool_)
-    mult = np.empty(len(speeds))
-    LK.sdm_limits(speeds, flutes, cut.phi_st, cut.phi_ex, kt, kr, cut.rotation, mfn, mz, mk, mdir, int(steps),
-                  s_hi, 16, 10, sdepth, flip, mult)
-    # chatter frequency of the critical multiplier e^{iθ}: (θ + 2πk)/(2πT), the k nearest the
-    # zoa's (the structure's own response picks which harmonic family chatters)
-    T = 60.0 / (flutes * speeds)
-    base = np.abs(mult) / (2.0 * math.pi * T)
-    ref = np.where(np.isfinite(freq), freq, mfn.mean() if len(mfn) else 0.0)
-    k = np.round((ref - base) * T)
-    f_sdm = base + k / T
-    alt = -base + np.round((ref + base) * T) / T
-    f_sdm = np.where(np.abs(alt - ref) < np.abs(f_sdm - ref), alt, f_sdm)
-    return Lobes(speeds, sdepth * 1e3, flip, f_sdm, "sdm", cut, flutes, notes)
+    grid = dyn.frequency_grid()
+
+    def zoa(sp):
+        depth = np.empty(len(sp))
+        freq = np.empty(len(sp))
+        LK.zoa_limits.auto(len(sp) * 4000, sp, float(flutes), D, grid, mfn, mz, mk, mdir, tf, txx, tyy, depth, freq)
+        return depth, freq
+
+    def compute(sp):
+        depth, freq = zoa(sp)
+        if chosen == "zoa":
+            return depth * 1e3, np.zeros(len(sp), bool), freq
+        fin = np.isfinite(depth)
+        zmin = float(depth[fin].min()) if fin.any() else 1e-3
+        # flip lobes lie below the zoa's limit, Hopf lobes near it: scan up to 1.6× of it
+        s_hi = np.where(fin, np.minimum(1.6 * depth, 40.0 * zmin), 40.0 * zmin)
+        sdepth = np.empty(len(sp))
+        flip = np.zeros(len(sp), np.bool_)
+        mult = np.empty(len(sp))
+        LK.sdm_limits(sp, flutes, cut.phi_st, cut.phi_ex, kt, kr, cut.rotation, mfn, mz, mk, mdir, int(steps),
+                      s_hi, 16, 10, sdepth, flip, mult)
+        # chatter frequency of the critical multiplier e^{iθ}: ±θ/(2πT) + k/T, the one nearest
+        # the zoa's (the structure's response picks which harmonic family chatters)
+        T = 60.0 / (flutes * sp)
+        base = np.abs(mult) / (2.0 * math.pi * T)
+        ref = np.where(np.isfinite(freq), freq, mfn.mean())
+        f1 = base + np.round((ref - base) * T) / T
+        f2 = -base + np.round((ref + base) * T) / T
+        return sdepth * 1e3, flip, np.where(np.abs(f2 - ref) < np.abs(f1 - ref), f2, f1)
+
+    sp, d, fl, fr = refined(compute, speeds) if refine else (speeds, *compute(speeds))
+    return Lobes(sp, d, fl, fr, chosen, cut, flutes, notes)
 
 
 def zoa_slot_minimum(k: float, zeta: float, flutes: int, kn: float) -> float:
     """Closed form of the zero-order approximation's lowest limit (m) for a slot with one mode
-    of stiffness k (N/m) and damping ζ along the feed: a = 2kζ(1+ζ)·(2π)/(N·K_n·π/2·…) —
-    derivation in docs/chatter.md: D_xx = −N·K_n/4 per unit depth, min Re Φ = −1/(2kζ(1+ζ)),
-    so a_min = 4kζ(1+ζ)/(N·K_n)."""
-    return 4.0 * k * zeta * (1.0 + zeta) / (flutes * kn)
+    of stiffness k (N/m) and damping ζ along the feed (docs/chatter.md): the mean directional
+    factor is D_xx = −N·K_n/4 per unit depth and min Re Φ = −1/(4kζ(1+ζ)) (at ω = ωn·√(1+2ζ)),
+    so a_min = 2kζ(1+ζ)/|D_xx| = 8kζ(1+ζ)/(N·K_n)."""
+    return 8.0 * k * zeta * (1.0 + zeta) / (flutes * kn)
+
+
+@functools.lru_cache(maxsize=16)
+def _frf_file(path: str) -> FRF:
+    from .modes import read_frf
+
+    return read_frf(path)
+
+
+def dynamics_of(tool) -> Dynamics:
+    """A library tool's tip dynamics (empty when it has neither modes nor an FRF)."""
+    return Dynamics(tuple(tool.modes), _frf_file(tool.frf) if tool.frf else None)
+
+
+def refined(compute, speeds: np.ndarray, rounds: int = 5, minima: int = 8):
+    """``compute(speeds) -> (depth, flip, freq)`` on a grid, then around its lowest local minima
+    two more speeds per round (a ternary refinement), merged in order: the lowest limit is
+    found within a small fraction of the grid's spacing."""
+    d, fl, fr = compute(speeds)
+    for _ in range(rounds):
+        inner = np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] <= d[2:])) + 1
+        if not len(inner):
+            break
+        inner = inner[np.argsort(d[inner])[:minima]]
+        new = np.unique(np.concatenate([(2 * speeds[inner] + speeds[inner - 1]) / 3,
+                                        (2 * speeds[inner] + speeds[inner + 1]) / 3]))
+        new = new[~np.isin(new, speeds)]
+        if not len(new):
+            break
+        d2, fl2, fr2 = compute(new)
+        speeds = np.concatenate([speeds, new])
+        o = np.argsort(speeds, kind="stable")
+        speeds, d, fl, fr = speeds[o], np.concatenate([d, d2])[o], np.concatenate([fl, fl2])[o], \
+            np.concatenate([fr, fr2])[o]
+    return speeds, d, fl, fr

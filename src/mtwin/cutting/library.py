@@ -48,6 +48,11 @@ class Tool:
     price: float = P(30.0, "", "price per tool or edge, currency units [E: 30-150 $ carbide end mill]", "nonneg")
     taylor_n: float = P(0.35, "", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4]")
     taylor_c: float = P(1300.0, "", "Taylor constant C, m/min for T in min [E: aluminium 1100-1500]")
+    # the tool tip's dynamics (docs/chatter.md): [[tools.N.modes]] tables, or a tap test's FRF
+    modes: tuple = field(default=(), metadata={"unit": "modes", "check": "modes", "choices": (),
+                                                "doc": "tool-tip modes: [[tools.N.modes]] direction, fn, zeta, k|m"})
+    frf: str = P("", "str", "a tap test's FRF file (CSV or CutPro text, relative to the twin file): the tool "
+                            "tip's compliance in X and Y; stands over the modes", "any")
 
     @property
     def radius(self) -> float:
@@ -196,10 +201,19 @@ def cutting_param_names(cutting: Cutting) -> list[str]:
     out = [f"cutting.{cutting.material_name}.{f.name}" for f in fields(Material) if f.name != "source"]
     for n, t in sorted(cutting.tools.items()):
         out += [f"tools.{n}.{f.name}" for f in fields(Tool) if isinstance(getattr(t, f.name), (int, float))]
+        if t.modes:
+            from ..chatter.modes import mode_param_names
+
+            out += mode_param_names(n, t.modes)
     return out
 
 
 def cutting_param(cutting: Cutting, name: str) -> float:
+    if _is_mode_param(name):
+        from ..chatter.modes import mode_param
+
+        n, d, j, p = _mode_key(cutting, name)
+        return mode_param(cutting.tools[n].modes, d, j, p, name)
     obj, field_name = _cutting_target(cutting, name)
     return float(getattr(obj, field_name))
 
@@ -207,6 +221,14 @@ def cutting_param(cutting: Cutting, name: str) -> float:
 def with_cutting_params(cutting: Cutting, values: dict) -> Cutting:
     """A copy with cutting parameters changed by dotted name (see ``cutting_param_names``)."""
     for name, value in values.items():
+        if _is_mode_param(name):
+            from ..chatter.modes import with_mode_param
+
+            n, d, j, p = _mode_key(cutting, name)
+            tool = cutting.tools[n]
+            cutting = replace(cutting, tools={**cutting.tools, n: replace(
+                tool, modes=with_mode_param(tool.modes, d, j, p, value, name))})
+            continue
         obj, field_name = _cutting_target(cutting, name)
         meta = {f.name: f for f in fields(obj)}[field_name].metadata
         new = replace(obj, **{field_name: _check(value, meta, name)})
@@ -216,6 +238,22 @@ def with_cutting_params(cutting: Cutting, values: dict) -> Cutting:
             n = int(name.split(".")[1])
             cutting = replace(cutting, tools={**cutting.tools, n: new})
     return cutting
+
+
+def _is_mode_param(name: str) -> bool:
+    parts = name.split(".")
+    return len(parts) == 6 and parts[0] == "tools" and parts[2] == "modes"
+
+
+def _mode_key(cutting: Cutting, name: str):
+    """``tools.N.modes.D.J.P`` -> (N, D, J, P): the J-th mode (from 0) in direction D."""
+    parts = name.split(".")
+    if not (parts[1].isdigit() and parts[3] in ("x", "y") and parts[4].isdigit()):
+        raise ConfigError(f"{name}: a mode parameter is tools.<n>.modes.<x|y>.<index>.<fn|zeta|k>")
+    n = int(parts[1])
+    if n not in cutting.tools or not cutting.tools[n].modes:
+        raise ConfigError(f"{name}: tool T{n} has no modes in the twin file's tool table")
+    return n, parts[3], int(parts[4]), parts[5]
 
 
 def _cutting_target(cutting: Cutting, name: str):
@@ -337,7 +375,11 @@ def _parse(cls, table, prefix, where):
         if key not in known:
             raise ConfigError(f"{where}: unknown key {prefix}.{key} (known: {', '.join(known)})")
         meta = known[key].metadata
-        if meta["check"] == "any":
+        if meta["check"] == "modes":
+            from ..chatter.modes import parse_modes
+
+            values[key] = parse_modes(value, f"{where}: {prefix}.{key}")
+        elif meta["check"] == "any":
             values[key] = str(value)
         else:
             try:
@@ -369,6 +411,15 @@ def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
             raise ConfigError(f"{where}: tools.{key}.corner_radius is only for type = \"bull\"")
         if t.type == "vee":
             _check_vee(t.angle, t.tip_diameter, t.diameter, f"{where}: tools.{key}")
+        if t.frf:
+            from pathlib import Path
+
+            from ..chatter.modes import read_frf
+
+            base = Path(where).parent if where not in ("twin file", "") else Path(".")
+            path = str((base / t.frf).resolve()) if not Path(t.frf).is_absolute() else t.frf
+            read_frf(path)  # (a bad file is an error of the twin file, now)
+            t = replace(t, frf=path)
         tools[int(key)] = t
     if not tools:
         defaults.append("tool: every tool is a 6 mm two-flute carbide flat end mill (no [tools.*] table)")

@@ -71,6 +71,14 @@ def with_base_values(source_text: str, values: dict, twin) -> str:
             table[parts[2]] = float(v)
             doc.setdefault("cutting", {})["material"] = parts[1]
             continue
+        if len(parts) == 6 and parts[0] == "tools" and parts[2] == "modes":
+            # tools.N.modes.D.J.P: the J-th [[tools.N.modes]] entry of direction D
+            entries = [e for e in doc["tools"][parts[1]]["modes"] if e.get("direction") == parts[3]]
+            entry = entries[int(parts[4])]
+            if parts[5] == "k":
+                entry.pop("m", None)
+            entry[parts[5]] = float(v)
+            continue
         node = doc
         for p in parts[:-1]:
             node = node.setdefault(p, {})

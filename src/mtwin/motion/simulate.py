@@ -412,6 +412,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         if tfx.land is not None:
             trace.vb = _land_by_sample(eng, plan, program, tfx.land, record).astype(np.float32)
             summary.cutting.tool_wear = _wear_table(tfx)
+    if eng is not None and summary.cutting is not None:
+        summary.cutting.chatter = chatter_table(twin, program, plan, eng)
     changed: set[str] = set()
     for e, p in observed:
         if eng is None and any(s in CUT_SIGNALS for s in e.signals):
@@ -423,6 +425,57 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     if keep_every > 1 and observed:
         trace = trace.thinned(keep_every)
     return trace
+
+
+def step_records(eng, plan) -> np.ndarray:
+    """The plan segment of every engagement step."""
+    count = eng.count
+    has = np.flatnonzero(count > 0)
+    out = np.empty(int(count.sum()), np.int64)
+    if len(has):
+        starts = np.repeat(np.cumsum(count[has]) - count[has], count[has])
+        within = np.arange(len(out)) - starts
+        out[np.repeat(eng.first[has], count[has]) + within] = np.repeat(has, count[has])
+    return out
+
+
+def chatter_table(twin, program, plan, eng) -> dict:
+    """Per program line that cuts with a tool whose dynamics the twin knows: its largest
+    stability margin (axial depth over the lobes' limit at its speed, arc and direction), the
+    depth, limit, speed and chatter frequency there; empty when no tool has dynamics."""
+    from ..chatter.lobes import dynamics_of
+    from ..chatter.margin import step_arcs, step_limits
+
+    cut = _program_cutting(twin, program)
+    rec = program.records
+    used = sorted(set(int(t) for t in rec["tool"]))
+    tools = {t: cut.tool(t) for t in used if t in cut.tools or t in cut.declared}
+    dyn = {t: dynamics_of(tl) for t, tl in tools.items()}
+    if not any(dyn.values()) or not eng.steps:
+        return {}
+    r = plan.seg["rec"][step_records(eng, plan)]
+    tool = rec["tool"][r].astype(np.int64)
+    hand = np.where(rec["spindle_dir"][r] < 0, -1, 1)
+    speed = np.minimum(rec["spindle"][r].astype(float), twin.machine.spindle.max_speed)
+    arcs = step_arcs(eng.q)
+    mat = cut.material
+    limit, freq = step_limits(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand,
+                              speed, arcs)
+    margin = np.where(np.isfinite(limit) & arcs.cutting, arcs.ap / np.where(np.isfinite(limit), limit, 1.0), 0.0)
+    line = rec["line"][r]
+    lines = []
+    for ln in np.unique(line[margin > 0]):
+        at = np.flatnonzero((line == ln) & (margin > 0))
+        i = at[np.argmax(margin[at])]
+        lines.append({"line": int(ln), "tool": int(tool[i]), "speed": float(speed[i]), "ap": float(arcs.ap[i]),
+                      "immersion": float(0.5 * (np.cos(arcs.phi_st[i]) - np.cos(arcs.phi_ex[i]))),
+                      "limit": float(limit[i]), "margin": float(margin[i]),
+                      "chatter_frequency": None if not np.isfinite(freq[i]) else float(freq[i])})
+    worst = max(lines, key=lambda x: x["margin"]) if lines else None
+    return {"tools": {str(t): {"modes": len(d.modes), "frf": d.frf.source if d.frf is not None else None}
+                      for t, d in dyn.items() if d},
+            "worst_margin": worst["margin"] if worst else 0.0, "worst_line": worst["line"] if worst else 0,
+            "unstable_lines": [x["line"] for x in lines if x["margin"] > 1.0], "lines": lines}
 
 
 CUT_SIGNALS = {"spindle_speed", "spindle_torque", "spindle_power", "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"}

@@ -42,6 +42,9 @@ class CuttingSummary:
     # per tool number, with a wear effect: the flank-wear land at the program's first and last
     # cut steps (mm) and the edge sliding before and in the program (m)
     tool_wear: dict = field(default_factory=dict)
+    # with tools whose dynamics the twin knows: each cutting line's chatter stability margin
+    # (motion.simulate.chatter_table; docs/chatter.md)
+    chatter: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -90,6 +93,9 @@ class Summary:
             wear = d["cutting"].pop("tool_wear")
             if wear:
                 d["tool_wear"] = {str(k): v for k, v in wear.items()}
+            chatter = d["cutting"].pop("chatter")
+            if chatter:
+                d["chatter"] = chatter
         # a line 0 does not exist: "no such place" (nothing cut, no feed move) is null
         for sub in (d, d.get("cutting") or {}):
             for k, v in sub.items():

@@ -1,0 +1,90 @@
+"""The stability margin of a program's cuts: per engagement step, its axial depth over the
+limit at its spindle speed, engaged arc and feed direction — the lobes of that cut.
+
+The engagement gives each step the cosines of its flank arc's ends (bin centres, widened by
+half a bin), its axial depth and its feed direction; steps of one tool whose arcs and
+directions agree within ``QUANT`` share one lobe computation over all their speeds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import layout as EK
+from .lobes import Cut, Dynamics, lobes
+
+QUANT = math.radians(3.0)  # arcs and feed directions are grouped to this (lobes move little within it)
+
+
+@dataclass
+class StepArcs:
+    """Per engagement step: cutting or not, the arc (rad), the feed angle (rad), depth (mm)."""
+
+    cutting: np.ndarray
+    phi_st: np.ndarray
+    phi_ex: np.ndarray
+    feed_angle: np.ndarray
+    ap: np.ndarray
+
+
+def step_arcs(q: np.ndarray) -> StepArcs:
+    q = np.asarray(q, np.float64)
+    half = math.pi / EK.ANGLE_BINS  # half a bin: the arc's ends are bin centres
+    cmin, cmax = q[:, EK.Q_CMIN], q[:, EK.Q_CMAX]
+    cutting = (q[:, EK.Q_AREA] > 0) & (cmax >= cmin) & (q[:, EK.Q_AP] > 0)
+    st = np.clip(np.arccos(np.clip(cmax, -1, 1)) - half, 0.0, math.pi)
+    ex = np.clip(np.arccos(np.clip(cmin, -1, 1)) + half, 0.0, math.pi)
+    ang = np.arctan2(q[:, EK.Q_DY], q[:, EK.Q_DX])
+    return StepArcs(cutting, st, ex, ang, q[:, EK.Q_AP])
+
+
+def _groups(tool, hand, arcs: StepArcs, idx):
+    key = np.stack([tool[idx], hand[idx], np.round(arcs.phi_st[idx] / QUANT), np.round(arcs.phi_ex[idx] / QUANT),
+                    np.round(arcs.feed_angle[idx] / QUANT) % round(2 * math.pi / QUANT)], axis=1)
+    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    return uniq, inv.reshape(-1)
+
+
+def _cut_of(row) -> Cut:
+    st = row[2] * QUANT
+    ex = max(row[3] * QUANT, st + 1e-3)
+    return Cut(float(min(st, math.pi)), float(min(ex, math.pi)), float(row[4] * QUANT), int(row[1]))
+
+
+def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
+                speed: np.ndarray, arcs: StepArcs, method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """Per step: the limiting depth (mm; inf where the tool has no dynamics or the step does
+    not cut) at its speed, and the chatter frequency there (Hz)."""
+    limit = np.full(len(tool), np.inf)
+    freq = np.full(len(tool), np.nan)
+    idx = np.flatnonzero(arcs.cutting & np.isin(tool, [t for t, d in dyn.items() if d]) & (speed > 0))
+    if not len(idx):
+        return limit, freq
+    uniq, inv = _groups(tool, hand, arcs, idx)
+    for g, row in enumerate(uniq):
+        at = idx[inv == g]
+        sp, back = np.unique(np.round(speed[at], 1), return_inverse=True)
+        lb = lobes(dyn[int(row[0])], _cut_of(row), int(flutes[int(row[0])]), ktc, krc, sp, method, steps=20,
+                   refine=False)
+        limit[at] = lb.depth_limit[back]
+        freq[at] = lb.chatter_frequency[back]
+    return limit, freq
+
+
+def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
+                 arcs: StepArcs, idx: np.ndarray, speeds: np.ndarray, method: str = "auto"):
+    """For the steps ``idx``: their group (row per step) and each group's limit (mm) over the
+    speed grid ``speeds`` — (group of each step, (groups, speeds) limits)."""
+    if not len(idx):
+        return np.zeros(0, np.int64), np.zeros((0, len(speeds)))
+    uniq, inv = _groups(tool, hand, arcs, idx)
+    tab = np.full((len(uniq), len(speeds)), np.inf)
+    for g, row in enumerate(uniq):
+        d = dyn.get(int(row[0]))
+        if not d:
+            continue
+        tab[g] = lobes(d, _cut_of(row), int(flutes[int(row[0])]), ktc, krc, speeds, method, steps=20,
+                       refine=False).depth_limit
+    return inv, tab
