@@ -16,6 +16,10 @@ from .. import layout as EK
 from .lobes import Cut, Dynamics, lobes
 
 QUANT = math.radians(3.0)  # arcs and feed directions are grouped to this (lobes move little within it)
+#: an arc that takes less than this share of its cut's steps is a transient (the tool entering
+#: or leaving the material): regenerative chatter needs many tooth passes at one engagement to
+#: build up, so transients are not checked — and the semi-discretisation is not spent on them
+TRANSIENT = 0.05
 
 
 @dataclass
@@ -40,11 +44,20 @@ def step_arcs(q: np.ndarray) -> StepArcs:
     return StepArcs(cutting, st, ex, ang, q[:, EK.Q_AP])
 
 
-def _groups(tool, hand, arcs: StepArcs, idx):
+def groups(tool, hand, arcs: StepArcs, idx):
     key = np.stack([tool[idx], hand[idx], np.round(arcs.phi_st[idx] / QUANT), np.round(arcs.phi_ex[idx] / QUANT),
                     np.round(arcs.feed_angle[idx] / QUANT) % round(2 * math.pi / QUANT)], axis=1)
     uniq, inv = np.unique(key, axis=0, return_inverse=True)
     return uniq, inv.reshape(-1)
+
+
+def steady(idx: np.ndarray, cut_of: np.ndarray, inv: np.ndarray) -> np.ndarray:
+    """Per step of ``idx`` (cut ``cut_of``, group ``inv``): whether its group holds at least
+    ``TRANSIENT`` of its cut's steps."""
+    key = cut_of.astype(np.int64) * (int(inv.max(initial=0)) + 1) + inv
+    uk, kinv, kcount = np.unique(key, return_inverse=True, return_counts=True)
+    uc, cinv, ccount = np.unique(cut_of, return_inverse=True, return_counts=True)
+    return kcount[kinv.reshape(-1)] >= TRANSIENT * ccount[cinv.reshape(-1)]
 
 
 def _cut_of(row) -> Cut:
@@ -54,15 +67,19 @@ def _cut_of(row) -> Cut:
 
 
 def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
-                speed: np.ndarray, arcs: StepArcs, method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
-    """Per step: the limiting depth (mm; inf where the tool has no dynamics or the step does
-    not cut) at its speed, and the chatter frequency there (Hz)."""
+                speed: np.ndarray, arcs: StepArcs, cut_of: np.ndarray, method: str = "auto"):
+    """Per step: the limiting depth (mm; inf where the tool has no dynamics, the step does not
+    cut or its arc is a transient of its cut ``cut_of``, e.g. the program line) at its speed,
+    and the chatter frequency there (Hz)."""
     limit = np.full(len(tool), np.inf)
     freq = np.full(len(tool), np.nan)
     idx = np.flatnonzero(arcs.cutting & np.isin(tool, [t for t, d in dyn.items() if d]) & (speed > 0))
+    if len(idx):
+        uniq, inv = groups(tool, hand, arcs, idx)
+        idx = idx[steady(idx, cut_of[idx], inv)]
     if not len(idx):
         return limit, freq
-    uniq, inv = _groups(tool, hand, arcs, idx)
+    uniq, inv = groups(tool, hand, arcs, idx)
     for g, row in enumerate(uniq):
         at = idx[inv == g]
         sp, back = np.unique(np.round(speed[at], 1), return_inverse=True)
@@ -75,11 +92,12 @@ def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarra
 
 def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
                  arcs: StepArcs, idx: np.ndarray, speeds: np.ndarray, method: str = "auto"):
-    """For the steps ``idx``: their group (row per step) and each group's limit (mm) over the
-    speed grid ``speeds`` — (group of each step, (groups, speeds) limits)."""
+    """For the steps ``idx`` (transients already left out, see ``steady``): their group (row
+    per step) and each group's limit (mm) over the speed grid ``speeds`` — (group of each
+    step, (groups, speeds) limits)."""
     if not len(idx):
         return np.zeros(0, np.int64), np.zeros((0, len(speeds)))
-    uniq, inv = _groups(tool, hand, arcs, idx)
+    uniq, inv = groups(tool, hand, arcs, idx)
     tab = np.full((len(uniq), len(speeds)), np.inf)
     for g, row in enumerate(uniq):
         d = dyn.get(int(row[0]))

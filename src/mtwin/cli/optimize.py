@@ -55,6 +55,10 @@ MIN_SEGMENT = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of
 REPORT = typer.Option(None, "--report", help="Write a self-contained HTML report (.html).")
 JSON_OUT = typer.Option(False, "--json", help="Result as JSON on stdout.")
 IN_PLACE = typer.Option(False, "--in-place", help="Allow -o to be the input file.")
+CHATTER_MARGIN = typer.Option(0.8, "--chatter-margin", help="With tools whose modes or FRF the twin knows: hold "
+                              "every cut's axial depth at most this share of the stability limit at its speed "
+                              "(docs/chatter.md); S moves into stable pockets with --spindle-range.")
+CHATTER_METHOD = typer.Option("auto", "--chatter-method", help="zoa | sdm | auto: how the lobes are computed.")
 RECORD = typer.Option(False, "--record", help="Add the optimised program's run to the --ledger tools' history.")
 
 
@@ -81,6 +85,8 @@ def optimize(
     json_out: bool = JSON_OUT,
     in_place: bool = IN_PLACE,
     record: bool = RECORD,
+    chatter_margin: float = CHATTER_MARGIN,
+    chatter_method: str = CHATTER_METHOD,
     setup=None, ga=None,
 ):
     """Segment the predicted power curve, choose F (and S) per segment for the objective under
@@ -97,7 +103,8 @@ def optimize(
     opts = OptimizeOptions(objective, method, force_limit, value_range(feed_range, "--feed-range"),
                            value_range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
                            power_tolerance=power_tolerance, tolerance=tolerance, finish_feed=finish_feed,
-                           segmentation=segmentation, min_segment=min_segment, ga=ga)
+                           segmentation=segmentation, min_segment=min_segment, ga=ga, chatter_margin=chatter_margin,
+                           chatter_method=chatter_method)
     tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
     prog = load_part(tw, part, Messages(message))
     try:

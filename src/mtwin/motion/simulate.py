@@ -459,10 +459,10 @@ def chatter_table(twin, program, plan, eng) -> dict:
     speed = np.minimum(rec["spindle"][r].astype(float), twin.machine.spindle.max_speed)
     arcs = step_arcs(eng.q)
     mat = cut.material
-    limit, freq = step_limits(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand,
-                              speed, arcs)
-    margin = np.where(np.isfinite(limit) & arcs.cutting, arcs.ap / np.where(np.isfinite(limit), limit, 1.0), 0.0)
     line = rec["line"][r]
+    limit, freq = step_limits(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand,
+                              speed, arcs, line)
+    margin = np.where(np.isfinite(limit) & arcs.cutting, arcs.ap / np.where(np.isfinite(limit), limit, 1.0), 0.0)
     lines = []
     for ln in np.unique(line[margin > 0]):
         at = np.flatnonzero((line == ln) & (margin > 0))

@@ -121,6 +121,9 @@ class Problem:
     # engagement): with ``rates.slide_life`` the tool life a segment uses is its sliding,
     # seconds × rev/s × arc, over the life
     seg_arc: np.ndarray | None = None
+    # with tools whose dynamics the twin knows: the segments' stability tables
+    # (optimize.chatter.ChatterTables); a segment is held within the chatter margin
+    chatter: object = None
 
     # ---- the model -------------------------------------------------------------------
     def _interp(self, tab: np.ndarray, fz: np.ndarray) -> np.ndarray:
@@ -189,8 +192,13 @@ class Problem:
             used = self.rates.lives_used(ts, cutting_speed(self.seg_diam, n))
         wear = np.where(cut, used, 0.0).sum(axis=1)
         cost = self.rates.cost(time, wear)
+        v_chatter = np.zeros_like(v_load)
+        if self.chatter is not None:
+            r = self.chatter.at(n)
+            v_chatter = np.where(cut, np.maximum(r / self.chatter.margin - 1.0, 0.0), 0.0)
         return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
-                "mean_power": mean_power, "seg_time": ts, "violation": v_load + v_power + v_torque + v_chip,
+                "mean_power": mean_power, "seg_time": ts,
+                "violation": v_load + v_power + v_torque + v_chip + v_chatter, "v_chatter": v_chatter,
                 "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "v_chip": v_chip, "tool_lives": wear}
 
     def runup_change(self, spins: np.ndarray) -> np.ndarray:

@@ -16,6 +16,8 @@ from ..cutting.engagement import GUESSED_STOCK
 from ..motion.path import PAUSE
 from .model import cutting_speed, feed_records, move_times, path_model
 from .problem import CostRates, Limits, Runups, build_problem
+from .chatter import chatter_tables, var_stable
+from .chatter import report as chatter_report
 from .search import GAOptions, bisect, fixed_spins, genetic
 from .guards import (FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, percentile_by_group,
                      trusted_records)
@@ -60,6 +62,10 @@ class OptimizeOptions:
     ga: GAOptions = field(default_factory=GAOptions)
     margin: float = 0.01
     max_rounds: int = 8
+    # with tools whose dynamics the twin knows: each cutting segment's axial depth is held at
+    # most this share of the lobes' limit at its speed (docs/chatter.md); None: no check
+    chatter_margin: float | None = 0.8
+    chatter_method: str = "auto"  # zoa | sdm | auto (chatter.lobes)
 
     def __post_init__(self):
         # every option within its domain, named as the command line names it
@@ -75,6 +81,10 @@ class OptimizeOptions:
             (o.segmentation in ("cluster", "changepoint"),
              lambda: f"--segmentation must be cluster or changepoint, got {o.segmentation!r}"),
             (o.spindle_per in ("tool", "segment"), lambda: f"--spindle-per must be tool or segment, got {o.spindle_per!r}"),
+            (o.chatter_margin is None or 0 < o.chatter_margin <= 1,
+             lambda: f"--chatter-margin must be in (0, 1] (a share of the stability limit), got {o.chatter_margin}"),
+            (o.chatter_method in ("zoa", "sdm", "auto"),
+             lambda: f"--chatter-method must be zoa, sdm or auto, got {o.chatter_method!r}"),
             (positive(o.force_limit), lambda: f"--force-limit must be a positive number of N, got {o.force_limit:g}"),
             (positive(o.target_power), lambda: f"--target-power must be a positive number of W, got {o.target_power:g}"),
             (0 < o.power_tolerance < 1, lambda: f"--power-tolerance must be between 0 and 1, got {o.power_tolerance:g}"),
@@ -139,6 +149,9 @@ class OptimizeResult:
     # per tool with a wear effect: the land the plan starts and ends with, and the parts like
     # this one left before the land reaches the end-of-life limit (ISO 8688-2: 0.3 mm)
     tool_wear: dict = field(default_factory=dict)
+    # with tools whose dynamics the twin knows: per segment the depth, speeds and stability
+    # margin before and after, the segments no speed makes stable (optimize.chatter.report)
+    chatter: dict = field(default_factory=dict)
 
     @property
     def tools(self) -> list:
@@ -172,6 +185,7 @@ class OptimizeResult:
                 "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in self.tradeoff],
                 "tradeoff_source": self.tradeoff_source,
                 **({"tool_wear": {str(k): v for k, v in self.tool_wear.items()}} if self.tool_wear else {}),
+                **({"chatter": self.chatter} if self.chatter else {}),
                 "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in self.changed_lines]}
 
 
@@ -320,6 +334,13 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     limit_notes = _limit_notes(prob, levels, learned, opts, m)
     if spindle_range is not None:
         prob = replace(prob, runups=_runups(prob, program, plan, segs, m))
+    if opts.chatter_margin is not None and opts.objective != "air":
+        stage("stability lobes")
+        chat = chatter_tables(twin, program, model, eng, segs, prob, spindle_range, opts.chatter_margin,
+                              opts.chatter_method)
+        if chat is not None:
+            prob = replace(prob, chatter=chat)
+            _chatter_warnings(chat, prob, segs, program, spindle_range, warnings)
 
     # ---- a program that breaks a limit even at the lowest feed is reported, not optimised
     # (with learned limits the program's own feeds are the floor and its own levels the limits)
@@ -400,7 +421,9 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         # the program's feeds are the floor: at a lower speed they would be a larger feed per
         # tooth than the program's own, so no tool runs below its programmed speed (a higher
         # speed at the same feed only thins the chip; the re-simulation checks the rest)
-        spins = np.maximum(spins, np.minimum(prob.n0_spin, spindle_range[1]))
+        raised = np.maximum(spins, np.minimum(prob.n0_spin, spindle_range[1]))
+        # (not where the programmed speed would chatter: the search moved it to a stable one)
+        spins = raised if prob.chatter is None else np.where(var_stable(prob.chatter, prob, raised), raised, spins)
     air_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(air_var, prob.seg_var, prob.seg_air)
     cut_var = np.zeros(prob.nvar, bool)
@@ -632,7 +655,25 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     contour = {"before": float(np.max(ce_before[seg_before >= 0], initial=0.0)),
                "after": float(np.max(ce_after[seg_after >= 0], initial=0.0)), "tolerance": opts.tolerance,
                "worst_segment_increase": float(np.max(contour_after - contour_before, initial=0.0))}
-    if prob.f_floor is not None and _worse(opts.objective, fig_before, fig_after):
+    chatter = {}
+    if prob.chatter is not None:
+        on = seg_after >= 0
+        line_segs: dict = {}
+        for ln, sg in np.unique(np.stack([np.asarray(after.line)[on], seg_after[on]], axis=1), axis=0):
+            line_segs.setdefault(int(ln), []).append(int(sg))
+        chatter = chatter_report(prob.chatter, prob, segs, program, fixed_spins(prob), s_try, after.summary,
+                                 line_segs)
+    fixes_chatter = bool(chatter) and any(r["margin_before"] is not None and r["margin_before"] > prob.chatter.margin
+                                          for r in chatter["segments"])
+    if fixes_chatter and _worse(opts.objective, fig_before, fig_after):
+        warnings.append(f"{program.path}: warning: the answer is {'slower' if opts.objective == 'time' else 'dearer'} "
+                        f"than the program ({fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s): its "
+                        f"spindle speeds move to where the cuts are stable (the program's would chatter)")
+    if chatter.get("check", {}).get("lines_over_margin"):
+        warnings.append(f"{program.path}: warning: on the re-simulated answer, line(s) "
+                        f"{', '.join(map(str, chatter['check']['lines_over_margin'][:10]))} are over the chatter "
+                        f"margin {prob.chatter.margin:g} at their speeds")
+    if prob.f_floor is not None and not fixes_chatter and _worse(opts.objective, fig_before, fig_after):
         # learned limits promise a program no slower (no dearer) than the user's: when the
         # full twin says the answer is, the program stays as it was
         figs = (f"{fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s" if opts.objective == "time" else
@@ -685,7 +726,25 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                           "" if not learned else "learned from the program (95th percentile of each tool's engaged "
                           "steps at its programmed F and S); --force-limit sets one",
                           list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
-                          spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings))
+                          spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter)
+
+
+def _chatter_warnings(chat, prob, segs, program, spindle_range, warnings: list) -> None:
+    """Segments no allowed speed makes stable (the CAM must take less depth), and — without a
+    spindle range — those the program's own speed makes chatter."""
+    lines = segs.seg_lines(program)
+    for s in np.flatnonzero(chat.unstable):
+        warnings.append(f"{program.path}:{lines[s][0]}: warning: lines {lines[s][0]}-{lines[s][-1]} (T{prob.seg_tool[s]}, "
+                        f"axial depth {chat.seg_ap[s]:.2f} mm) chatter at every allowed speed with the margin "
+                        f"{chat.margin:g}: the CAM must take a smaller depth (at most {chat.best_ap[s]:.2f} mm at "
+                        f"{chat.best_speed[s]:.0f} rpm); the optimiser leaves their speed to the rest of the tool's cuts")
+    if spindle_range is None:
+        r = chat.at(fixed_spins(prob)[prob.seg_spin][None, :])[0]
+        bad = np.flatnonzero(~chat.unstable & ~prob.seg_air & (r > chat.margin))
+        for s in bad[:10]:
+            warnings.append(f"{program.path}:{lines[s][0]}: warning: lines {lines[s][0]}-{lines[s][-1]} chatter at the "
+                            f"programmed speed ({r[s]:.2f} of the stability limit, margin {chat.margin:g}): give "
+                            f"--spindle-range to let S move into a stable pocket")
 
 
 def _worse(objective: str, before: Figures, after: Figures) -> bool:

@@ -51,13 +51,25 @@ def fixed_spins(p: Problem) -> np.ndarray:
     return n
 
 
+def start_spins(p: Problem) -> np.ndarray:
+    """The speeds a search starts from: the program's (in range), except that with chatter
+    tables and a spindle range a speed that chatters moves to the most stable one (a lobe's
+    peak, optimize.chatter)."""
+    n = fixed_spins(p)
+    if p.limits.spindle and p.chatter is not None:
+        from .chatter import stable_spins
+
+        n = stable_spins(p.chatter, p, n)
+    return n
+
+
 def bisect(p: Problem, objective: str, target_power: float | None = None, tolerance: float = 0.05) -> SearchResult:
     """Per-segment bisection on the feed, as in the power-smoothing reference.
 
     ``time`` (and ``cost``, for which it is the feed-only answer): the highest feed within the
     range and the limits; ``smooth``: the feed whose segment mean power is the target within
     ``tolerance`` (relative), capped by the limits; the spindle speeds stay (in range)."""
-    spins = fixed_spins(p)
+    spins = start_spins(p)
     fmax = p.max_feasible_feed(spins)
     lo_f, hi_f = p.limits.feed
     if objective in ("time", "cost"):
