@@ -152,6 +152,8 @@ class OptimizeResult:
     # with tools whose dynamics the twin knows: per segment the depth, speeds and stability
     # margin before and after, the segments no speed makes stable (optimize.chatter.report)
     chatter: dict = field(default_factory=dict)
+    # the lobes behind it, for the report: tool -> (speed grid rpm, [(label, limits mm)])
+    chatter_curves: dict = field(default_factory=dict)
 
     @property
     def tools(self) -> list:
@@ -726,7 +728,9 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                           "" if not learned else "learned from the program (95th percentile of each tool's engaged "
                           "steps at its programmed F and S); --force-limit sets one",
                           list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
-                          spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter)
+                          spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter,
+                          chatter_curves={} if prob.chatter is None else
+                          {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()})
 
 
 def _chatter_warnings(chat, prob, segs, program, spindle_range, warnings: list) -> None:

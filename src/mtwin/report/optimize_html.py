@@ -80,6 +80,8 @@ def optimize_html(res, program: str) -> bytes:
         parts.append("<h2>Cycle time against the load limit</h2><p>From the same segments (fast model): what "
                      "each extra 10 N of permitted load buys.</p>")
         parts.append(_tradeoff(plt, res))
+    if res.chatter:
+        parts.append(_chatter(res))
     parts.append(_segments_table(res))
     parts.append(_changes_table(res))
     style = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}"
@@ -152,6 +154,39 @@ def _feed(plt, res) -> str:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return _svg(fig)
+
+
+def _chatter(res) -> str:
+    """Per tool with dynamics: its cuts' lobes (the most limiting arcs) with every cutting
+    segment's (S, ap) before (hollow) and after (filled); the segments no speed makes stable."""
+    from .plots import lobes_figure
+
+    e = html.escape
+    ch = res.chatter
+    out = [f"<h2>Chatter stability</h2><p>Each cut's axial depth is held at most {ch['margin']:g} of the lobes' "
+           f"limit at its speed ({e(ch['method'])}; a chosen speed keeps it over ±1 % of itself). The curves are the "
+           f"limits of the tool's cuts' engaged arcs; the points the segments' deepest cuts.</p>"]
+    for tool, (grid, curves) in sorted(res.chatter_curves.items()):
+        rows = [r for r in ch["segments"] if r["tool"] == tool]
+        pts = {"before": (np.array([r["speed_before"] for r in rows]), np.array([r["ap"] for r in rows]), "o"),
+               "after": (np.array([r["speed_after"] for r in rows]), np.array([r["ap"] for r in rows]), "s")}
+        svg = lobes_figure({f"T{tool} {lab}": (grid, lim) for lab, lim in curves}, None, "svg", pts,
+                           title=f"T{tool}: stability lobes and the cuts", size=(10, 4))
+        out.append(svg.decode("utf-8")[svg.decode("utf-8").find("<svg"):])
+    def cell(v):
+        return "–" if v is None else f"{v:.2f}"
+
+    rows = "".join(f"<tr><td>{r['lines'][0]}-{r['lines'][1]}</td><td>T{r['tool']}</td><td>{r['ap']:.2f} mm</td>"
+                   f"<td>{r['speed_before']:.0f} → {r['speed_after']:.0f}</td><td>{cell(r['margin_before'])}</td>"
+                   f"<td>{'unstable at every speed' if r['unstable_everywhere'] else cell(r['margin_after'])}</td></tr>"
+                   for r in ch["segments"])
+    out.append("<table><tr><th>lines</th><th>tool</th><th>ap</th><th>S rpm</th><th>depth/limit before</th>"
+               f"<th>after</th></tr>{rows}</table>")
+    if ch["unstable"]:
+        out.append("<p><b>Cannot be made stable</b> by any allowed speed (the CAM must take less depth): " + "; ".join(
+            f"lines {u['lines'][0]}-{u['lines'][1]} (T{u['tool']}, ap {u['ap']:.2f} mm; at most "
+            f"{u['deepest_stable']:.2f} mm at {u['at_speed']:.0f} rpm)" for u in ch["unstable"]) + "</p>")
+    return "".join(out)
 
 
 def _tradeoff(plt, res) -> str:

@@ -62,3 +62,42 @@ def power_svg(trace, title: str = "", fmt: str = "svg") -> bytes:
     fig.savefig(buf, format=fmt, dpi=150 if fmt == "png" else None)
     plt.close(fig)
     return buf.getvalue()
+
+
+def lobes_figure(curves: dict, flip=None, fmt: str = "svg", points: dict | None = None, title: str = "",
+                 size=(9, 4)) -> bytes:
+    """Stability lobes: limiting axial depth (mm) against spindle speed (rpm), one line per
+    curve (label -> (speeds, depths)); ``flip``: where the first curve's limiting lobe is a
+    period-doubling one (marked); ``points``: label -> (speeds, depths, marker) drawn over it
+    (a program's cuts before and after)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=size, dpi=100)
+    colours = ["#1f5fa8", "#8a5fbf", "#3a9a5b", "#c07a1f"]
+    top = 0.0
+    for i, (label, (sp, d)) in enumerate(curves.items()):
+        d = np.where(np.isfinite(d), d, np.nan)
+        ax.plot(sp, d, lw=1.0, color=colours[i % 4], label=label)
+        ax.fill_between(sp, 0, d, color=colours[i % 4], alpha=0.06 if i else 0.12)
+        top = max(top, float(np.nanpercentile(d, 95)) if np.isfinite(d).any() else 0.0)
+        if i == 0 and flip is not None and np.any(flip):
+            f = np.asarray(flip, bool)
+            ax.plot(np.asarray(sp)[f], d[f], ".", ms=2.5, color="#c0392b", label="flip (period-doubling) lobe")
+    for label, (sp, d, marker) in (points or {}).items():
+        ax.plot(sp, d, marker, ms=6, label=label, mfc="none" if "before" in label else None)
+        top = max(top, float(np.max(d, initial=0.0)) * 1.1)
+    ax.set_xlabel("spindle speed [rpm]")
+    ax.set_ylabel("axial depth limit [mm]")
+    ax.set_ylim(0, top * 1.1 if top > 0 else 1.0)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=150 if fmt == "png" else None)
+    plt.close(fig)
+    return buf.getvalue()
