@@ -44,4 +44,4 @@ _CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", 
 #: every signal a trace can hold, in the measurement format's order
 SIGNALS = (tuple(a + s for s in ("", "_cmd", "_err", "_vel") for a in AXES) + ("feed",)
            + tuple(a + s for s in ("_torque", "_current") for a in AXES) + _CUT_SIGNALS[:3]
-           + ("fx", "fy", "fz") + _CUT_SIGNALS[3:] + ("vb",))
+           + ("fx", "fy", "fz") + _CUT_SIGNALS[3:] + ("vb", "vib_x", "vib_y"))

@@ -31,6 +31,8 @@ class Simulation:
     # several runs of the program on the same tools (simulate_runs): per run, its figures
     runs: list = field(default_factory=list)
     recorded: list = field(default_factory=list)  # tool ids whose runs went into the ledger
+    # with dynamics=True: the regenerative model along the trace (chatter.dynamics.Dynamics)
+    dynamics: object = None
 
     def write_trace(self, path: str, source: str = "simulate") -> None:
         """Write the trace in the measurement format (.csv, .parquet, or '-'), its metadata
@@ -55,13 +57,15 @@ class Simulation:
             d["runs"] = self.runs
         if self.recorded:
             d["recorded"] = self.recorded
+        if self.dynamics is not None:
+            d["dynamics"] = self.dynamics.as_dict()
         return d
 
 
 def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every: Optional[int] = None,
              rate: Optional[float] = None, tooth_resolution: bool = False,
              progress: Optional[Callable[[int, int], None]] = None, progress_from: int = 0,
-             on_message=None) -> Simulation:
+             on_message=None, dynamics: bool = False) -> Simulation:
     """Run a program through the twin: interpreter, planner, servo loop and cutting process.
 
     Parameters
@@ -85,12 +89,17 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
         than ``progress_from`` servo samples (a shorter one runs in one piece).
     on_message : callable, optional
         ``on_message(kind, text)`` for each warning and note as it arises.
+    dynamics : bool
+        Run the regenerative chatter model along the trace for the tools with modes
+        (``docs/chatter.md``): the trace's ``vib_x``/``vib_y`` and per line a verdict.
 
     Returns
     -------
     Simulation
     """
     msgs = Messages(on_message)
+    if dynamics and not cutting:
+        raise MtwinError("--dynamics needs the cutting model (what the tool cuts): do not combine it with --no-cutting")
     tw = open_twin(twin)
     every = _every(every, rate, tw.machine.controller.servo_period)
     prog = load_part(tw, program, msgs)
@@ -101,7 +110,16 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
                           tooth=tooth_resolution)
     for w in trace.summary.warnings:
         msgs.warn(w)
-    return Simulation(prog, trace, msgs.items, every, tw)
+    dyn = None
+    if dynamics:
+        from ..chatter.dynamics import trace_dynamics
+        from ..motion.simulate import _program_cutting
+
+        dyn = trace_dynamics(_program_cutting(tw, prog), prog, plan, trace)
+        trace.vib = dyn.vib.astype(np.float32)
+        for note in dyn.notes:
+            msgs.note(note)
+    return Simulation(prog, trace, msgs.items, every, tw, dynamics=dyn)
 
 
 def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, stock=None, cutting: bool = True,

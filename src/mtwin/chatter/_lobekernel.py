@@ -346,96 +346,142 @@ def sdm_limits(speeds, flutes, pst, pex, kt, kr, R, mfn, mz, mk, mdir, steps, s_
         flip[si] = abs(abs(ang) - math.pi) < 1e-3
 
 
-@njit(python_limit=0)
-def regen_time(n_rpm, flutes, ap, fz, pst, pex, kt, kr, R, mfn, mz, mk, mdir, steps_per_tooth, teeth, u0,
-               amp, ux, uy):
-    """Regenerative milling in the time domain at constant speed, depth ``ap`` (m), feed per
-    tooth ``fz`` (m) and arc [pst, pex]: the modes integrated exactly over each step with the
-    force at the step's middle (displacements extrapolated: second order), the chip from the
-    surface the previous tooth left (u one tooth period back), zero where the tooth leaves
-    the cut (h < 0).  ``amp[k]``: RMS over tooth period k of u(t) − u(t − T), the regenerative
-    part (zero in a stable cut once the start transient has died); ``ux``, ``uy``: the tool's
-    displacement (m) at every step.  ``u0``: initial displacement (m, both axes)."""
-    nm = mfn.shape[0]
-    m = steps_per_tooth
-    omega = 2.0 * math.pi * n_rpm / 60.0
-    T = 60.0 / (flutes * n_rpm)
-    dt = T / m
-    pitch = 2.0 * math.pi / flutes
-    # exact zero-order-hold discretisation of every mode: x' = A x + [0, F/m]
-    Ad = np.zeros((nm, 2, 2))
-    Bd = np.zeros((nm, 2))
-    for j in range(nm):
+@njit
+def _modal_zoh(mfn, mz, mk, dt, Ad, Bd):
+    for j in range(mfn.shape[0]):
         w = 2.0 * math.pi * mfn[j]
-        A = np.zeros((4, 4))
+        A = np.zeros((3, 3))
         A[0, 1] = 1.0
         A[1, 0] = -w * w
         A[1, 1] = -2.0 * mz[j] * w
-        A[1, 2] = w * w / mk[j]  # force in N over the modal mass
-        A[2, 3] = 0.0
+        A[1, 2] = w * w / mk[j]
         Ex = _expm(A * dt)
-        Ad[j] = Ex[:2, :2]
+        Ad[j, 0, 0] = Ex[0, 0]
+        Ad[j, 0, 1] = Ex[0, 1]
+        Ad[j, 1, 0] = Ex[1, 0]
+        Ad[j, 1, 1] = Ex[1, 1]
         Bd[j, 0] = Ex[0, 2]
         Bd[j, 1] = Ex[1, 2]
+
+
+@njit(python_limit=0)
+def regen_trace(dt, rpm, fz, ap, pst, pex, fang, hand, active, flutes, kt, kr, mfn, mz, mk, mdir, m, cap,
+                ux, uy, amp, sub_x, sub_y, sub_first):
+    """The regenerative model along a trace: per sample k (duration ``dt[k]`` s, speed
+    ``rpm[k]``, feed per tooth ``fz[k]`` and depth ``ap[k]`` (m), arc [pst, pex], feed angle
+    ``fang`` (rad), spindle hand, ``active`` where this tool cuts) the tool tip's modes are
+    integrated in the angle domain, ``m`` sub-steps per tooth pitch (the delay is exactly one
+    pitch at any speed): exact zero-order hold per sub-step, the force at the sub-step's
+    middle.  The surface is kept per angle bin of the tool frame (N·m bins): a tooth at bin b
+    cuts h = f_z sin φ + (its radial displacement − the surface there); where h > 0 the surface
+    becomes where the tooth is, where h ≤ 0 the tooth is out of the cut and the uncut chip
+    carries over to the next tooth (the surface stays, one feed further away) — the
+    nonlinearity that bounds chatter.  Writes the displacement (m) at each sample's end
+    (``ux``, ``uy``), the RMS over the sample of u(t) − u(t − T) (``amp``, the regenerative
+    part: it decays in a stable cut), and the first ``cap`` sub-steps' displacement
+    (``sub_x``, ``sub_y``; ``sub_first[k]`` the first of sample k, −1 past cap)."""
+    nm = mfn.shape[0]
+    pitch = 2.0 * math.pi / flutes
+    dth = pitch / m
+    nb = m * flutes
+    Ad = np.zeros((nm, 2, 2))
+    Bd = np.zeros((nm, 2))
     q = np.zeros((nm, 2))
-    for j in range(nm):
-        q[j, 0] = u0
-    nsteps = m * teeth
-    hist = np.zeros((m + 1, 2))  # u at the last m+1 steps (ring)
-    for k in range(nsteps):
-        t = k * dt
-        ucur = np.zeros(2)
-        for j in range(nm):
-            ucur[mdir[j]] += q[j, 0]
-        # velocity-based extrapolation to the step's middle: u + v·dt/2
-        umid = np.zeros(2)
-        for j in range(nm):
-            umid[mdir[j]] += q[j, 0] + 0.5 * dt * q[j, 1]
-        ring = k % (m + 1)
-        hist[ring, 0] = ucur[0]
-        hist[ring, 1] = ucur[1]
-        # one tooth back: step k − m (and k − m + 1 for the middle)
-        if k >= m:
-            a = hist[(k - m) % (m + 1)]
-            b = hist[(k - m + 1) % (m + 1)]
-            udel = 0.5 * (a + b)
-        else:
-            udel = np.zeros(2)
+    hist = np.zeros((m + 1, 2))
+    surf = np.zeros(nb)
+    ib = 0  # bin of tooth 0
+    n_prev = -1.0
+    dts = 0.0
+    carry = 0.0  # fraction of a sub-step left from the last sample
+    i_sub = 0
+    for k in range(dt.shape[0]):
+        sub_first[k] = i_sub if i_sub < cap else -1
+        n = rpm[k]
+        if n <= 0.0:
+            ux[k] = 0.0
+            uy[k] = 0.0
+            amp[k] = 0.0
+            continue
+        omega = 2.0 * math.pi * n / 60.0
+        if abs(n - n_prev) > 1e-9 * n:
+            dts = dth / omega
+            _modal_zoh(mfn, mz, mk, dts, Ad, Bd)
+            n_prev = n
+        want = dt[k] / dts + carry
+        count = int(want)
+        carry = want - count
+        c = math.cos(fang[k])
+        s = math.sin(fang[k])
+        r00 = c
+        r01 = -s * hand[k]
+        r10 = s
+        r11 = c * hand[k]
+        acc = 0.0
+        for _ in range(count):
+            ucx = 0.0
+            ucy = 0.0
+            umx = 0.0
+            umy = 0.0
             for j in range(nm):
-                udel[mdir[j]] += 0.0
-        # regenerative difference in the machine frame, then the tool frame
-        dmx = umid[0] - udel[0]
-        dmy = umid[1] - udel[1]
-        dtx = R[0, 0] * dmx + R[1, 0] * dmy
-        dty = R[0, 1] * dmx + R[1, 1] * dmy
-        ftx = 0.0
-        fty = 0.0
-        phase = omega * (t + 0.5 * dt)
-        for z in range(flutes):
-            phi = (pst + phase + z * pitch) % (2.0 * math.pi)
-            if phi < pst or phi > pex:
-                continue
-            sp = math.sin(phi)
-            cp = math.cos(phi)
-            h = fz * sp + sp * dtx + cp * dty
-            if h <= 0.0:
-                continue
-            ft = kt * ap * h
-            ftx += -ft * cp - kr * ft * sp
-            fty += ft * sp - kr * ft * cp
-        fx = R[0, 0] * ftx + R[0, 1] * fty
-        fy = R[1, 0] * ftx + R[1, 1] * fty
+                if mdir[j] == 0:
+                    ucx += q[j, 0]
+                    umx += q[j, 0] + 0.5 * dts * q[j, 1]
+                else:
+                    ucy += q[j, 0]
+                    umy += q[j, 0] + 0.5 * dts * q[j, 1]
+            ring = i_sub % (m + 1)
+            hist[ring, 0] = ucx
+            hist[ring, 1] = ucy
+            if i_sub >= m:
+                a0 = hist[(i_sub - m) % (m + 1)]
+                ex = ucx - a0[0]
+                ey = ucy - a0[1]
+                acc += ex * ex + ey * ey
+            fx = 0.0
+            fy = 0.0
+            # the tip's displacement in the tool frame (x along the feed, y to its left)
+            dtx = r00 * umx + r10 * umy
+            dty = r01 * umx + r11 * umy
+            ftx = 0.0
+            fty = 0.0
+            for z in range(flutes):
+                b = (ib + z * m) % nb
+                phi = (b + 0.5) * dth
+                if not active[k] or phi < pst[k] or phi > pex[k]:
+                    surf[b] = 0.0  # no material here: no memory
+                    continue
+                sp = math.sin(phi)
+                cp = math.cos(phi)
+                radial = sp * dtx + cp * dty
+                h = fz[k] * sp + radial - surf[b]
+                if h <= 0.0:
+                    surf[b] -= fz[k] * sp  # out of the cut: the next tooth meets this chip too
+                    continue
+                surf[b] = radial
+                ft = kt * ap[k] * h
+                ftx += -ft * cp - kr * ft * sp
+                fty += ft * sp - kr * ft * cp
+            fx = r00 * ftx + r01 * fty
+            fy = r10 * ftx + r11 * fty
+            for j in range(nm):
+                fj = fx if mdir[j] == 0 else fy
+                q0 = Ad[j, 0, 0] * q[j, 0] + Ad[j, 0, 1] * q[j, 1] + Bd[j, 0] * fj
+                q1 = Ad[j, 1, 0] * q[j, 0] + Ad[j, 1, 1] * q[j, 1] + Bd[j, 1] * fj
+                q[j, 0] = q0
+                q[j, 1] = q1
+            if i_sub < cap:
+                sub_x[i_sub] = ucx
+                sub_y[i_sub] = ucy
+            i_sub += 1
+            ib = (ib + 1) % nb
+        x = 0.0
+        y = 0.0
         for j in range(nm):
-            fj = fx if mdir[j] == 0 else fy
-            q0 = Ad[j, 0, 0] * q[j, 0] + Ad[j, 0, 1] * q[j, 1] + Bd[j, 0] * fj
-            q1 = Ad[j, 1, 0] * q[j, 0] + Ad[j, 1, 1] * q[j, 1] + Bd[j, 1] * fj
-            q[j, 0] = q0
-            q[j, 1] = q1
-        ux[k] = ucur[0]
-        uy[k] = ucur[1]
-        if k >= m:
-            ex = ucur[0] - hist[(k - m) % (m + 1)][0]
-            ey = ucur[1] - hist[(k - m) % (m + 1)][1]
-            amp[k // m] += (ex * ex + ey * ey) / m
-    for i in range(amp.shape[0]):
-        amp[i] = math.sqrt(amp[i])
+            if mdir[j] == 0:
+                x += q[j, 0]
+            else:
+                y += q[j, 0]
+        ux[k] = x
+        uy[k] = y
+        amp[k] = math.sqrt(acc / count) if count > 0 else 0.0
+    return i_sub

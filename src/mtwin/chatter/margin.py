@@ -106,3 +106,15 @@ def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarr
         tab[g] = lobes(d, _cut_of(row), int(flutes[int(row[0])]), ktc, krc, speeds, method, steps=20,
                        refine=False).depth_limit
     return inv, tab
+
+
+def step_records(eng, plan) -> np.ndarray:
+    """The plan segment of every engagement step."""
+    count = eng.count
+    has = np.flatnonzero(count > 0)
+    out = np.empty(int(count.sum()), np.int64)
+    if len(has):
+        starts = np.repeat(np.cumsum(count[has]) - count[has], count[has])
+        within = np.arange(len(out)) - starts
+        out[np.repeat(eng.first[has], count[has]) + within] = np.repeat(has, count[has])
+    return out

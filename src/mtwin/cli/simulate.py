@@ -36,6 +36,8 @@ def simulate(
     runs: int = typer.Option(1, "--runs", help="Run the program N times on the same tools (a batch of parts: the "
                              "wear carried from part to part); the figures are the last run's."),
     record: bool = typer.Option(False, "--record", help="Add each run's cut to the --ledger tools' history."),
+    dynamics: bool = typer.Option(False, "--dynamics", help="Regenerative chatter model at the tool tip along the "
+                                  "trace (tools with modes): vib_x, vib_y and a verdict per line."),
     setup=None,
 ):
     """Run a program through the twin: cycle time, following errors, motor torques, trace."""
@@ -49,6 +51,8 @@ def simulate(
     if stock_out and no_cutting:
         raise MtwinError("--stock-out needs the cutting model (do not combine it with --no-cutting)")
     check_outputs(output, plot, stock_out)
+    if dynamics and (runs != 1 or record):
+        raise MtwinError("--dynamics runs on one simulation: leave out --runs and --record")
     if runs != 1 or record:  # (simulate_runs refuses a count below 1)
         run = simulate_runs(setup, part, runs, record=record, stock=setup.stock_box(), cutting=not no_cutting,
                             on_message=message)
@@ -57,7 +61,7 @@ def simulate(
             run = run_simulate(setup, part, stock=setup.stock_box(), cutting=not no_cutting, every=every,
                                rate=decimate, tooth_resolution=tooth_resolution,
                                progress=None if json_out else progress, progress_from=PROGRESS_FROM,
-                               on_message=message)
+                               on_message=message, dynamics=dynamics)
     if output:
         run.write_trace(output)
     if stock_out:
@@ -69,6 +73,7 @@ def simulate(
         return
     _print_runs(run)
     _print_simulation(run.program.path, run.summary, output, run.inch)
+    _print_chatter(run)
 
 
 @contextlib.contextmanager
@@ -171,3 +176,24 @@ def _print_runs(run) -> None:
         err.print(t)
     if run.recorded:
         err.print(f"recorded the run(s) in the ledger for: {', '.join(run.recorded)}")
+
+
+def _print_chatter(run) -> None:
+    """The chatter margins (tools with dynamics) and the time-domain verdicts (--dynamics)."""
+    c = run.summary.cutting
+    ch = c.chatter if c is not None else {}
+    if ch:
+        over = ch["unstable_lines"]
+        err.print(f"chatter: the worst cut uses {ch['worst_margin']:.2f} of its stability limit (line "
+                  f"{ch['worst_line']}); " + (f"{len(over)} line(s) over the limit: "
+                                               f"{', '.join(map(str, over[:12]))}{' …' if len(over) > 12 else ''}"
+                                               if over else "every cut is stable"), highlight=False)
+    if run.dynamics is not None:
+        for x in run.dynamics.lines:
+            if x["chatter"]:
+                f = x.get("chatter_frequency")
+                err.print(f"  line {x['line']}: chatter grows in the time domain ({x['regen_start_um']:.3g} → "
+                          f"{x['regen_end_um']:.3g} µm), {f:.0f} Hz" if f else "", highlight=False)
+        n = sum(x["chatter"] for x in run.dynamics.lines)
+        err.print(f"dynamics: {n} of {len(run.dynamics.lines)} cutting line(s) chatter in the time domain",
+                  highlight=False)

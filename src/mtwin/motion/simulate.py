@@ -427,24 +427,12 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     return trace
 
 
-def step_records(eng, plan) -> np.ndarray:
-    """The plan segment of every engagement step."""
-    count = eng.count
-    has = np.flatnonzero(count > 0)
-    out = np.empty(int(count.sum()), np.int64)
-    if len(has):
-        starts = np.repeat(np.cumsum(count[has]) - count[has], count[has])
-        within = np.arange(len(out)) - starts
-        out[np.repeat(eng.first[has], count[has]) + within] = np.repeat(has, count[has])
-    return out
-
-
 def chatter_table(twin, program, plan, eng) -> dict:
     """Per program line that cuts with a tool whose dynamics the twin knows: its largest
     stability margin (axial depth over the lobes' limit at its speed, arc and direction), the
     depth, limit, speed and chatter frequency there; empty when no tool has dynamics."""
     from ..chatter.lobes import dynamics_of
-    from ..chatter.margin import step_arcs, step_limits
+    from ..chatter.margin import step_arcs, step_limits, step_records
 
     cut = _program_cutting(twin, program)
     rec = program.records

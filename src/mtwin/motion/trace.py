@@ -113,6 +113,8 @@ def _source(name: str) -> tuple[str, int]:
         return "feed", 0
     if name == "vb":
         return "vb", -1
+    if name in ("vib_x", "vib_y"):
+        return "vib", "xy".index(name[-1])
     if name in _CUT_SIGNALS:
         return "cut", _CUT_SIGNALS.index(name)
     if name in ("fx", "fy", "fz"):
@@ -145,6 +147,7 @@ class Trace:
     record: np.ndarray | None = None  # index of the motion record (Program.records) being run, -1 none
     vb: np.ndarray | None = None  # (n,) mm, flank-wear land of the tool in the spindle (a wear effect)
     tool_use: dict | None = None  # tool number -> effects.ToolHistory: what the program cut with it
+    vib: np.ndarray | None = None  # (n, 2) mm, tool-tip deflection (simulate --dynamics)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -159,7 +162,7 @@ class Trace:
         if n and idx[-1] != n - 1:
             idx = np.append(idx, n - 1)
         pick = {k: (getattr(self, k)[idx] if getattr(self, k) is not None else None)
-                for k in ("t", "line", "cmd", "act", "err", "vel", "torque", "path_speed", "force", "cut", "record", "vb")}
+                for k in ("t", "line", "cmd", "act", "err", "vel", "torque", "path_speed", "force", "cut", "record", "vb", "vib")}
         return replace(self, every=every, **pick)
 
     def signal(self, name: str) -> np.ndarray:
@@ -179,6 +182,9 @@ class Trace:
             if attr == "vb":
                 raise MtwinError("signal 'vb' (the flank-wear land) needs a wear effect in the twin "
                                  "(--effect flank-wear:rate=…, or [effects.flank-wear] in the twin file)")
+            if attr == "vib":
+                raise MtwinError(f"signal {name!r} (the tool tip's deflection) needs simulate --dynamics and a tool "
+                                 f"with modes (docs/chatter.md)")
             raise MtwinError(f"signal {name!r} needs the cutting model (this trace has none)")
         return a if col < 0 else a[:, col]
 
@@ -209,7 +215,8 @@ class Trace:
         cols: dict[str, np.ndarray] = {"t": self.t, "line": self.line}
         for name in SIGNALS:
             src = _source(name)[0]
-            if (self.cut is not None or src not in ("cut", "force")) and (src != "vb" or self.vb is not None):
+            if (self.cut is not None or src not in ("cut", "force")) and (src != "vb" or self.vb is not None) \
+                    and (src != "vib" or self.vib is not None):
                 cols[name] = self.columns_of(name)
         if self.record is not None:
             # not a measurement column (readers keep and ignore it): which record of the
