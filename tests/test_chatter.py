@@ -229,3 +229,41 @@ def test_mode_parameters_are_parameters_of_the_twin(tmp_path):
     p.write_text(text)
     modes = Twin.from_toml(str(p)).cutting.tools[1].modes
     assert modes[0].zeta == 0.02 and modes[1].k == 9.0e6 and modes[1].fn == 1010.0
+
+
+def test_diagnose_tells_chatter_from_a_vibration_recording_and_a_spectrum(tmp_path):
+    """A vibration recording (simulate --dynamics at a 5 kHz servo rate, its vib_x/vib_y only)
+    and a spectrum file: the slots chattered near the 922 Hz mode, the wall pass did not, and
+    the twin's margins agree; a twin with a stiffer tool does not agree."""
+    fast = tmp_path / "fast.toml"
+    fast.write_text(DEMO.read_text().replace("[spindle]", "[controller]\nservo_period = 0.0002\n\n[spindle]"))
+    rec = tmp_path / "rec.csv"
+    r = mtwin("simulate", SAMPLES / "chatter_demo.nc", "--twin", fast, "--dynamics", "-o", rec)
+    assert r.returncode == 0, r.stderr
+    rows = [ln for ln in rec.read_text().splitlines() if not ln.startswith("#")]
+    head = rows[0].split(",")
+    keep = [head.index(c) for c in ("t", "line", "vib_x", "vib_y")]
+    vib = tmp_path / "vib.csv"
+    vib.write_text("\n".join(",".join(ln.split(",")[i] for i in keep) for ln in rows) + "\n")
+    d = mtwin("diagnose", SAMPLES / "chatter_demo.nc", vib, "--twin", DEMO, "--json")
+    assert d.returncode == 0, d.stderr
+    spectra = {v["first_line"]: v for v in json.loads(d.stdout)["chatter"]["spectra"]}
+    assert [ln for ln, v in sorted(spectra.items()) if v["chatter"]] == [12, 22, 27]
+    assert all(880 < spectra[ln]["chatter_frequency"] < 960 for ln in (12, 22, 27))
+    assert all(v["twin_agrees"] for v in spectra.values())
+    # a spectrum file; and a twin whose tool is four times stiffer says line 12 is stable
+    f = np.arange(0.0, 3000.0, 2.0)
+    spec = tmp_path / "spec.csv"
+    with open(spec, "w") as fh:
+        fh.write("first_line,last_line,freq,amplitude\n")
+        for ln, chat in ((12, True), (17, False)):
+            amp = 0.01 + sum(np.exp(-0.5 * ((f - k * 1e4 / 30) / 3) ** 2) / k for k in range(1, 9))
+            amp = amp + (0.8 * np.exp(-0.5 * ((f - 930) / 3) ** 2) if chat else 0)
+            fh.writelines(f"{ln},{ln},{x},{y:.6g}\n" for x, y in zip(f, amp))
+    stiff = tmp_path / "stiff.toml"
+    stiff.write_text(DEMO.read_text().replace("k = 8.0e6", "k = 3.2e7").replace("m = 0.2 ", "m = 0.8 "))
+    for twin, agrees in ((DEMO, True), (stiff, False)):
+        d = mtwin("diagnose", SAMPLES / "chatter_demo.nc", spec, "--twin", twin, "--json")
+        v = {x["first_line"]: x for x in json.loads(d.stdout)["chatter"]["spectra"]}
+        assert v[12]["chatter"] and not v[17]["chatter"] and v[12]["chatter_frequency"] == pytest.approx(930, abs=3)
+        assert v[12]["twin_agrees"] is agrees

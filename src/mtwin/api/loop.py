@@ -173,16 +173,20 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
 
 # ------------------------------------------------------------------------------ diagnose
 
-OBJECTIVES = ("auto", "signals", "timing")
+OBJECTIVES = ("auto", "signals", "timing", "chatter")
 
 
 def objective_for(objective: str, meas, effects=None) -> str:
-    """``signals`` or ``timing``: ``auto`` is timing for a control's log of its executing line
-    (line, feed and spindle speed only) and timing effects, else signals."""
+    """``signals``, ``timing`` or ``chatter``: ``auto`` is chatter for a vibration recording
+    alone (vib_x/vib_y), timing for a control's log of its executing line (line, feed and
+    spindle speed only) and timing effects, else signals."""
     if objective not in OBJECTIVES:
-        raise MtwinError(f"--objective {objective}: expected auto, signals or timing")
+        raise MtwinError(f"--objective {objective}: expected auto, signals, timing or chatter")
     if objective != "auto":
         return objective
+    if meas.t is not None and meas.signals and set(meas.signals) <= {"vib_x", "vib_y", "spindle_speed"} \
+            and ("vib_x" in meas.signals or "vib_y" in meas.signals):
+        return "chatter"  # a vibration recording alone: did the cuts chatter?
     log = (meas.t is not None and meas.line is not None and (meas.line > 0).any()
            and set(meas.signals) <= {"feed", "spindle_speed"})
     return "timing" if log and all(e.stage == "plan" for e in effects or ()) else "signals"
@@ -206,9 +210,10 @@ class Diagnosis:
     """Which effect is missing: per signal (``signals``: rms, noise, verdict, candidates ranked,
     selected, rms_after) or, against a control's log, by block timing (``timing``)."""
 
-    objective: str  # signals | timing
+    objective: str  # signals | timing | chatter
     signals: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
+    chatter: dict = field(default_factory=dict)
     alignment: str = ""
     messages: list = field(default_factory=list, repr=False)
 
@@ -216,6 +221,8 @@ class Diagnosis:
         """As ``mtwin diagnose --json`` prints it."""
         if self.objective == "timing":
             return {"objective": "timing", "timing": self.timing}
+        if self.objective == "chatter":
+            return {"objective": "chatter", "chatter": self.chatter}
         return {"alignment": self.alignment, "signals": self.signals}
 
 
@@ -230,7 +237,11 @@ def diagnose(twin=None, program=None, measurement=None, *, signals=None, candida
     signal in both, every effect not yet in the twin); ``objective``: auto | signals | timing.
     Other parameters as for :func:`compare`."""
     msgs = Messages(on_message)
+    if objective in ("auto", "chatter") and _is_spectrum(measurement):
+        return _chatter_diagnosis(twin, program, measurement, None, stock, msgs)
     tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
+    if objective_for(objective, meas) == "chatter":
+        return _chatter_diagnosis(tw, prog, measurement, meas, stock, msgs)
     if objective_for(objective, meas) == "timing":
         case = timing_case(tw, prog, meas, str(measurement))
         _case_notes(case, msgs)
@@ -240,6 +251,83 @@ def diagnose(twin=None, program=None, measurement=None, *, signals=None, candida
     tg = target(tw, prog, meas, align, list(signals) if signals else None, stock)
     d = run_diagnose(tg, list(candidates) if candidates else None)
     return Diagnosis("signals", signals=d, alignment=tg.alignment, messages=msgs.items)
+
+
+def _is_spectrum(path) -> bool:
+    """A spectrum file (chatter.detect): a CSV whose header has freq and amplitude."""
+    try:
+        with open(str(path), encoding="utf-8", errors="replace") as fh:
+            for ln in fh:
+                if ln.strip() and not ln.lstrip().startswith("#"):
+                    head = {h.strip().lower() for h in ln.split(",")}
+                    return {"freq", "amplitude"} <= head
+    except OSError:
+        return False
+    return False
+
+
+def _chatter_diagnosis(twin, program, measurement, meas, stock, msgs) -> Diagnosis:
+    """Did the cuts chatter (a measured spectrum, or the spectra of a vibration recording per
+    line), at what frequency, and does the twin's stability margin agree?"""
+    import numpy as np
+
+    from ..chatter.detect import read_spectrum, spectra_of_trace, verdict
+    from ..chatter.lobes import dynamics_of
+    from .simulate import simulate as run
+
+    tw = open_twin(twin)
+    prog = load_part(tw, program, msgs)
+    sim = run(tw, prog, stock=stock)
+    tr = sim.trace
+    rec = prog.records
+    cut_lines = sorted(set(int(x) for x in np.asarray(tr.line)[np.asarray(tr.signal("ap")) > 0]))
+    if meas is None:
+        spectra = read_spectrum(str(measurement))
+    else:
+        spectra = []
+        vib = [s for s in ("vib_x", "vib_y") if s in meas.signals]
+        if meas.line is None:
+            raise MtwinError(f"{measurement}: a vibration recording needs its line column to tell the cuts apart")
+        per = [spectra_of_trace(meas.t, meas.line, meas.signals[s], cut_lines) for s in vib]
+        for parts in zip(*per):
+            spectra.append(parts[0] if len(parts) == 1 else type(parts[0])(
+                parts[0].first_line, parts[0].last_line, parts[0].freq, parts[0].amp + parts[1].amp))
+        rate = 1.0 / float(np.median(np.diff(meas.t))) if len(meas.t) > 1 else 0.0
+        top = max((m.fn for t in set(int(x) for x in rec["tool"]) if t in tw.cutting.tools
+                   for m in tw.cutting.tools[t].modes), default=0.0)
+        if top and rate < 2.2 * top:
+            msgs.warn(f"{measurement}: sampled at {rate:.0f} Hz, under twice the tool's highest mode ({top:.0f} Hz): "
+                      f"a chatter frequency there folds back (aliases) into the band")
+    chatter = (sim.summary.cutting.chatter or {}) if sim.summary.cutting else {}
+    margins = {x["line"]: x["margin"] for x in chatter.get("lines", [])}
+    line = np.asarray(tr.line)
+    speed = np.abs(np.asarray(tr.signal("spindle_speed")))
+    cutting = np.asarray(tr.signal("ap")) > 0
+    out = []
+    for sp in spectra:
+        a, b = (sp.first_line, sp.last_line) if sp.first_line else (1, int(line.max(initial=1)))
+        m = cutting & (line >= a) & (line <= b)
+        if not m.any():
+            msgs.warn(f"{measurement}: lines {a}-{b} do not cut in the twin's simulation: no speed to read "
+                      f"their spectrum against")
+            continue
+        n = float(np.median(speed[m]))
+        tools = rec["tool"][np.clip(np.asarray(tr.record)[m], 0, None)]
+        tn = int(np.bincount(tools.astype(np.int64)).argmax())
+        tl = tw.cutting.tool(tn) if (tn in tw.cutting.tools or not tw.cutting.tools) else None
+        flutes = tl.flutes if tl is not None else 2
+        modes = dynamics_of(tl).modes if tl is not None else ()
+        v = verdict(sp, n, flutes, modes)
+        v["tool"] = tn
+        pred = [margins[ln] for ln in range(a, b + 1) if ln in margins]
+        v["twin_margin"] = max(pred) if pred else None
+        if v["twin_margin"] is not None:
+            says = v["twin_margin"] > 1.0
+            v["twin_agrees"] = says == v["chatter"]
+        out.append(v)
+    return Diagnosis("chatter", chatter={"spectra": out, "chattered": [[v["first_line"], v["last_line"]]
+                                                                      for v in out if v["chatter"]]},
+                     messages=msgs.items)
 
 
 # ------------------------------------------------------------------------------ calibrate
@@ -299,6 +387,9 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     tw, prog, meas = _inputs(twin, program, measurement, reading, msgs)
     tw, new = _fit_set(tw, [e if isinstance(e, Effect) else parse_effect_spec(e) for e in fit], refit)
     how = objective_for(objective, meas, new)
+    if how == "chatter":
+        raise MtwinError(f"{measurement}: a vibration recording tells whether the cuts chattered (mtwin diagnose); "
+                         f"a tool's modes are fitted to a tap test's FRF (mtwin calibrate-frf)")
     pairs = [(program, measurement)] + [tuple(p) for p in more]
     sig = list(signals) if signals else None
     if how == "timing":

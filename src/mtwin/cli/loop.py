@@ -214,8 +214,28 @@ def diagnose(
                   f"(noise {t['window_noise']:.2g}) — {t['verdict']}", soft_wrap=True)
         for c in t["candidates"]:
             err.print(f"  {c['evidence']}", soft_wrap=True)
+    elif d.objective == "chatter":
+        _print_chatter(d.chatter)
     else:
         _print_diagnosis(d.signals)
+
+
+def _print_chatter(ch: dict) -> None:
+    for v in ch["spectra"]:
+        where = f"lines {v['first_line']}-{v['last_line']}" if v["first_line"] else "the program"
+        twin = "" if v.get("twin_margin") is None else (
+            f"; the twin predicts {v['twin_margin']:.2f} of the stability limit — "
+            + ("it agrees" if v["twin_agrees"] else "it does not agree: its modes or coefficients are off "
+               "(a tap test: mtwin calibrate-frf)"))
+        if v["chatter"]:
+            mode = f", near the {v['nearest_mode']['direction'].upper()} mode at {v['nearest_mode']['fn']:.0f} Hz" \
+                if v["nearest_mode"] else ""
+            err.print(f"[bold]{where}[/bold] (T{v['tool']}, {v['speed']:.0f} rpm): chatter at "
+                      f"{v['chatter_frequency']:.0f} Hz, {v['kind']}{mode} — {v['ratio']:.2g}× the strongest "
+                      f"tooth-passing peak{twin}", soft_wrap=True)
+        else:
+            err.print(f"[bold]{where}[/bold] (T{v['tool']}, {v['speed']:.0f} rpm): no chatter — the peaks are the "
+                      f"spindle's harmonics (tooth passing {v['tooth_passing']:.0f} Hz){twin}", soft_wrap=True)
 
 
 def _print_diagnosis(signals: dict) -> None:

@@ -137,7 +137,8 @@ MEASURED_PART = typer.Argument(..., help="G-code program the measurement was rec
 SIGNALS = typer.Option(None, "--signals", help="Comma-separated signals to use (default: all in both).")
 ALIGN = typer.Option("auto", "--align", help="auto | line | position | xcorr.")
 OBJECTIVE = typer.Option("auto", "--objective", help="signals (the residual of each signal) | timing (the block times "
-                         "of a log of the executing line) | auto: timing for a control's log (line, feed and spindle "
-                         "speed only) and timing effects, else signals.")
+                         "of a log of the executing line) | chatter (diagnose: did the cuts chatter, from a vibration "
+                         "recording or a spectrum file) | auto: timing for a control's log (line, feed and spindle "
+                         "speed only) and timing effects, chatter for vib_x/vib_y alone or a spectrum, else signals.")
 REPORT = typer.Option(None, "--report", help="Write a self-contained HTML report (.html).")
 EFFECT_FILES = EFFECT_FILE[1]

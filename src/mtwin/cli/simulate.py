@@ -192,8 +192,9 @@ def _print_chatter(run) -> None:
         for x in run.dynamics.lines:
             if x["chatter"]:
                 f = x.get("chatter_frequency")
-                err.print(f"  line {x['line']}: chatter grows in the time domain ({x['regen_start_um']:.3g} → "
-                          f"{x['regen_end_um']:.3g} µm), {f:.0f} Hz" if f else "", highlight=False)
+                err.print(f"  line {x['line']}: chatters in the time domain (regenerative vibration "
+                          f"{x['regen_start_um']:.3g} → {x['regen_end_um']:.3g} µm" + (f", {f:.0f} Hz)" if f else ")"),
+                          highlight=False)
         n = sum(x["chatter"] for x in run.dynamics.lines)
         err.print(f"dynamics: {n} of {len(run.dynamics.lines)} cutting line(s) chatter in the time domain",
                   highlight=False)

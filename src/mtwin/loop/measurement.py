@@ -27,7 +27,8 @@ UNITS = {**{a: "mm" for a in ("x", "y", "z")}, **{f"{a}_cmd": "mm" for a in "xyz
          **{f"{a}_err": "mm" for a in "xyz"}, **{f"{a}_vel": "mm/s" for a in "xyz"}, "feed": "mm/min",
          **{f"{a}_torque": "N*m" for a in "xyz"}, **{f"{a}_current": "A" for a in "xyz"},
          "spindle_speed": "rpm", "spindle_power": "W", "spindle_torque": "N*m", "spindle_load": "%",
-         "fx": "N", "fy": "N", "fz": "N", "ae": "mm", "ap": "mm", "mrr": "mm^3/s", "h_max": "mm"}
+         "fx": "N", "fy": "N", "fz": "N", "ae": "mm", "ap": "mm", "mrr": "mm^3/s", "h_max": "mm",
+         "vb": "mm", "vib_x": "mm", "vib_y": "mm"}
 STATS = ("mean", "rms", "std", "max", "min", "p2p")
 #: columns of a control's log that are not signals, and their units
 LOG_COLUMNS = {"tool": "", "feed_override": "%", "rapid_override": "%", "spindle_override": "%"}
