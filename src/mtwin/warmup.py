@@ -184,6 +184,20 @@ def warm(step: Callable[[str], None] = lambda what: None) -> None:
         samples_to_pieces(i64, np.ones(n, bool), np.zeros(1, np.int64), np.ones(1), np.zeros(2), np.ones(1),
                           np.zeros(2), np.ones(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
                           np.zeros(1, np.int64), i64.copy(), i64.copy())
+        step("chatter: lobes and the time-domain model")
+        from .api import simulate as simulate_api
+        from .chatter.lobes import Cut, Dynamics, lobes
+        from .chatter.modes import Mode
+
+        dyn = Dynamics((Mode("x", 922.0, 0.011, 1.34e6), Mode("y", 1010.0, 0.015, 8.0e6)))
+        lobes(dyn, Cut.of(1.0), 2, 600.0, 200.0, np.linspace(5e3, 25e3, 8), "zoa", refine=False)
+        lobes(dyn, Cut.of(0.1), 2, 600.0, 200.0, np.linspace(5e3, 25e3, 2), "sdm", steps=8, refine=False)
+        lobes(Dynamics(dyn.modes[:1]), Cut.of(0.1), 2, 600.0, 200.0, np.linspace(5e3, 25e3, 2), "sdm", steps=8,
+              refine=False)
+        from .cutting.library import Tool
+
+        tool = Tool(diameter=6.0, flutes=2, modes=dyn.modes)
+        simulate_api(twin.with_tools({1: tool, 2: tool}), fanuc, dynamics=True)
         step("measurement alignment")
         from .loop.compare import compare
         from .loop.measurement import Measurement
