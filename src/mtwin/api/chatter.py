@@ -5,8 +5,6 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-import numpy as np
-
 from ..errors import ConfigError
 
 
@@ -20,13 +18,9 @@ def _feed_angle(text: str) -> float:
         return math.pi
     if t == "-y":
         return -math.pi / 2
-    try:
-        v = float(t)
-    except ValueError:
-        raise ConfigError(f"--feed-direction must be x, y or an angle in degrees from +X, got {text!r}") from None
-    if not math.isfinite(v):
-        raise ConfigError(f"--feed-direction must be a finite angle, got {text!r}")
-    return math.radians(v)
+    from ..chatter.modes import finite_number
+
+    return math.radians(finite_number(t, "--feed-direction", "x, y, -x, -y or an angle in degrees from +X"))
 
 
 def stability_lobes(twin=None, *, tool: int = 1, immersion: Optional[float] = None, ae: Optional[float] = None,
@@ -92,4 +86,4 @@ def lobes_plot(res, fmt: str = "svg", points: dict | None = None) -> bytes:
                         title=f"stability lobes ({res.method})")
 
 
-__all__ = ["calibrate_frf", "lobes_plot", "stability_lobes", "np"]
+__all__ = ["calibrate_frf", "lobes_plot", "stability_lobes"]

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from .modes import finite_number
 
 FLOOR = 10.0  # an off-harmonic peak at least this many times the median level
 SHARE = 0.3  # and this share of the strongest tooth-passing peak
@@ -59,13 +60,7 @@ def read_spectrum(path: str) -> list[Spectrum]:
             raise ConfigError(f"{path}:{n}:1: expected {len(head)} fields, got {len(r)}")
         vals = {}
         for h, i in col.items():
-            try:
-                v = float(r[i])
-            except ValueError:
-                raise ConfigError(f"{path}:{n}:{i + 1}: {h}: expected a number, got {r[i].strip()!r}") from None
-            if not math.isfinite(v):
-                raise ConfigError(f"{path}:{n}:{i + 1}: {h}: {r[i].strip()} is not a finite number")
-            vals[h] = v
+            vals[h] = finite_number(r[i], f"{path}:{n}:{i + 1}: {h}")
         a = int(vals.get("first_line", vals.get("line", 0)))
         b = int(vals.get("last_line", vals.get("line", 0)))
         g = groups.setdefault((a, b), ([], [], n))

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from . import _lobekernel as LK
-from .modes import FRF, Mode, compliance
+from .modes import FRF, Mode
 
 METHODS = ("zoa", "sdm", "auto")
 

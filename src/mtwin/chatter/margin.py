@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import layout as EK
-from .lobes import Cut, Dynamics, lobes
+from .lobes import Cut, lobes
 
 QUANT = math.radians(3.0)  # arcs and feed directions are grouped to this (lobes move little within it)
 #: an arc that takes less than this share of its cut's steps is a transient (the tool entering

@@ -133,14 +133,19 @@ def read_frf(path: str | Path, need: tuple[str, ...] = ()) -> FRF:
     return frf
 
 
-def _num(tok: str, path: str, ln: int, col: int, what: str) -> float:
+def finite_number(tok: str, where: str, expected: str = "a number") -> float:
+    """``tok`` as a finite float, or a ConfigError that starts with ``where``."""
     try:
         v = float(tok)
     except ValueError:
-        raise ConfigError(f"{path}:{ln}:{col}: {what}: expected a number, got {tok.strip()!r}") from None
+        raise ConfigError(f"{where}: expected {expected}, got {tok.strip()!r}") from None
     if not math.isfinite(v):
-        raise ConfigError(f"{path}:{ln}:{col}: {what}: {tok.strip()} is not a finite number")
+        raise ConfigError(f"{where}: {tok.strip()} is not a finite number")
     return v
+
+
+def _num(tok: str, path: str, ln: int, col: int, what: str) -> float:
+    return finite_number(tok, f"{path}:{ln}:{col}: {what}")
 
 
 def _check_freqs(freq: list, rows: list, path: str) -> None:

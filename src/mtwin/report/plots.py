@@ -57,11 +57,7 @@ def power_svg(trace, title: str = "", fmt: str = "svg") -> bytes:
     top.set_xlabel("program line")
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format=fmt, dpi=150 if fmt == "png" else None)
-    plt.close(fig)
-    return buf.getvalue()
+    return _figure_bytes(plt, fig, fmt)
 
 
 def lobes_figure(curves: dict, flip=None, fmt: str = "svg", points: dict | None = None, title: str = "",
@@ -96,6 +92,11 @@ def lobes_figure(curves: dict, flip=None, fmt: str = "svg", points: dict | None 
     ax.legend(fontsize=8, loc="upper left")
     if title:
         ax.set_title(title, fontsize=10)
+    return _figure_bytes(plt, fig, fmt)
+
+
+def _figure_bytes(plt, fig, fmt: str) -> bytes:
+    """A finished figure as svg/png/pdf bytes (closed)."""
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt, dpi=150 if fmt == "png" else None)
