@@ -20,6 +20,23 @@ QUANT = math.radians(3.0)  # arcs and feed directions are grouped to this (lobes
 #: or leaving the material): regenerative chatter needs many tooth passes at one engagement to
 #: build up, so transients are not checked — and the semi-discretisation is not spent on them
 TRANSIENT = 0.05
+#: the semi-discretisation is spent on at most this many arc groups of a program (those with the
+#: most steps); ``auto`` takes the zero-order approximation for the rest, with a note — a
+#: program of ever-changing low-immersion arcs (trochoidal paths) would otherwise take minutes
+SDM_GROUPS = 24
+
+
+def _methods(method: str, inv: np.ndarray, count: int, notes: list | None) -> list[str]:
+    """The method per group: ``auto`` keeps its choice for the SDM_GROUPS largest groups and
+    takes zoa for the rest (``lobes`` itself decides auto between zoa and sdm by the arc)."""
+    if method != "auto" or count <= SDM_GROUPS:
+        return [method] * count
+    sizes = np.bincount(inv, minlength=count)
+    big = set(np.argsort(-sizes, kind="stable")[:SDM_GROUPS].tolist())
+    if notes is not None:
+        notes.append(f"{count} distinct arcs: the semi-discretisation where it applies on the {SDM_GROUPS} "
+                     f"largest groups, the zero-order approximation on the rest")
+    return ["auto" if g in big else "zoa" for g in range(count)]
 
 
 @dataclass
@@ -67,7 +84,8 @@ def _cut_of(row) -> Cut:
 
 
 def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
-                speed: np.ndarray, arcs: StepArcs, cut_of: np.ndarray, method: str = "auto"):
+                speed: np.ndarray, arcs: StepArcs, cut_of: np.ndarray, method: str = "auto",
+                notes: list | None = None):
     """Per step: the limiting depth (mm; inf where the tool has no dynamics, the step does not
     cut or its arc is a transient of its cut ``cut_of``, e.g. the program line) at its speed,
     and the chatter frequency there (Hz)."""
@@ -80,10 +98,11 @@ def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarra
     if not len(idx):
         return limit, freq
     uniq, inv = groups(tool, hand, arcs, idx)
+    how = _methods(method, inv, len(uniq), notes)
     for g, row in enumerate(uniq):
         at = idx[inv == g]
         sp, back = np.unique(np.round(speed[at], 1), return_inverse=True)
-        lb = lobes(dyn[int(row[0])], _cut_of(row), int(flutes[int(row[0])]), ktc, krc, sp, method, steps=20,
+        lb = lobes(dyn[int(row[0])], _cut_of(row), int(flutes[int(row[0])]), ktc, krc, sp, how[g], steps=20,
                    refine=False)
         limit[at] = lb.depth_limit[back]
         freq[at] = lb.chatter_frequency[back]
@@ -91,7 +110,8 @@ def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarra
 
 
 def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
-                 arcs: StepArcs, idx: np.ndarray, speeds: np.ndarray, method: str = "auto"):
+                 arcs: StepArcs, idx: np.ndarray, speeds: np.ndarray, method: str = "auto",
+                 notes: list | None = None):
     """For the steps ``idx`` (transients already left out, see ``steady``): their group (row
     per step) and each group's limit (mm) over the speed grid ``speeds`` — (group of each
     step, (groups, speeds) limits)."""
@@ -99,11 +119,12 @@ def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarr
         return np.zeros(0, np.int64), np.zeros((0, len(speeds)))
     uniq, inv = groups(tool, hand, arcs, idx)
     tab = np.full((len(uniq), len(speeds)), np.inf)
+    how = _methods(method, inv, len(uniq), notes)
     for g, row in enumerate(uniq):
         d = dyn.get(int(row[0]))
         if not d:
             continue
-        tab[g] = lobes(d, _cut_of(row), int(flutes[int(row[0])]), ktc, krc, speeds, method, steps=20,
+        tab[g] = lobes(d, _cut_of(row), int(flutes[int(row[0])]), ktc, krc, speeds, how[g], steps=20,
                        refine=False).depth_limit
     return inv, tab
 

@@ -448,8 +448,9 @@ def chatter_table(twin, program, plan, eng) -> dict:
     arcs = step_arcs(eng.q)
     mat = cut.material
     line = rec["line"][r]
+    notes: list = []
     limit, freq = step_limits(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand,
-                              speed, arcs, line)
+                              speed, arcs, line, notes=notes)
     margin = np.where(np.isfinite(limit) & arcs.cutting, arcs.ap / np.where(np.isfinite(limit), limit, 1.0), 0.0)
     lines = []
     for ln in np.unique(line[margin > 0]):
@@ -463,7 +464,7 @@ def chatter_table(twin, program, plan, eng) -> dict:
     return {"tools": {str(t): {"modes": len(d.modes), "frf": d.frf.source if d.frf is not None else None}
                       for t, d in dyn.items() if d},
             "worst_margin": worst["margin"] if worst else 0.0, "worst_line": worst["line"] if worst else 0,
-            "unstable_lines": [x["line"] for x in lines if x["margin"] > 1.0], "lines": lines}
+            "unstable_lines": [x["line"] for x in lines if x["margin"] > 1.0], "lines": lines, "notes": notes}
 
 
 CUT_SIGNALS = {"spindle_speed", "spindle_torque", "spindle_power", "fx", "fy", "fz", "ae", "ap", "mrr", "h_max"}

@@ -32,6 +32,7 @@ class ChatterTables:
     best_speed: np.ndarray  # (S,) that speed, rpm
     curves: dict  # tool -> list of (label, limits over grid (mm)) of its cuts' arcs, most limiting first
     method: str
+    notes: list
 
     def at(self, n: np.ndarray) -> np.ndarray:
         """Ratio per segment at speeds ``n`` ((P, S) rpm), linear between grid speeds (0 on
@@ -75,8 +76,9 @@ def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: f
         _, inv = groups(tool, hand, arcs, idx)
         idx = idx[steady(idx, st[idx], inv)]
     mat = cut.material
+    notes: list = []
     group, tab = limit_tables(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand, arcs,
-                              idx, grid, method)
+                              idx, grid, method, notes)
     S = segs.count
     ratio = np.zeros((S, len(grid)))
     seg_ap = np.zeros(S)
@@ -107,7 +109,7 @@ def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: f
         for t in curves:
             curves[t].sort(key=lambda c: float(np.min(c[1])))
             curves[t] = curves[t][:4]
-    return ChatterTables(grid, ratio, margin, seg_ap, unstable, best_ap, best_speed, curves, method)
+    return ChatterTables(grid, ratio, margin, seg_ap, unstable, best_ap, best_speed, curves, method, notes)
 
 
 def _robust(ratio: np.ndarray, grid: np.ndarray) -> np.ndarray:
@@ -183,4 +185,4 @@ def report(tabs: ChatterTables, prob, segs, program, spins_before: np.ndarray, s
             "unstable": [{"lines": r["lines"], "tool": r["tool"], "ap": r["ap"],
                           "deepest_stable": float(tabs.best_ap[r["segment"]]),
                           "at_speed": float(tabs.best_speed[r["segment"]])} for r in unstable],
-            "check": check}
+            "check": check, "notes": tabs.notes}
