@@ -286,6 +286,12 @@ def _chatter_diagnosis(twin, program, measurement, meas, stock, msgs) -> Diagnos
     else:
         spectra = []
         vib = [s for s in ("vib_x", "vib_y") if s in meas.signals]
+        if meas.t is None:
+            raise MtwinError(f"{measurement}: a summary measurement holds no spectrum: give a vibration recording "
+                             f"(t, line, vib_x/vib_y) or a spectrum file (freq, amplitude)")
+        if not vib:
+            raise MtwinError(f"{measurement}: no vib_x or vib_y column to take spectra of (map a vibration "
+                             f"sensor's column with --map NAME=vib_x)")
         if meas.line is None:
             raise MtwinError(f"{measurement}: a vibration recording needs its line column to tell the cuts apart")
         per = [spectra_of_trace(meas.t, meas.line, meas.signals[s], cut_lines) for s in vib]
@@ -298,6 +304,8 @@ def _chatter_diagnosis(twin, program, measurement, meas, stock, msgs) -> Diagnos
         if top and rate < 2.2 * top:
             msgs.warn(f"{measurement}: sampled at {rate:.0f} Hz, under twice the tool's highest mode ({top:.0f} Hz): "
                       f"a chatter frequency there folds back (aliases) into the band")
+    if not spectra:
+        raise MtwinError(f"{measurement}: no cutting line has 64 samples or more of vibration: no spectrum to read")
     chatter = (sim.summary.cutting.chatter or {}) if sim.summary.cutting else {}
     margins = {x["line"]: x["margin"] for x in chatter.get("lines", [])}
     line = np.asarray(tr.line)

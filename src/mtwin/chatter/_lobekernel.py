@@ -182,6 +182,12 @@ def _expm(A):
     return E
 
 
+#: the semi-discretisation's floor on its steps: per period of the fastest mode over the cut
+#: window, and the most it takes (a 1 rpm speed would otherwise ask for thousands)
+PER_PERIOD = 12
+MAX_STEPS = 320
+
+
 @njit
 def _window_H(n_rpm, flutes, pst, pex, kt, kr, R, steps):
     """The cut window of one tooth period and the mean directional matrix (machine frame, per
@@ -309,8 +315,16 @@ def sdm_limits(speeds, flutes, pst, pex, kt, kr, R, mfn, mz, mk, mdir, steps, s_
         A0[j, nm + j] = 1.0
         A0[nm + j, j] = -w * w
         A0[nm + j, nm + j] = -2.0 * mz[j] * w
+    fmax = 0.0
+    for j in range(nm):
+        fmax = max(fmax, mfn[j])
     for si in range(speeds.shape[0]):
-        H, dt, tfree = _window_H(speeds[si], flutes, pst, pex, kt, kr, R, steps)
+        # at least PER_PERIOD steps per period of the fastest mode over the cut window (a
+        # window of many vibration periods — low speeds — needs more than ``steps``)
+        omega = 2.0 * math.pi * speeds[si] / 60.0
+        tc = min(pex - pst, 2.0 * math.pi / flutes) / omega
+        st = min(max(steps, int(math.ceil(PER_PERIOD * fmax * tc))), MAX_STEPS)
+        H, dt, tfree = _window_H(speeds[si], flutes, pst, pex, kt, kr, R, st)
         Pfree = _expm(A0 * tfree) if tfree > 0.0 else np.eye(n)
         lo = 0.0
         hi = -1.0
@@ -417,6 +431,7 @@ def regen_trace(dt, rpm, fz, ap, pst, pex, fang, hand, active, flutes, kt, kr, m
         r10 = s
         r11 = c * hand[k]
         acc = 0.0
+        n_acc = 0
         for _ in range(count):
             ucx = 0.0
             ucy = 0.0
@@ -437,6 +452,7 @@ def regen_trace(dt, rpm, fz, ap, pst, pex, fang, hand, active, flutes, kt, kr, m
                 ex = ucx - a0[0]
                 ey = ucy - a0[1]
                 acc += ex * ex + ey * ey
+                n_acc += 1
             fx = 0.0
             fy = 0.0
             # the tip's displacement in the tool frame (x along the feed, y to its left)
@@ -483,5 +499,5 @@ def regen_trace(dt, rpm, fz, ap, pst, pex, fang, hand, active, flutes, kt, kr, m
                 y += q[j, 0]
         ux[k] = x
         uy[k] = y
-        amp[k] = math.sqrt(acc / count) if count > 0 else 0.0
+        amp[k] = math.sqrt(acc / n_acc) if n_acc > 0 else 0.0
     return i_sub

@@ -108,9 +108,13 @@ def verdict(sp: Spectrum, speed: float, flutes: int, modes=()) -> dict:
     floor = float(np.median(a[f > 0])) if (f > 0).any() else 0.0
     on_spindle = np.abs(f / fs - np.round(f / fs)) < tol if fs > 0 else np.zeros(len(f), bool)
     on_tooth = np.abs(f / tp - np.round(f / tp)) < tol / flutes if tp > 0 else np.zeros(len(f), bool)
+    half = np.abs((f / tp) % 1.0 - 0.5) < tol / flutes if tp > 0 else np.zeros(len(f), bool)
     usable = peak & (f > 0.5 * fs)
     tooth = usable & on_tooth & (f > 0.5 * tp)
-    off = usable & ~on_spindle
+    # off the forced lines — but a flip chatters at half a tooth-passing harmonic, which with an
+    # even number of flutes is a spindle harmonic too: those count (a run-out line there is
+    # weak; the share of the tooth-passing peak below tells them apart)
+    off = usable & (~on_spindle | half)
     top_tooth = float(a[tooth].max()) if tooth.any() else 0.0
     out = {"first_line": sp.first_line, "last_line": sp.last_line, "speed": speed, "tooth_passing": tp,
            "chatter": False, "chatter_frequency": None, "kind": None, "ratio": None, "nearest_mode": None}
@@ -122,8 +126,8 @@ def verdict(sp: Spectrum, speed: float, flutes: int, modes=()) -> dict:
     if a[i] >= FLOOR * max(floor, 1e-300) and ratio >= SHARE:
         out["chatter"] = True
         out["chatter_frequency"] = float(f[i])
-        half = abs((f[i] / tp) % 1.0 - 0.5) < tol / flutes if tp > 0 else False
-        out["kind"] = "flip (period doubling: half a tooth-passing harmonic)" if half else "Hopf (off the harmonics)"
+        out["kind"] = "flip (period doubling: half a tooth-passing harmonic)" if half[i] else \
+            "Hopf (off the harmonics)"
         if modes:
             m = min(modes, key=lambda m: abs(m.fn - f[i]))
             out["nearest_mode"] = {"direction": m.direction, "fn": m.fn}

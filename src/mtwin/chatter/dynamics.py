@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import layout as EK
 from . import _lobekernel as LK
 from .lobes import dynamics_of
 from .margin import step_arcs, step_records
@@ -118,7 +119,7 @@ def trace_dynamics(cut, program, plan, trace) -> Dynamics:
         st = np.clip(s, 0, None)
         active = has & arcs.cutting[st] & (rpm > 0)
         fz = np.where(rpm > 0, feed / np.maximum(tl.flutes * rpm / 60.0, 1e-9), 0.0) * 1e-3
-        fang = np.arctan2(eng.q[st, 5], eng.q[st, 4]).astype(float)
+        fang = np.arctan2(eng.q[st, EK.Q_DY], eng.q[st, EK.Q_DX]).astype(float)
         hand = np.where(rec["spindle_dir"][r] < 0, -1, 1).astype(np.int64)
         mfn, mz, mk, mdir = dyn.mode_arrays()
         ux = np.zeros(n)
@@ -172,11 +173,12 @@ def _line_verdicts(trace, active, regen, rpm, flutes, sub_x, sub_y, sub_first, t
                 peak = float(f[int(np.argmax(off))])
             entry["spectrum_peak"] = float(f[int(np.argmax(np.where(f > 0.5 * tp, spec, 0)))])
             entry["off_harmonic_share"] = float(off.max() / max(spec[f > 0.5 * tp].max(), 1e-300))
-        entry["chatter_frequency"] = peak
         # chatter: the regenerative part grows, or it holds a vibration off the tooth-passing
         # harmonics that dominates the spectrum (grown and saturated: the tooth leaving the cut)
         grows = end > 3.0 * start and end > 1e-4
         holds = entry.get("off_harmonic_share", 0.0) > 0.5 and end > 5e-4
         entry["chatter"] = bool(grows or holds)
+        # (a stable line's leakage near a harmonic is no chatter frequency)
+        entry["chatter_frequency"] = peak if entry["chatter"] else None
         out.append(entry)
     return out

@@ -133,7 +133,7 @@ class Dynamics:
         return self.frf.freq.astype(float), self.frf.xx.astype(complex), self.frf.yy.astype(complex)
 
     def frequency_grid(self) -> np.ndarray:
-        """Where to look for chatter: the FRF's own frequencies (four points between each pair),
+        """Where to look for chatter: the FRF's own frequencies (three more between each pair),
         or around the modes — a log grid over 0.2·fmin … 5·fmax (0.3 % apart) and 600 points
         within ±8ζ of every natural frequency."""
         if self.frf is not None:

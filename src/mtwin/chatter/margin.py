@@ -17,9 +17,10 @@ from .lobes import Cut, lobes
 
 QUANT = math.radians(3.0)  # arcs and feed directions are grouped to this (lobes move little within it)
 #: an arc that takes less than this share of its cut's steps is a transient (the tool entering
-#: or leaving the material): regenerative chatter needs many tooth passes at one engagement to
-#: build up, so transients are not checked — and the semi-discretisation is not spent on them
-TRANSIENT = 0.05
+#: or leaving the material); 0: every arc is checked.  Chatter needs many tooth passes at one
+#: engagement to build up, but a cut whose arc changes all along (a circular pocket, an
+#: adaptive path) is made of such "transients" only — so none are left out (conservative)
+TRANSIENT = 0.0
 #: the semi-discretisation is spent on at most this many arc groups of a program (those with the
 #: most steps); ``auto`` takes the zero-order approximation for the rest, with a note — a
 #: program of ever-changing low-immersion arcs (trochoidal paths) would otherwise take minutes
@@ -62,7 +63,8 @@ def step_arcs(q: np.ndarray) -> StepArcs:
 
 
 def groups(tool, hand, arcs: StepArcs, idx):
-    key = np.stack([tool[idx], hand[idx], np.round(arcs.phi_st[idx] / QUANT), np.round(arcs.phi_ex[idx] / QUANT),
+    # (the arc rounded outward: a wider arc is the safe side of the lobes)
+    key = np.stack([tool[idx], hand[idx], np.floor(arcs.phi_st[idx] / QUANT), np.ceil(arcs.phi_ex[idx] / QUANT),
                     np.round(arcs.feed_angle[idx] / QUANT) % round(2 * math.pi / QUANT)], axis=1)
     uniq, inv = np.unique(key, axis=0, return_inverse=True)
     return uniq, inv.reshape(-1)

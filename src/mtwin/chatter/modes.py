@@ -122,7 +122,7 @@ def read_frf(path: str | Path, need: tuple[str, ...] = ()) -> FRF:
         raise ConfigError(f"{path}: cannot read the FRF file: {exc.strerror or exc}") from None
     lines = text.splitlines()
     first = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
-    if "," in first and re.search(r"[A-Za-z]", first):
+    if "," in first and not _numbers(first.split(",")):
         frf = _read_csv(str(path), lines)
     else:
         frf = _read_cutpro(str(path), lines)
@@ -131,6 +131,14 @@ def read_frf(path: str | Path, need: tuple[str, ...] = ()) -> FRF:
             raise ConfigError(f"{path}: the FRF has no {d.upper()} direction (columns re_{d}{d}, im_{d}{d}), "
                              f"which this use needs")
     return frf
+
+
+def _numbers(fields: list) -> bool:
+    try:
+        [float(x) for x in fields]
+    except ValueError:
+        return False
+    return True
 
 
 def finite_number(tok: str, where: str, expected: str = "a number") -> float:
@@ -216,7 +224,7 @@ def _read_cutpro(path: str, lines: list[str]) -> FRF:
         s = ln.strip()
         if not s or s.startswith(("#", ";", "%")):
             continue
-        m = re.match(r"direction\s*[=:]\s*([xyXY])\b", s)
+        m = re.match(r"direction\s*[=:]\s*([xy])\b", s, re.I)
         if m:
             direction = m.group(1).lower()
             continue

@@ -93,7 +93,12 @@ def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: f
             s, g = divmod(int(k), len(tab) + 1)
             ratio[s] = np.maximum(ratio[s], d / tab[g])
     ratio = _robust(ratio, grid)
-    j = np.argmin(ratio, axis=1)
+    if speed_range is None:
+        # S stays: each segment is judged at its own programmed speed only
+        own = np.searchsorted(grid, prob.n0_spin[prob.seg_spin].clip(grid[0], grid[-1]))
+        j = np.clip(own, 0, len(grid) - 1)
+    else:
+        j = np.argmin(ratio, axis=1)
     lowest = ratio[np.arange(S), j]
     best_ap = np.where(lowest > 0, seg_ap * margin / np.maximum(lowest, 1e-12), np.inf)
     best_speed = grid[j]
@@ -174,10 +179,11 @@ def report(tabs: ChatterTables, prob, segs, program, spins_before: np.ndarray, s
     check = {}
     if after_summary is not None and after_summary.cutting is not None and after_summary.cutting.chatter:
         ch = after_summary.cutting.chatter
-        # (the answer's lines: a split move shifts them; each maps to the segments it runs in)
+        # (the answer's lines: a split move shifts them; each maps to the segments it runs in;
+        # a line that runs in a segment no speed makes stable is that segment's, reported)
         segs_of = after_line_segs or {}
         over = [x for x in ch["lines"] if x["margin"] > tabs.margin
-                and not (segs_of.get(x["line"]) and all(tabs.unstable[s] for s in segs_of[x["line"]]))]
+                and not any(tabs.unstable[s] for s in segs_of.get(x["line"], ()))]
         check = {"worst_margin": ch["worst_margin"], "lines_over_margin": [x["line"] for x in over]}
     return {"margin": tabs.margin, "method": tabs.method, "speed_grid": [float(tabs.grid[0]), float(tabs.grid[-1]),
                                                                          len(tabs.grid)],

@@ -672,9 +672,10 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                         f"than the program ({fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s): its "
                         f"spindle speeds move to where the cuts are stable (the program's would chatter)")
     if chatter.get("check", {}).get("lines_over_margin"):
+        over = chatter["check"]["lines_over_margin"]
         warnings.append(f"{program.path}: warning: on the re-simulated answer, line(s) "
-                        f"{', '.join(map(str, chatter['check']['lines_over_margin'][:10]))} are over the chatter "
-                        f"margin {prob.chatter.margin:g} at their speeds")
+                        f"{', '.join(map(str, over[:10]))}{f' and {len(over) - 10} more' if len(over) > 10 else ''} "
+                        f"are over the chatter margin {prob.chatter.margin:g} at their speeds")
     if prob.f_floor is not None and not fixes_chatter and _worse(opts.objective, fig_before, fig_after):
         # learned limits promise a program no slower (no dearer) than the user's: when the
         # full twin says the answer is, the program stays as it was
@@ -734,21 +735,24 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
 
 
 def _chatter_warnings(chat, prob, segs, program, spindle_range, warnings: list) -> None:
-    """Segments no allowed speed makes stable (the CAM must take less depth), and — without a
-    spindle range — those the program's own speed makes chatter."""
+    """Segments no allowed speed makes stable: with a spindle range the CAM must take less
+    depth; without one, the programmed speed chatters (a range may find a stable pocket)."""
     lines = segs.seg_lines(program)
-    for s in np.flatnonzero(chat.unstable):
-        warnings.append(f"{program.path}:{lines[s][0]}: warning: lines {lines[s][0]}-{lines[s][-1]} (T{prob.seg_tool[s]}, "
-                        f"axial depth {chat.seg_ap[s]:.2f} mm) chatter at every allowed speed with the margin "
-                        f"{chat.margin:g}: the CAM must take a smaller depth (at most {chat.best_ap[s]:.2f} mm at "
-                        f"{chat.best_speed[s]:.0f} rpm); the optimiser leaves their speed to the rest of the tool's cuts")
-    if spindle_range is None:
-        r = chat.at(fixed_spins(prob)[prob.seg_spin][None, :])[0]
-        bad = np.flatnonzero(~chat.unstable & ~prob.seg_air & (r > chat.margin))
-        for s in bad[:10]:
-            warnings.append(f"{program.path}:{lines[s][0]}: warning: lines {lines[s][0]}-{lines[s][-1]} chatter at the "
-                            f"programmed speed ({r[s]:.2f} of the stability limit, margin {chat.margin:g}): give "
-                            f"--spindle-range to let S move into a stable pocket")
+    bad = np.flatnonzero(chat.unstable)
+    for s in bad[:12]:
+        where = f"{program.path}:{lines[s][0]}: warning: lines {lines[s][0]}-{lines[s][-1]} (T{prob.seg_tool[s]}, " \
+                f"axial depth {chat.seg_ap[s]:.2f} mm)"
+        if spindle_range is None:
+            warnings.append(f"{where} chatter at the programmed {chat.best_speed[s]:.0f} rpm (over the margin "
+                            f"{chat.margin:g}): give --spindle-range to let S move into a stable pocket, or take at "
+                            f"most {chat.best_ap[s]:.2f} mm there")
+        else:
+            warnings.append(f"{where} chatter at every allowed speed with the margin {chat.margin:g}: the CAM must "
+                            f"take a smaller depth (at most {chat.best_ap[s]:.2f} mm at {chat.best_speed[s]:.0f} "
+                            f"rpm); the optimiser leaves their speed to the rest of the tool's cuts")
+    if len(bad) > 12:
+        warnings.append(f"{program.path}: warning: and {len(bad) - 12} more segment(s) that chatter (--json: "
+                        f"chatter.unstable)")
 
 
 def _worse(objective: str, before: Figures, after: Figures) -> bool:
