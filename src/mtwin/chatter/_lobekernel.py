@@ -109,16 +109,18 @@ def zoa_limits(speeds, flutes, D, fgrid, mfn, mz, mk, mdir, tf, txx, tyy, depth,
     for br in range(2):
         for i in range(nf):
             MU[br, i] = _eig_mu(fgrid[i], D, mfn, mz, mk, mdir, tf, txx, tyy, br)
+    C = np.empty(nf, np.complex128)
     for s in range(speeds.shape[0]):
         T = 60.0 / (flutes * speeds[s])
         best = np.inf
         bf = np.nan
+        for i in range(nf):
+            w = 2.0 * math.pi * fgrid[i] * T
+            C[i] = complex(1.0 - math.cos(w), math.sin(w))  # 1 − e^{−iωT}, for both branches
         for br in range(2):
-            w = 2.0 * math.pi * fgrid[0] * T
-            g_prev = MU[br, 0] * complex(1.0 - math.cos(w), math.sin(w))
+            g_prev = MU[br, 0] * C[0]
             for i in range(1, nf):
-                w = 2.0 * math.pi * fgrid[i] * T
-                g = MU[br, i] * complex(1.0 - math.cos(w), math.sin(w))
+                g = MU[br, i] * C[i]
                 if g.imag * g_prev.imag < 0.0 and (g.real > 0.0 or g_prev.real > 0.0):
                     # the interpolated root's depth: refine only a candidate for the minimum
                     t = g_prev.imag / (g_prev.imag - g.imag)

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import layout as EK
-from .lobes import Cut, lobes
+from .lobes import Cut, Lobes, lobes
 
-QUANT = math.radians(3.0)  # arcs and feed directions are grouped to this (lobes move little within it)
+QUANT = math.radians(5.0)  # arcs (rounded outward) and feed directions are grouped to this
 #: an arc that takes less than this share of its cut's steps is a transient (the tool entering
 #: or leaving the material); 0: every arc is checked.  Chatter needs many tooth passes at one
 #: engagement to build up, but a cut whose arc changes all along (a circular pocket, an
@@ -25,19 +25,64 @@ TRANSIENT = 0.0
 #: most steps); ``auto`` takes the zero-order approximation for the rest, with a note — a
 #: program of ever-changing low-immersion arcs (trochoidal paths) would otherwise take minutes
 SDM_GROUPS = 24
+#: ... and only on groups holding at least this share of the steps checked: a flip lobe needs a
+#: sustained low-immersion cut; a tool's entries and exits (brief arcs) take the zero-order
+#: approximation, which is checked all the same
+SDM_SHARE = 0.02
 
 
 def _methods(method: str, inv: np.ndarray, count: int, notes: list | None) -> list[str]:
-    """The method per group: ``auto`` keeps its choice for the SDM_GROUPS largest groups and
-    takes zoa for the rest (``lobes`` itself decides auto between zoa and sdm by the arc)."""
-    if method != "auto" or count <= SDM_GROUPS:
+    """The method per group: ``auto`` keeps its choice (``lobes`` decides between zoa and sdm
+    by the arc) for the SDM_GROUPS largest groups of at least SDM_SHARE of the steps, and
+    takes zoa for the rest."""
+    if method != "auto":
         return [method] * count
     sizes = np.bincount(inv, minlength=count)
-    big = set(np.argsort(-sizes, kind="stable")[:SDM_GROUPS].tolist())
-    if notes is not None:
-        notes.append(f"{count} distinct arcs: the semi-discretisation where it applies on the {SDM_GROUPS} "
-                     f"largest groups, the zero-order approximation on the rest")
+    order = np.argsort(-sizes, kind="stable")[:SDM_GROUPS]
+    big = {int(g) for g in order if sizes[g] >= SDM_SHARE * len(inv)}
+    if notes is not None and len(big) < count:
+        notes.append(f"{count} distinct arcs: the semi-discretisation where it applies on the {len(big)} that hold "
+                     f"{100 * SDM_SHARE:g} % of the steps or more (at most {SDM_GROUPS}), the zero-order "
+                     f"approximation on the rest (entries, exits)")
     return ["auto" if g in big else "zoa" for g in range(count)]
+
+
+#: a group whose deepest cut is under this share of its zero-order limit's lowest value over
+#: the speeds asked is far from any lobe: the semi-discretisation is not spent on it (flip
+#: lobes go below the zero-order limit, but not this far: 0.76 of its lowest at ae/D 0.1 on
+#: the benchmark, docs/chatter.md)
+PRUNE = 0.2
+
+
+def lower_bound(d, cut: Cut, flutes: int, ktc: float, krc: float) -> float:
+    """A lower bound (mm) of the zero-order limit at every speed: the characteristic equation's
+    root a·(1 − e^{−iωT}) = 1/μ with |μ| ≤ ‖Φ(ω)‖·‖D‖ and |1 − e^{−iωT}| ≤ 2 gives
+    a ≥ 1/(2·max‖Φ‖·‖D‖) — no lobe computation needed."""
+    from .lobes import directional
+    from .modes import compliance
+
+    D = directional(cut, flutes, ktc * 1e6, krc / ktc)
+    xx, yy = compliance(d.modes, d.frf, d.frequency_grid())
+    phi = float(max(np.abs(xx).max(initial=0.0), np.abs(yy).max(initial=0.0)))
+    nd = float(np.linalg.norm(D, 2))
+    return math.inf if phi * nd <= 0 else 1e3 / (2.0 * phi * nd)
+
+
+def _group_lobes(d, row, flutes, ktc, krc, speeds, how: str, deepest: float):
+    """The lobes of one arc group: a group whose deepest cut is under PRUNE of the zero-order
+    limit's lower bound is far from every lobe, and takes that bound as its limit (its margin
+    is then an upper bound, ≤ PRUNE); else zoa, and the exact method only where ``how`` asks
+    for it and the group's deepest cut comes near the zoa's lowest limit."""
+    cut = _cut_of(row)
+    lb = lower_bound(d, cut, flutes, ktc, krc)
+    if deepest < PRUNE * lb:
+        n = len(speeds)
+        return Lobes(np.asarray(speeds, float), np.full(n, lb), np.zeros(n, bool), np.full(n, np.nan), "bound", cut,
+                     flutes)
+    z = lobes(d, cut, flutes, ktc, krc, speeds, "zoa", refine=False)
+    if how == "zoa" or deepest < PRUNE * float(np.min(z.depth_limit)):
+        return z
+    return lobes(d, cut, flutes, ktc, krc, speeds, how, steps=20, refine=False)
 
 
 @dataclass
@@ -104,8 +149,8 @@ def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarra
     for g, row in enumerate(uniq):
         at = idx[inv == g]
         sp, back = np.unique(np.round(speed[at], 1), return_inverse=True)
-        lb = lobes(dyn[int(row[0])], _cut_of(row), int(flutes[int(row[0])]), ktc, krc, sp, how[g], steps=20,
-                   refine=False)
+        lb = _group_lobes(dyn[int(row[0])], row, int(flutes[int(row[0])]), ktc, krc, sp, how[g],
+                          float(arcs.ap[at].max()))
         limit[at] = lb.depth_limit[back]
         freq[at] = lb.chatter_frequency[back]
     return limit, freq
@@ -126,8 +171,8 @@ def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarr
         d = dyn.get(int(row[0]))
         if not d:
             continue
-        tab[g] = lobes(d, _cut_of(row), int(flutes[int(row[0])]), ktc, krc, speeds, how[g], steps=20,
-                       refine=False).depth_limit
+        tab[g] = _group_lobes(d, row, int(flutes[int(row[0])]), ktc, krc, speeds, how[g],
+                              float(arcs.ap[idx[inv == g]].max())).depth_limit
     return inv, tab
 
 
