@@ -115,7 +115,8 @@ def test_time_domain_slot_bounded_below_the_lobe_and_chatters_above():
 def test_optimize_keeps_every_cut_stable_and_reports_the_rest(tmp_path):
     """The sample: the programmed 10,000 rpm makes the slots chatter; with a spindle range the
     answer's speed holds every cut that can be made stable within the margin — checked again
-    on the answer by simulate's own margins — and reports the cuts no speed saves."""
+    on the answer by simulate's own margins — and reports the cuts no speed saves; the HTML
+    report renders in headless Chromium with the lobes and the cuts."""
     out, rep = tmp_path / "o.nc", tmp_path / "r.html"
     r = mtwin("optimize", SAMPLES / "chatter_demo.nc", "--twin", DEMO, "--spindle-range", "8000,24000", "-o", out,
               "--report", rep, "--json")
@@ -138,6 +139,15 @@ def test_optimize_keeps_every_cut_stable_and_reports_the_rest(tmp_path):
     assert len(reported) == 2 and len(saved) == 2 and all(x["margin"] <= 0.8 for x in saved), lines
     assert mtwin("verify", SAMPLES / "chatter_demo.nc", out).returncode == 0
     assert "Chatter stability" in rep.read_text() and rep.read_text().count("<svg") >= 3
+    # the report in a real browser: no console message, the lobes and the cuts drawn
+    from test_optimize_report import CHROMIUM, _render
+
+    if CHROMIUM is None:
+        pytest.skip("no headless Chromium on this machine (Debian: apt-get install chromium)")
+    dom, console, _ = _render(rep, tmp_path)
+    assert console == []
+    assert "Chatter stability" in dom and "Cannot be made stable" in dom
+    assert dom[dom.index("Chatter stability"):].count("<path") > 20  # the lobes' curves and the cuts' markers
 
 
 def test_tap_test_fit_recovers_two_modes_through_noise(tmp_path):

@@ -63,20 +63,3 @@ def test_report_renders_without_console_errors_and_draws_its_plots(tmp_path):
     assert blue > 1e-4 and red > 1e-4, (blue, red)
     assert np.isfinite(inked)
 
-
-def test_chatter_report_renders_the_lobes_with_the_cuts(tmp_path):
-    """Issue 22: the optimisation report of a tool with modes has its lobes, with every cut
-    before and after, drawn in the browser."""
-    import sys
-
-    twin = SAMPLES / "machines" / "chatter-demo.toml"
-    r = subprocess.run([sys.executable, "-m", "mtwin", "optimize", str(SAMPLES / "chatter_demo.nc"), "--twin",
-                        str(twin), "--spindle-range", "8000,24000", "-o", str(tmp_path / "o.nc"), "--report",
-                        str(tmp_path / "r.html")], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    dom, console, png = _render(tmp_path / "r.html", tmp_path)
-    assert console == []
-    assert "Chatter stability" in dom and "Cannot be made stable" in dom
-    assert dom.count("<svg") >= 3  # power and load, feed, the lobes
-    start = dom.index("Chatter stability")
-    assert dom[start:].count("<path") > 20  # the lobes' curves and the cuts' markers
