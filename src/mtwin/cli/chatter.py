@@ -54,7 +54,8 @@ def lobes(
 
     d = res.depth_limit
     i = int(np.nanargmin(np.where(np.isfinite(d), d, np.nan))) if np.isfinite(d).any() else 0
-    err.print(f"T{tool}, ae/D {res.cut.immersion:.3g} ({milling} milling), {res.method}: the lowest limit "
+    cut = "a slot" if res.cut.immersion > 0.999 else f"ae/D {res.cut.immersion:.3g} ({milling} milling)"
+    err.print(f"T{tool}, {cut}, {res.method}: the lowest limit "
               f"{d[i]:.3f} mm at {res.speeds[i]:.0f} rpm (chatter at {res.chatter_frequency[i]:.0f} Hz"
               f"{', a flip lobe' if res.flip[i] else ''})", highlight=False)
     pk = res.pockets(5)
