@@ -180,7 +180,7 @@ def lobes(dyn: Dynamics, cut: Cut, flutes: int, ktc: float, krc: float, speeds: 
     D = directional(cut, flutes, kt, kr)
     mfn, mz, mk, mdir = dyn.mode_arrays()
     tf, txx, tyy = dyn.table()
-    grid = dyn.frequency_grid()
+    grid = _grid(dyn)
 
     def zoa(sp):
         depth = np.empty(len(sp))
@@ -220,6 +220,21 @@ def zoa_slot_minimum(k: float, zeta: float, flutes: int, kn: float) -> float:
     factor is D_xx = −N·K_n/4 per unit depth and min Re Φ = −1/(4kζ(1+ζ)) (at ω = ωn·√(1+2ζ)),
     so a_min = 2kζ(1+ζ)/|D_xx| = 8kζ(1+ζ)/(N·K_n)."""
     return 8.0 * k * zeta * (1.0 + zeta) / (flutes * kn)
+
+
+@functools.lru_cache(maxsize=64)
+def _grid(dyn: Dynamics) -> np.ndarray:
+    """A tool's frequency grid, made once (a program's margins ask for it per arc group)."""
+    return dyn.frequency_grid()
+
+
+@functools.lru_cache(maxsize=64)
+def peak_compliance(dyn: Dynamics) -> float:
+    """max over the frequency grid of max(|Φxx|, |Φyy|), m/N."""
+    from .modes import compliance
+
+    xx, yy = compliance(dyn.modes, dyn.frf, _grid(dyn))
+    return float(max(np.abs(xx).max(initial=0.0), np.abs(yy).max(initial=0.0)))
 
 
 @functools.lru_cache(maxsize=16)

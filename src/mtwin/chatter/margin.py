@@ -58,12 +58,10 @@ def lower_bound(d, cut: Cut, flutes: int, ktc: float, krc: float) -> float:
     """A lower bound (mm) of the zero-order limit at every speed: the characteristic equation's
     root a·(1 − e^{−iωT}) = 1/μ with |μ| ≤ ‖Φ(ω)‖·‖D‖ and |1 − e^{−iωT}| ≤ 2 gives
     a ≥ 1/(2·max‖Φ‖·‖D‖) — no lobe computation needed."""
-    from .lobes import directional
-    from .modes import compliance
+    from .lobes import directional, peak_compliance
 
     D = directional(cut, flutes, ktc * 1e6, krc / ktc)
-    xx, yy = compliance(d.modes, d.frf, d.frequency_grid())
-    phi = float(max(np.abs(xx).max(initial=0.0), np.abs(yy).max(initial=0.0)))
+    phi = peak_compliance(d)
     nd = float(np.linalg.norm(D, 2))
     return math.inf if phi * nd <= 0 else 1e3 / (2.0 * phi * nd)
 

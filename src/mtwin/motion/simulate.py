@@ -212,7 +212,7 @@ def _land_by_sample(eng, plan, program, land: np.ndarray, record: np.ndarray) ->
 
 
 def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
-                  stock=None, tooth: bool = False) -> Trace:
+                  stock=None, tooth: bool = False, chatter: bool = True) -> Trace:
     machine = twin.machine
     c = machine.controller
     if every < 1:
@@ -412,7 +412,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         if tfx.land is not None:
             trace.vb = _land_by_sample(eng, plan, program, tfx.land, record).astype(np.float32)
             summary.cutting.tool_wear = _wear_table(tfx)
-    if eng is not None and summary.cutting is not None:
+    if chatter and eng is not None and summary.cutting is not None:
+        # (``chatter=False``: an optimiser's intermediate re-simulation, which needs no margins)
         summary.cutting.chatter = chatter_table(twin, program, plan, eng)
     changed: set[str] = set()
     for e, p in observed:

@@ -259,7 +259,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         times_job = pool.submit(lambda: move_times(program, plan, [
             (float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"]), like=plan)) for F in levels_f]))
         pool.shutdown(wait=False)  # (the job runs on; the executor takes no more)
-    before = simulate_plan(twin, program, plan, stock=stock)
+    before = simulate_plan(twin, program, plan, stock=stock, chatter=False)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that change the cutting coefficients along the path (tool wear) act on the estimate too
     resolved = [(e, e.resolved()) for e in twin.effects if e.stage == "loop"]
@@ -523,7 +523,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         if out == bytes(program.data):
             after = before  # nothing changed: the program's own simulation is the answer's
         else:
-            after = tw_after.simulate(new, stock=stock)
+            after = tw_after.simulate(new, stock=stock, chatter=False)
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
         loads_after = loads_before if after is before else _Loads.of(after, limits)
         over_v = _ratios(loads_after, segs, prob, seg_after)
@@ -659,6 +659,11 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                "worst_segment_increase": float(np.max(contour_after - contour_before, initial=0.0))}
     chatter = {}
     if prob.chatter is not None:
+        # the answer's own margins, line by line (the rounds' re-simulations skipped them)
+        from ..motion.simulate import chatter_table
+
+        if after.summary.cutting is not None:
+            after.summary.cutting.chatter = chatter_table(tw_after, new, tw_after.plan(new), after.engagement)
         on = seg_after >= 0
         line_segs: dict = {}
         for ln, sg in np.unique(np.stack([np.asarray(after.line)[on], seg_after[on]], axis=1), axis=0):

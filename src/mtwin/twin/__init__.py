@@ -176,7 +176,8 @@ class Twin:
         return m
 
     def simulate(self, program, *, every: int = 1, disturbance: np.ndarray | None = None, progress=None,
-                 cutting: bool = True, stock=None, tooth_resolution: bool = False, feeds=None, spindles=None):
+                 cutting: bool = True, stock=None, tooth_resolution: bool = False, feeds=None, spindles=None,
+                 chatter: bool = True):
         """Run a program through the controller, feed drives and cutting process; returns a Trace.
 
         ``every``: keep every n-th servo sample in the trace (statistics use all of them).
@@ -187,12 +188,14 @@ class Twin:
         of revolution averages — for comparison with dynamometer data; shorten the servo period
         in the twin file to resolve the tooth frequency finely.
         ``disturbance``: an extra (samples, 3) force in N against each axis, by servo sample.
-        ``feeds`` / ``spindles``: per-record overrides, as for :meth:`plan`."""
+        ``feeds`` / ``spindles``: per-record overrides, as for :meth:`plan`.
+        ``chatter``: the cutting lines' stability margins, for tools with dynamics (docs/chatter.md)."""
         from ..motion.simulate import simulate_plan
 
         program = _with_overrides(program, feeds, spindles)
         return simulate_plan(self, program, self.plan(program), every=every, disturbance=disturbance,
-                             progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution)
+                             progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution,
+                             chatter=chatter)
 
 
 class RunTraces(list):
