@@ -257,3 +257,25 @@ def test_property_randomly_perturbed_programs(k):
     assert (tr.signal("spindle_torque") <= sp.rated_power / (2 * math.pi * n / 60) + 1e-9).all()
     changed = new.records["feed"][new.records["kind"] == 1]
     assert changed.max() <= tw.machine.max_cutting_feed
+
+
+def test_a_tools_new_speed_may_carry_over_the_next_tools_rapids():
+    """Issue 22 (found on NIST OP1): with --spindle-range, T1's new S stays modal over the tool
+    change into the rapids of T2 (a drill: no segment of its own) until T2's own S word — the
+    writer's check held those rapids to the old S and refused to write.  Every cutting move
+    still runs at the speed asked."""
+    from mtwin.optimize.run import OptimizeOptions, optimize
+    from mtwin.twin import Twin
+
+    text = ("(T1 D=6. CR=0. - FLAT END MILL)\n(T2 D=6. CR=0. - FLAT END MILL)\n(MTWIN STOCK 0,0,-5,60,40,0)\n"
+            "G21 G90 G17 G94\nT1 M6\nG0 X-5. Y10. S8000 M3\nG0 Z2.\nG1 Z-1. F500.\nG1 X65. F800.\nG0 Z5.\n"
+            "T2 M6\nG0 X10. Y30.\nG0 Z2. S5000 M3\nG81 X10. Y30. Z-3. R1. F300.\nX20.\nG80\nG0 Z5.\nM30\n")
+    tw = Twin()
+    prog = tw.load(text.encode(), path="carry.nc")
+    res = optimize(tw, prog, OptimizeOptions(spindle_range=(3000.0, 6000.0), force_limit=500.0))
+    new = tw.load(res.output, path="out.nc")
+    r = new.records
+    t1_cut = (r["tool"] == 1) & (r["kind"] != 0)
+    assert set(np.round(r["spindle"][t1_cut])) == {6000.0}  # T1 moved into the range
+    t2_cut = (r["tool"] == 2) & (r["kind"] != 0)
+    assert set(np.round(r["spindle"][t2_cut])) == {5000.0}  # the drill's own S word, unchanged
