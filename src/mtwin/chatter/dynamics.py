@@ -138,6 +138,9 @@ def trace_dynamics(cut, program, plan, trace) -> Dynamics:
         regen[mine] = amp[mine] * 1e3
         out.lines += _line_verdicts(trace, active, regen, rpm, tl.flutes, sub_x, sub_y, sub_first, tn)
     out.lines.sort(key=lambda x: x["line"])
+    if not out.lines and not out.notes:
+        out.notes.append("no tool this program cuts with has modes in the twin file: nothing to integrate "
+                         "([[tools.N.modes]], docs/chatter.md)")
     return out
 
 

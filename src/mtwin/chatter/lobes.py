@@ -172,8 +172,16 @@ def lobes(dyn: Dynamics, cut: Cut, flutes: int, ktc: float, krc: float, speeds: 
     pitch = 2.0 * math.pi / flutes
     chosen = method
     if method == "auto":
-        chosen = "sdm" if (cut.phi_ex - cut.phi_st) < pitch / 3.0 and dyn.modes and dyn.frf is None else "zoa"
-        notes.append(f"auto: {chosen} ({'engaged arc under a third of the tooth pitch' if chosen == 'sdm' else 'arc wide enough for the mean directional matrix'})")
+        narrow = (cut.phi_ex - cut.phi_st) < pitch / 3.0
+        chosen = "sdm" if narrow and dyn.modes and dyn.frf is None else "zoa"
+        if chosen == "sdm":
+            notes.append("auto: sdm (engaged arc under a third of the tooth pitch)")
+        elif narrow:
+            notes.append("auto: zoa — the arc is under a third of the tooth pitch, where the semi-discretisation "
+                         "finds flip lobes the zero-order approximation misses, but a measured FRF has no "
+                         "state-space model: fit modes to it (mtwin calibrate-frf) for the exact method")
+        else:
+            notes.append("auto: zoa (arc wide enough for the mean directional matrix)")
     if chosen == "sdm" and (not dyn.modes or dyn.frf is not None):
         raise ConfigError("the semi-discretisation needs the tool's modes (a measured FRF has no state-space "
                           "model): fit them with mtwin calibrate-frf and put them in the twin file")

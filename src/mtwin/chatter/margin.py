@@ -47,10 +47,10 @@ def _methods(method: str, inv: np.ndarray, count: int, notes: list | None) -> li
     return ["auto" if g in big else "zoa" for g in range(count)]
 
 
-#: a group whose deepest cut is under this share of its zero-order limit's lowest value over
-#: the speeds asked is far from any lobe: the semi-discretisation is not spent on it (flip
-#: lobes go below the zero-order limit, but not this far: 0.76 of its lowest at ae/D 0.1 on
-#: the benchmark, docs/chatter.md)
+#: a group whose deepest cut is under this share of a lower bound of its zero-order limit at
+#: every speed (``lower_bound``) is far from any lobe: no lobes are computed for it (flip lobes
+#: go below the zero-order limit, but not this far: 0.74 of its lowest at ae/D 0.1 on the
+#: benchmark, docs/chatter.md)
 PRUNE = 0.2
 
 
@@ -69,17 +69,15 @@ def lower_bound(d, cut: Cut, flutes: int, ktc: float, krc: float) -> float:
 def _group_lobes(d, row, flutes, ktc, krc, speeds, how: str, deepest: float):
     """The lobes of one arc group: a group whose deepest cut is under PRUNE of the zero-order
     limit's lower bound is far from every lobe, and takes that bound as its limit (its margin
-    is then an upper bound, ≤ PRUNE); else zoa, and the exact method only where ``how`` asks
-    for it and the group's deepest cut comes near the zoa's lowest limit."""
+    is then ≤ PRUNE); else the method ``how`` asks for (auto: by the arc)."""
     cut = _cut_of(row)
     lb = lower_bound(d, cut, flutes, ktc, krc)
     if deepest < PRUNE * lb:
         n = len(speeds)
         return Lobes(np.asarray(speeds, float), np.full(n, lb), np.zeros(n, bool), np.full(n, np.nan), "bound", cut,
                      flutes)
-    z = lobes(d, cut, flutes, ktc, krc, speeds, "zoa", refine=False)
-    if how == "zoa" or deepest < PRUNE * float(np.min(z.depth_limit)):
-        return z
+    if how == "zoa":
+        return lobes(d, cut, flutes, ktc, krc, speeds, "zoa", refine=False)
     return lobes(d, cut, flutes, ktc, krc, speeds, how, steps=20, refine=False)
 
 
