@@ -21,8 +21,8 @@ def arc_integral(p0, p1, kr, out):
     """Adds ∫_{p0}^{p1} a(φ) dφ (the tool-frame directional matrix per unit K_t) to ``out``."""
     if p1 <= p0:
         return
-    s0, c0 = math.sin(p0), math.cos(p0)
-    s1, c1 = math.sin(p1), math.cos(p1)
+    s0 = math.sin(p0)
+    s1 = math.sin(p1)
     iss = 0.5 * (p1 - p0) - 0.25 * (math.sin(2.0 * p1) - math.sin(2.0 * p0))
     icc = 0.5 * (p1 - p0) + 0.25 * (math.sin(2.0 * p1) - math.sin(2.0 * p0))
     isc = 0.5 * (s1 * s1 - s0 * s0)
@@ -30,7 +30,6 @@ def arc_integral(p0, p1, kr, out):
     out[0, 1] += -icc - kr * isc
     out[1, 0] += iss - kr * isc
     out[1, 1] += isc - kr * icc
-    _ = c0 + c1  # (cosines only through the double angles)
 
 
 @njit

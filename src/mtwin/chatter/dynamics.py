@@ -22,7 +22,7 @@ import numpy as np
 from .. import layout as EK
 from . import _lobekernel as LK
 from .lobes import dynamics_of
-from .margin import step_arcs, step_records
+from .margin import step_arcs
 
 SUB_STEPS = 64  # per tooth pitch
 SPECTRUM_CAP = 4_000_000  # sub-steps kept for the lines' spectra
@@ -44,7 +44,7 @@ def _sample_steps(trace, plan, program, eng) -> np.ndarray:
     """The engagement step under each trace sample (−1: none): the step of the sample's record
     nearest its fraction along the record (commanded path length)."""
     seg = plan.seg
-    steps_seg = step_records(eng, plan)
+    steps_seg = eng.step_segments()
     rec_of = seg["rec"]
     nrec = len(program.records)
     length = seg["length"]

@@ -13,14 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import layout as EK
-from .lobes import Cut, Lobes, lobes
+from .lobes import Cut, Lobes, directional, lobes, peak_compliance
 
 QUANT = math.radians(5.0)  # arcs (rounded outward) and feed directions are grouped to this
-#: an arc that takes less than this share of its cut's steps is a transient (the tool entering
-#: or leaving the material); 0: every arc is checked.  Chatter needs many tooth passes at one
-#: engagement to build up, but a cut whose arc changes all along (a circular pocket, an
-#: adaptive path) is made of such "transients" only — so none are left out (conservative)
-TRANSIENT = 0.0
+# (every arc is checked, a tool's entries and exits too: chatter needs many tooth passes at one
+# engagement to build up, but a cut whose arc changes all along — a circular pocket, an
+# adaptive path — is made of such transients only; conservative)
 #: the semi-discretisation is spent on at most this many arc groups of a program (those with the
 #: most steps); ``auto`` takes the zero-order approximation for the rest, with a note — a
 #: program of ever-changing low-immersion arcs (trochoidal paths) would otherwise take minutes
@@ -58,8 +56,6 @@ def lower_bound(d, cut: Cut, flutes: int, ktc: float, krc: float) -> float:
     """A lower bound (mm) of the zero-order limit at every speed: the characteristic equation's
     root a·(1 − e^{−iωT}) = 1/μ with |μ| ≤ ‖Φ(ω)‖·‖D‖ and |1 − e^{−iωT}| ≤ 2 gives
     a ≥ 1/(2·max‖Φ‖·‖D‖) — no lobe computation needed."""
-    from .lobes import directional, peak_compliance
-
     D = directional(cut, flutes, ktc * 1e6, krc / ktc)
     phi = peak_compliance(d)
     nd = float(np.linalg.norm(D, 2))
@@ -76,8 +72,6 @@ def _group_lobes(d, row, flutes, ktc, krc, speeds, how: str, deepest: float):
         n = len(speeds)
         return Lobes(np.asarray(speeds, float), np.full(n, lb), np.zeros(n, bool), np.full(n, np.nan), "bound", cut,
                      flutes)
-    if how == "zoa":
-        return lobes(d, cut, flutes, ktc, krc, speeds, "zoa", refine=False)
     return lobes(d, cut, flutes, ktc, krc, speeds, how, steps=20, refine=False)
 
 
@@ -111,15 +105,6 @@ def groups(tool, hand, arcs: StepArcs, idx):
     return uniq, inv.reshape(-1)
 
 
-def steady(idx: np.ndarray, cut_of: np.ndarray, inv: np.ndarray) -> np.ndarray:
-    """Per step of ``idx`` (cut ``cut_of``, group ``inv``): whether its group holds at least
-    ``TRANSIENT`` of its cut's steps."""
-    key = cut_of.astype(np.int64) * (int(inv.max(initial=0)) + 1) + inv
-    uk, kinv, kcount = np.unique(key, return_inverse=True, return_counts=True)
-    uc, cinv, ccount = np.unique(cut_of, return_inverse=True, return_counts=True)
-    return kcount[kinv.reshape(-1)] >= TRANSIENT * ccount[cinv.reshape(-1)]
-
-
 def _cut_of(row) -> Cut:
     st = row[2] * QUANT
     ex = max(row[3] * QUANT, st + 1e-3)
@@ -127,17 +112,12 @@ def _cut_of(row) -> Cut:
 
 
 def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
-                speed: np.ndarray, arcs: StepArcs, cut_of: np.ndarray, method: str = "auto",
-                notes: list | None = None):
-    """Per step: the limiting depth (mm; inf where the tool has no dynamics, the step does not
-    cut or its arc is a transient of its cut ``cut_of``, e.g. the program line) at its speed,
-    and the chatter frequency there (Hz)."""
+                speed: np.ndarray, arcs: StepArcs, method: str = "auto", notes: list | None = None):
+    """Per step: the limiting depth (mm; inf where the tool has no dynamics or the step does
+    not cut) at its speed, and the chatter frequency there (Hz)."""
     limit = np.full(len(tool), np.inf)
     freq = np.full(len(tool), np.nan)
     idx = np.flatnonzero(arcs.cutting & np.isin(tool, [t for t, d in dyn.items() if d]) & (speed > 0))
-    if len(idx):
-        uniq, inv = groups(tool, hand, arcs, idx)
-        idx = idx[steady(idx, cut_of[idx], inv)]
     if not len(idx):
         return limit, freq
     uniq, inv = groups(tool, hand, arcs, idx)
@@ -155,8 +135,7 @@ def step_limits(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarra
 def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarray, hand: np.ndarray,
                  arcs: StepArcs, idx: np.ndarray, speeds: np.ndarray, method: str = "auto",
                  notes: list | None = None):
-    """For the steps ``idx`` (transients already left out, see ``steady``): their group (row
-    per step) and each group's limit (mm) over the speed grid ``speeds`` — (group of each
+    """For the steps ``idx``: their group (row per step) and each group's limit (mm) over the speed grid ``speeds`` — (group of each
     step, (groups, speeds) limits)."""
     if not len(idx):
         return np.zeros(0, np.int64), np.zeros((0, len(speeds)))
@@ -172,13 +151,11 @@ def limit_tables(dyn: dict, flutes: dict, ktc: float, krc: float, tool: np.ndarr
     return inv, tab
 
 
-def step_records(eng, plan) -> np.ndarray:
-    """The plan segment of every engagement step."""
-    count = eng.count
-    has = np.flatnonzero(count > 0)
-    out = np.empty(int(count.sum()), np.int64)
-    if len(has):
-        starts = np.repeat(np.cumsum(count[has]) - count[has], count[has])
-        within = np.arange(len(out)) - starts
-        out[np.repeat(eng.first[has], count[has]) + within] = np.repeat(has, count[has])
-    return out
+def tool_dynamics(cut, numbers) -> tuple[dict, dict]:
+    """The library tools among ``numbers`` that the twin describes (its table, --tool) and their
+    tip dynamics: (number -> Tool, number -> chatter.lobes.Dynamics)."""
+    from .lobes import dynamics_of
+
+    tools = {int(t): cut.tool(int(t)) for t in sorted(set(int(x) for x in numbers))
+             if int(t) in cut.tools or int(t) in cut.declared}
+    return tools, {t: dynamics_of(tl) for t, tl in tools.items()}

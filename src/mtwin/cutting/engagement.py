@@ -61,6 +61,17 @@ class Engagement:
     def steps(self) -> int:
         return len(self.sums)
 
+    def step_segments(self) -> np.ndarray:
+        """The plan segment of every step (a segment's steps are ``first[i]`` … ``first[i] +
+        count[i] − 1``)."""
+        has = np.flatnonzero(self.count > 0)
+        c = self.count[has]
+        out = np.empty(int(c.sum()), np.int64)
+        if len(has):
+            within = np.arange(len(out)) - np.repeat(np.cumsum(c) - c, c)
+            out[np.repeat(self.first[has], c) + within] = np.repeat(has, c)
+        return out
+
     def for_plan(self, plan) -> "Engagement":
         """This engagement for a plan with the same motion segments but other pauses (a spindle
         speed change adds a run-up pause): the per-segment arrays re-indexed."""

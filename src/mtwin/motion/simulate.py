@@ -192,13 +192,8 @@ def _wear_table(tfx: ToolEffects) -> dict:
 def _land_by_sample(eng, plan, program, land: np.ndarray, record: np.ndarray) -> np.ndarray:
     """The wear land of the tool in the spindle at each sample (mm): the land after the
     record's last step, carried over the records that do not cut."""
-    seg = plan.seg
     nrec = len(program.records)
-    has = np.flatnonzero(eng.count > 0)
-    step_rec = np.empty(len(eng.q), np.int64)
-    for i in has:
-        a, c = int(eng.first[i]), int(eng.count[i])
-        step_rec[a:a + c] = seg["rec"][i]
+    step_rec = plan.seg["rec"][eng.step_segments()]
     rec_land = np.full(nrec, -1.0)
     np.maximum.at(rec_land, step_rec, land)
     tool = program.records["tool"]
@@ -432,17 +427,14 @@ def chatter_table(twin, program, plan, eng) -> dict:
     """Per program line that cuts with a tool whose dynamics the twin knows: its largest
     stability margin (axial depth over the lobes' limit at its speed, arc and direction), the
     depth, limit, speed and chatter frequency there; empty when no tool has dynamics."""
-    from ..chatter.lobes import dynamics_of
-    from ..chatter.margin import step_arcs, step_limits, step_records
+    from ..chatter.margin import step_arcs, step_limits, tool_dynamics
 
     cut = _program_cutting(twin, program)
     rec = program.records
-    used = sorted(set(int(t) for t in rec["tool"]))
-    tools = {t: cut.tool(t) for t in used if t in cut.tools or t in cut.declared}
-    dyn = {t: dynamics_of(tl) for t, tl in tools.items()}
+    tools, dyn = tool_dynamics(cut, rec["tool"])
     if not any(dyn.values()) or not eng.steps:
         return {}
-    r = plan.seg["rec"][step_records(eng, plan)]
+    r = plan.seg["rec"][eng.step_segments()]
     tool = rec["tool"][r].astype(np.int64)
     hand = np.where(rec["spindle_dir"][r] < 0, -1, 1)
     speed = np.minimum(rec["spindle"][r].astype(float), twin.machine.spindle.max_speed)
@@ -451,7 +443,7 @@ def chatter_table(twin, program, plan, eng) -> dict:
     line = rec["line"][r]
     notes: list = []
     limit, freq = step_limits(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand,
-                              speed, arcs, line, notes=notes)
+                              speed, arcs, notes=notes)
     margin = np.where(np.isfinite(limit) & arcs.cutting, arcs.ap / np.where(np.isfinite(limit), limit, 1.0), 0.0)
     lines = []
     for ln in np.unique(line[margin > 0]):

@@ -50,14 +50,11 @@ class ChatterTables:
 def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: float,
                    method: str = "auto") -> ChatterTables | None:
     """The segments' stability tables, or None when no cutting tool has dynamics."""
-    from ..chatter.lobes import dynamics_of
-    from ..chatter.margin import groups, limit_tables, steady, step_arcs
+    from ..chatter.margin import limit_tables, step_arcs, tool_dynamics
     from ..motion.simulate import _program_cutting
 
     cut = _program_cutting(twin, program)
-    used = sorted(set(int(t) for t in prob.seg_tool[~prob.seg_air]))
-    tools = {t: cut.tool(t) for t in used if t in cut.tools or t in cut.declared}
-    dyn = {t: dynamics_of(tl) for t, tl in tools.items()}
+    tools, dyn = tool_dynamics(cut, prob.seg_tool[~prob.seg_air])
     if not any(dyn.values()):
         return None
     rec = program.records
@@ -72,9 +69,6 @@ def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: f
     tool = rec["tool"][model.rec].astype(np.int64)
     hand = np.where(rec["spindle_dir"][model.rec] < 0, -1, 1)
     idx = np.flatnonzero((st >= 0) & arcs.cutting & np.isin(tool, [t for t, d in dyn.items() if d]))
-    if len(idx):
-        _, inv = groups(tool, hand, arcs, idx)
-        idx = idx[steady(idx, st[idx], inv)]
     mat = cut.material
     notes: list = []
     group, tab = limit_tables(dyn, {t: tl.flutes for t, tl in tools.items()}, mat.ktc, mat.krc, tool, hand, arcs,
@@ -86,7 +80,7 @@ def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: f
     # per (segment, group): the deepest step, then its ratio over the grid
     if len(idx):
         key = st[idx] * (len(tab) + 1) + group
-        uk, first = np.unique(key, return_index=True)
+        uk = np.unique(key)
         deep = np.zeros(len(uk))
         np.maximum.at(deep, np.searchsorted(uk, key), arcs.ap[idx])
         for k, d in zip(uk, deep):

@@ -59,14 +59,8 @@ def path_model(twin, program, plan, eng, kstep=None) -> PathModel:
 
     seg = plan.seg
     count = eng.count
-    nstep = int(count.sum())
-    has = np.flatnonzero(count > 0)
-    within = _within(count[has])
-    at = np.repeat(eng.first[has], count[has]) + within  # step index: first[i] + j
-    step_seg = np.empty(nstep, np.int64)
-    step_seg[at] = np.repeat(has, count[has])
-    j = np.empty(nstep, np.int64)
-    j[at] = within
+    step_seg = eng.step_segments()
+    j = np.arange(len(step_seg)) - eng.first[step_seg]  # (the step's place in its segment)
     # position of each step along its segment, then along its record (a record may be
     # several segments under the LinuxCNC planner: blend arcs, trimmed lines)
     seg_len = seg["length"]
@@ -116,15 +110,6 @@ def path_model(twin, program, plan, eng, kstep=None) -> PathModel:
 def _f64(a: np.ndarray, col: int) -> np.ndarray:
     """One column of a float32 step table, widened."""
     return a[:, col].astype(np.float64)
-
-
-def _within(count: np.ndarray) -> np.ndarray:
-    """0, 1, …, count[i]-1 for every i, concatenated."""
-    n = int(count.sum())
-    if not n:
-        return np.zeros(0, np.int64)
-    starts = np.repeat(np.cumsum(count) - count, count)
-    return np.arange(n) - starts
 
 
 _TABLE_BLOCK = 8192  # records per block of MoveTimes.table
