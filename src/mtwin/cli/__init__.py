@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 
 # (imported in the order their commands are listed in --help)
-from . import program, simulate, optimize, loop, chatter, tools, admin, grind  # noqa: F401,I001  (register their commands)
+from . import program, simulate, optimize, batch, loop, chatter, tools, admin, grind  # noqa: F401,I001  (register their commands)
 from .app import INTERRUPTED, app, err, state
 
 __all__ = ["app", "main"]

@@ -20,7 +20,9 @@ def _svg(fig) -> str:
 
     fig.tight_layout()
     buf = io.StringIO()
-    fig.savefig(buf, format="svg")
+    from .plots import save_figure
+
+    save_figure(fig, buf, "svg")
     plt.close(fig)
     text = buf.getvalue()
     return text[text.index("<svg"):]

@@ -99,6 +99,19 @@ def _figure_bytes(plt, fig, fmt: str) -> bytes:
     """A finished figure as svg/png/pdf bytes (closed)."""
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format=fmt, dpi=150 if fmt == "png" else None)
+    save_figure(fig, buf, fmt, dpi=150 if fmt == "png" else None)
     plt.close(fig)
     return buf.getvalue()
+
+
+# no date in the file, and the SVG's element ids from a fixed salt: the same figure is the
+# same bytes (a report written twice, or by a batch job, equals the one written alone)
+_NO_DATE = {"svg": {"Date": None}, "pdf": {"CreationDate": None, "ModDate": None}, "png": {}}
+
+
+def save_figure(fig, buf, fmt: str, **kw) -> None:
+    """``fig.savefig`` with reproducible bytes (every report and plot writes through here)."""
+    import matplotlib
+
+    with matplotlib.rc_context({"svg.hashsalt": "mtwin"}):
+        fig.savefig(buf, format=fmt, metadata=_NO_DATE.get(fmt, {}), **kw)

@@ -34,7 +34,9 @@ def _png(stock) -> bytes:
     ax.set_ylabel("Y [mm]")
     ax.set_title(f"stock after the program ({stock.resolution:g} mm cells)", fontsize=9)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", bbox_inches="tight")
+    from .plots import save_figure
+
+    save_figure(fig, buf, "png", bbox_inches="tight")
     plt.close(fig)
     return buf.getvalue()
 

@@ -1,0 +1,147 @@
+"""``mtwin batch optimize|simulate|compare|calibrate``: one command over many programs × twin
+files, on Dask (a local cluster, or an existing one) or one by one in this process.
+
+Options the batch does not know are the command's own and apply to every job (checked by the
+command's own parser before anything runs); a manifest's ``options`` column adds a job's own.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import typer
+
+from ..errors import MtwinError
+from .app import app, err, reports_errors
+from .render import emit_json, say
+
+batch_app = typer.Typer(help="Run a command over many programs × twin files (a fleet), on Dask or one by one.",
+                        no_args_is_help=True, rich_markup_mode=None)
+app.add_typer(batch_app, name="batch")
+
+EXTRA = {"allow_extra_args": True, "ignore_unknown_options": True, "help_option_names": ["-h", "--help"]}
+MANIFEST = typer.Option(None, "--manifest", help="Jobs as CSV (header: program, twin[, measurement, options, name]) "
+                        "or TOML ([[job]] tables); relative paths are read from the manifest's folder.")
+OUT_DIR = typer.Option(..., "-o", "--output", help="Output folder: one subfolder per job, summary.csv, summary.json, "
+                       "index.html.")
+TWINS = typer.Option(None, "--twin", help="Twin file (repeatable: every program on every twin file).")
+MEASUREMENTS = typer.Option(None, "--measurement", help="compare/calibrate: each program's measurement, in order "
+                            "(repeatable).")
+WORKERS = typer.Option(None, "--workers", help="Local Dask workers, one single-threaded process each (default: one per "
+                       "core; 0: one job at a time in this process).")
+SCHEDULER = typer.Option(None, "--scheduler", help="An existing Dask scheduler's address, e.g. tcp://host:8786.")
+SCHEDULER_FILE = typer.Option(None, "--scheduler-file", help="An existing Dask cluster's scheduler file.")
+RETRIES = typer.Option(1, "--retries", help="Times a job is run again after its worker died (or the task failed).")
+JSON_OUT = typer.Option(False, "--json", help="The jobs and the summary as JSON on stdout.")
+
+
+def _command(name: str):
+    @batch_app.command(name, context_settings=EXTRA, short_help=f"mtwin {name} over many programs × twin files.",
+                       options_metavar=f"[OPTIONS] [PROGRAM]... [MTWIN-{name.upper()} OPTIONS]")
+    @reports_errors
+    def command(ctx: typer.Context, manifest: Optional[str] = MANIFEST, output: str = OUT_DIR,
+                twin: Optional[list[str]] = TWINS, measurement: Optional[list[str]] = MEASUREMENTS,
+                workers: Optional[int] = WORKERS, scheduler: Optional[str] = SCHEDULER,
+                scheduler_file: Optional[str] = SCHEDULER_FILE, retries: int = RETRIES, json_out: bool = JSON_OUT):
+        from ..fleet import read_batch_jobs
+        from ..fleet.cli_support import check_common, split_args
+
+        programs, common = split_args(name, ctx.args)
+        jobs = read_batch_jobs(name, manifest, programs, twin or (), measurement or ())
+        check_common(name, common)
+        for j in {j.options: j for j in jobs if j.options}.values():  # each job's own, before anything runs
+            check_common(name, common + list(j.options), f"{j.origin}: options")
+        if retries < 0:
+            raise MtwinError(f"--retries {retries}: give 0 or more")
+        runner = _runner(workers, scheduler, scheduler_file, retries, len(jobs))
+        try:
+            b = _run(name, jobs, output, tuple(common), runner)
+        finally:
+            if runner is not None:
+                runner.close()
+        if json_out:
+            emit_json(b.as_dict(), indent=1)
+        _print_batch(b)
+        raise typer.Exit(b.exit_code)
+
+    command.__doc__ = (f"Run `mtwin {name}` on every job — programs (files, folders, patterns) × --twin files, or a "
+                       f"--manifest — writing each job's outputs into its own folder of -o, and a summary. Other "
+                       f"options are `mtwin {name}`'s and apply to every job. Exit 0: every job ok; 1: some failed or "
+                       f"were refused; 2: bad input (nothing is written).")
+    return command
+
+
+for _name in ("optimize", "simulate", "compare", "calibrate"):
+    _command(_name)
+
+
+def _runner(workers, scheduler, scheduler_file, retries, n_jobs):
+    """A Dask cluster, or None (one job at a time here): without Dask, say how to get it."""
+    from ..fleet.runner import FLEET_HINT, Cluster, have_dask
+
+    if scheduler and scheduler_file:
+        raise MtwinError("give --scheduler or --scheduler-file, not both")
+    if workers is not None and workers < 0:
+        raise MtwinError(f"--workers {workers}: give 0 (in this process) or more")
+    if not have_dask():
+        if scheduler or scheduler_file or workers:
+            raise MtwinError(f"running on Dask needs its packages: {FLEET_HINT}")
+        say(f"note: Dask is not installed: the jobs run one at a time in this process (for one per core, or a "
+            f"cluster: {FLEET_HINT})")
+        return None
+    if workers == 0 and not (scheduler or scheduler_file):
+        return None
+    from ..fleet.runner import cores
+
+    return Cluster(workers=min(workers or cores(), n_jobs) if not (scheduler or scheduler_file) else None,
+                   scheduler=scheduler, scheduler_file=scheduler_file, retries=retries)
+
+
+def _run(name, jobs, output, common, runner):
+    """The batch with a progress display: a bar with done/failed and the time left on a
+    terminal, a line per finished job otherwise."""
+    from ..fleet import run_batch
+
+    if runner is not None:
+        say(f"{len(jobs)} job(s) on {runner.describe()}")
+    counts = {"done": 0, "bad": 0}
+    if not err.is_terminal:
+        def line(o):
+            counts["done"] += 1
+            say(f"[{counts['done']}/{len(jobs)}] {o.name}: {o.status}" + (f" ({o.error})" if o.error else "")
+                + f", {o.seconds:.1f} s")
+
+        return run_batch(name, jobs, output, common, runner, on_done=line)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn(f"batch {name}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[bad]}"),
+                  TimeRemainingColumn(), console=err, transient=True) as bar:
+        task = bar.add_task(name, total=len(jobs), bad="")
+
+        def tick(o):
+            counts["bad"] += o.status != "ok"
+            bar.update(task, advance=1, bad=f"{counts['bad']} failed" if counts["bad"] else "")
+
+        return run_batch(name, jobs, output, common, runner, on_done=tick)
+
+
+def _print_batch(b) -> None:
+    from .render import table
+
+    t = table("job", "status", ("before", "right"), ("after", "right"), ("change", "right"), ("s", "right"),
+              title=f"batch {b.command}: {b.out_dir}")
+    for r in b.rows():
+        ch = f"{-r['saved_pct']:+.1f} %" if r["saved_pct"] is not None else ""
+        f = (lambda v: "" if v is None else f"{v:.2f}")
+        t.add_row(r["job"], r["status"], f(r["cycle_before_s"] if r["cycle_before_s"] is not None else r["error_before"]),
+                  f(r["cycle_after_s"] if r["cycle_after_s"] is not None else r["error_after"]), ch,
+                  f"{r['seconds']:.1f}")
+    err.print(t)
+    s = b.summary()
+    for r in b.rows():
+        if r["status"] != "ok":
+            say(f"{r['job']} {r['status']}: {r['error']}")
+    saved = (f"; cycle time saved {s['cycle_saved_s']:.1f} s ({s['cycle_saved_pct']:.1f} %)"
+             if s["cycle_saved_s"] is not None and b.command == "optimize" else "")
+    say(f"{s['ok']} ok, {s['failed']} failed, {s['refused']} refused" + (f", {s['not run']} not run (interrupted)"
+                                                                           if s["not run"] else "")
+        + f" in {s['seconds']:.1f} s{saved}; summary: {b.out_dir}/index.html")

@@ -1,0 +1,24 @@
+"""Fleet runs: many programs × many machines' twin files, each job the command a user would
+type, run one by one in this process or on Dask (a local cluster, or an existing one).
+
+``manifest`` (what to run), ``job`` (one job, a pure function of its inputs' bytes),
+``runner`` (where: in process, or on Dask), ``batch`` (outputs written as results arrive,
+and the summary).  ``mtwin batch`` is the command line over it (docs/fleet.md).
+"""
+from __future__ import annotations
+
+from .batch import Batch, run_batch
+from .job import Outcome, run_job
+from .manifest import COMMANDS, Job, ManifestError, jobs_from_paths, read_manifest
+
+__all__ = ["Batch", "COMMANDS", "Job", "ManifestError", "Outcome", "jobs_from_paths", "read_batch_jobs",
+           "read_manifest", "run_batch", "run_job"]
+
+
+def read_batch_jobs(command: str, manifest=None, programs=(), twins=(), measurements=()) -> list:
+    """The jobs from a manifest, or from programs × twin files."""
+    if manifest and programs:
+        raise ManifestError("give either --manifest or programs, not both")
+    if manifest:
+        return read_manifest(manifest, command)
+    return jobs_from_paths(command, list(programs), list(twins), list(measurements))

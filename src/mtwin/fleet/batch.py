@@ -1,0 +1,187 @@
+"""A batch: its jobs run (in this process or on Dask), each job's outputs written by the client
+as it arrives, then one summary — rows, ``summary.csv``, ``summary.json`` and ``index.html``.
+
+Layout of the output folder::
+
+    OUTDIR/<job>/<outputs>      the command's outputs (optimize: the program and report.html;
+                                compare: report.html; calibrate: the twin file; simulate:
+                                simulate.json), written atomically, once each
+    OUTDIR/<job>/result.json    the job's record: status, error, the command's --json document
+    OUTDIR/summary.csv|json     one row per job
+    OUTDIR/index.html           the fleet's page: figures per machine, every job, failures
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+from ..io import write_bytes
+from .job import Outcome
+from .manifest import Job
+
+SUMMARY_FIELDS = ("job", "machine", "program", "twin", "measurement", "status", "cycle_before_s", "cycle_after_s",
+                  "saved_s", "saved_pct", "error_before", "error_after", "error", "seconds", "worker")
+
+
+@dataclass
+class Batch:
+    """A batch's result: the jobs, their outcomes (in the jobs' order), where it went."""
+
+    command: str
+    jobs: list
+    outcomes: dict = field(default_factory=dict)  # job name -> Outcome
+    out_dir: str = ""
+    runner: str = ""
+    seconds: float = 0.0
+    interrupted: bool = False
+
+    def rows(self) -> list[dict]:
+        return [summary_row(j, self.outcomes[j.name], self.out_dir) for j in self.jobs if j.name in self.outcomes]
+
+    @property
+    def counts(self) -> dict:
+        c = {"ok": 0, "failed": 0, "refused": 0, "not run": 0}
+        for j in self.jobs:
+            c[self.outcomes[j.name].status if j.name in self.outcomes else "not run"] += 1
+        return c
+
+    @property
+    def exit_code(self) -> int:
+        if self.interrupted:
+            return 130
+        return 0 if self.counts["ok"] == len(self.jobs) else 1
+
+    def summary(self) -> dict:
+        rows = self.rows()
+        saved = [r["saved_s"] for r in rows if r["saved_s"] is not None]
+        before = [r["cycle_before_s"] for r in rows if r["saved_s"] is not None]
+        machines = {}
+        for r in rows:
+            m = machines.setdefault(r["machine"], {"jobs": 0, "ok": 0, "cycle_before_s": 0.0, "cycle_after_s": 0.0,
+                                                   "saved_s": 0.0})
+            m["jobs"] += 1
+            if r["status"] == "ok":
+                m["ok"] += 1
+                if r["saved_s"] is not None:
+                    m["cycle_before_s"] += r["cycle_before_s"]
+                    m["cycle_after_s"] += r["cycle_after_s"]
+                    m["saved_s"] += r["saved_s"]
+        return {"command": self.command, "jobs": len(self.jobs), **self.counts, "runner": self.runner,
+                "seconds": self.seconds, "interrupted": self.interrupted,
+                "cycle_saved_s": sum(saved) if saved else None,
+                "cycle_saved_pct": 100.0 * sum(saved) / sum(before) if before and sum(before) > 0 else None,
+                "machines": machines}
+
+    def as_dict(self) -> dict:
+        """As ``mtwin batch … --json`` prints it."""
+        jobs = []
+        for j in self.jobs:
+            o = self.outcomes.get(j.name)
+            rec = o.record if o else {}
+            jobs.append({"name": j.name, "program": j.program, "twin": j.twin, "measurement": j.measurement,
+                         "status": o.status if o else "not run",
+                         "outputs": {k: os.path.join(self.out_dir, j.name, n) for k, (n, _) in o.outputs.items()}
+                         if o else {},
+                         "before": rec.get("before", {}) if isinstance(rec, dict) else {},
+                         "after": rec.get("after", {}) if isinstance(rec, dict) else {},
+                         "error": o.error if o else "", "seconds": o.seconds if o else None,
+                         "worker": o.worker if o else ""})
+        return {"jobs": jobs, "summary": self.summary()}
+
+
+def run_batch(command: str, jobs: list[Job], out_dir: str, common: tuple = (), runner=None,
+              on_done: Optional[Callable[[Outcome], None]] = None) -> Batch:
+    """Run the jobs (``runner``: a :class:`~mtwin.fleet.runner.Cluster`, or None for one by one
+    in this process), write each one's outputs as it arrives, then the summary files.  Ctrl-C
+    stops the batch: the jobs finished stay written, the summary says which did not run."""
+    from .runner import run_serial
+
+    b = Batch(command, jobs, out_dir=os.path.abspath(out_dir),
+              runner=runner.describe() if runner is not None else "in this process, one job at a time")
+    os.makedirs(out_dir, exist_ok=True)
+    t0 = time.perf_counter()
+
+    def done(o: Outcome) -> None:
+        if o.name in b.outcomes:  # (a task delivered twice is written once)
+            return
+        write_outcome(b.out_dir, o)
+        b.outcomes[o.name] = o
+        if on_done is not None:
+            on_done(o)
+
+    try:
+        if runner is None:
+            run_serial(jobs, common, done)
+        else:
+            runner.run(jobs, common, done)
+    except KeyboardInterrupt:
+        b.interrupted = True
+    b.seconds = time.perf_counter() - t0
+    write_summary(b)
+    return b
+
+
+def write_outcome(out_dir: str, o: Outcome) -> None:
+    d = os.path.join(out_dir, o.name)
+    os.makedirs(d, exist_ok=True)
+    for name, data in o.outputs.values():
+        write_bytes(data, os.path.join(d, name))
+    rec = {"job": o.name, "status": o.status, "error": o.error, "exit_code": o.exit_code, "seconds": o.seconds,
+           "worker": o.worker, "result": o.record, "log": o.log}
+    write_bytes((json.dumps(rec, indent=1) + "\n").encode(), os.path.join(d, "result.json"))
+
+
+def write_summary(b: Batch) -> None:
+    from ..report.fleet_html import fleet_html
+
+    rows = b.rows()
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=SUMMARY_FIELDS, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r[k] is None else (f"{r[k]:.6g}" if isinstance(r[k], float) else r[k]))
+                    for k in SUMMARY_FIELDS})
+    write_bytes(buf.getvalue().encode(), os.path.join(b.out_dir, "summary.csv"))
+    write_bytes((json.dumps(b.as_dict(), indent=1) + "\n").encode(), os.path.join(b.out_dir, "summary.json"))
+    write_bytes(fleet_html(b), os.path.join(b.out_dir, "index.html"))
+
+
+def summary_row(j: Job, o: Outcome, out_dir: str) -> dict:
+    """One job's figures: cycle time before/after (optimize; simulate: the time), the error
+    before/after (compare: the cycle-time error; calibrate: the fit's RMS)."""
+    rec = o.record if isinstance(o.record, dict) else {}
+    before = after = err_b = err_a = None
+    if o.status == "ok" and j.command == "optimize":
+        before = rec.get("before", {}).get("cycle_time")
+        after = rec.get("after", {}).get("cycle_time")
+    elif o.status == "ok" and j.command == "simulate":
+        before = rec.get("cycle_time")
+    elif o.status == "ok" and j.command == "compare":
+        ct = rec.get("cycle_time") or {}
+        before, err_b = ct.get("measured"), ct.get("relative_error")
+    elif o.status == "ok" and j.command == "calibrate":
+        err_b, err_a = _rms(rec.get("rms_before")), _rms(rec.get("rms_after"))
+    saved = before - after if before is not None and after is not None else None
+    return {"job": j.name, "machine": j.machine, "program": j.program, "twin": j.twin or "", "measurement":
+            j.measurement or "", "status": o.status, "cycle_before_s": before, "cycle_after_s": after,
+            "saved_s": saved, "saved_pct": 100.0 * saved / before if saved is not None and before else None,
+            "error_before": err_b, "error_after": err_a, "error": o.error, "seconds": o.seconds, "worker": o.worker,
+            "outputs": {k: f"{j.name}/{n}" for k, (n, _) in o.outputs.items()}}
+
+
+def _rms(v):
+    """A fit's error as one number: the value, or the block-time RMS of a timing fit."""
+    if isinstance(v, (int, float)):
+        return float(v)
+    if isinstance(v, dict):
+        for k in ("block_time", "window", "rms"):
+            if isinstance(v.get(k), (int, float)):
+                return float(v[k])
+        vals = [x for x in v.values() if isinstance(x, (int, float))]
+        return float(vals[0]) if len(vals) == 1 else None
+    return None

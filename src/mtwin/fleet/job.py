@@ -1,0 +1,202 @@
+"""One batch job, run where it is sent: a pure function of (the job, its input files' bytes,
+the batch's common options) → (its output files' bytes, its record).
+
+The job *is* the command a user would type — ``mtwin optimize PROGRAM --twin T -o … --report …
+--json`` — run in this process through the same command-line code, with its stdout and stderr
+captured and its outputs written to a private folder and read back.  So a batch job's outputs
+are the single command's, byte for byte, by construction, and every option of the command is
+a batch option too.
+
+Where the worker sees the client's files (one machine, or a shared file system) the job runs
+in the client's folder; elsewhere the files that travelled with the task are written to a
+private folder with the same relative layout and the job runs there (a path written as an
+absolute one is then named as the worker's copy in the outputs).  Nothing is shared between
+jobs: the private folders are removed, the working directory is given back.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import os
+import shutil
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .manifest import Job
+
+# one job at a time per process: a job sets the working directory and sys.stdout/stderr
+_LOCK = threading.Lock()
+_COMMAND = {}
+
+
+@dataclass
+class Outcome:
+    """What a job gives back: its status, outputs (key -> (file name, bytes)), its record."""
+
+    name: str
+    status: str  # ok | failed | refused
+    outputs: dict = field(default_factory=dict)
+    record: dict = field(default_factory=dict)  # the command's --json document
+    error: str = ""
+    log: str = ""  # the command's stderr
+    seconds: float = 0.0
+    worker: str = ""
+    exit_code: int = 0
+
+
+def read_inputs(job: Job) -> dict:
+    """The job's input files' bytes, by the path as written (what travels with the task)."""
+    return {p: Path(job.base, p).read_bytes() for p in job.files()}
+
+
+def outputs_of(job: Job, out: str) -> tuple[list[str], dict]:
+    """The arguments that send the command's outputs into ``out``, and what each output is."""
+    stem = Path(job.program).name
+    if job.command == "optimize":
+        files = {"program": stem, "report": "report.html"}
+        return ["-o", os.path.join(out, files["program"]), "--report", os.path.join(out, "report.html")], files
+    if job.command == "compare":
+        return ["--report", os.path.join(out, "report.html")], {"report": "report.html"}
+    if job.command == "calibrate":
+        name = f"{Path(job.twin).stem if job.twin else 'twin'}.toml"
+        return ["-o", os.path.join(out, name)], {"twin": name}
+    return [], {}
+
+
+def arguments(job: Job, common: tuple, out: str) -> tuple[list[str], dict]:
+    """The command line of the job (without ``mtwin``), and its output files."""
+    args = [job.command, job.program]
+    if job.measurement:
+        args.append(job.measurement)
+    outs, files = outputs_of(job, out)
+    args += outs + ["--json"]
+    if job.twin:
+        args += ["--twin", job.twin]
+    return args + list(common) + list(job.options), files
+
+
+def run_job(job: Job, inputs: dict, common: tuple = ()) -> Outcome:
+    """Run the job here (see the module's doc); never raises for the job's own failure."""
+    import socket
+
+    t0 = time.perf_counter()
+    with _LOCK, _workdir(job, inputs) as (where, tmp):
+        out = os.path.join(tmp, "out")
+        os.mkdir(out)
+        staged = where != job.base
+        j = job if not staged else _relocated(job, where)
+        args, files = arguments(j, common, out)
+        code, stdout, stderr = invoke(args)
+        outputs = {k: (name, Path(out, name).read_bytes()) for k, name in files.items()
+                   if code == 0 and os.path.isfile(os.path.join(out, name))}
+        if job.command == "simulate" and code == 0:
+            outputs["summary"] = ("simulate.json", stdout.encode())
+    record = _json(stdout)
+    status, error = _status(job, code, record, stderr)
+    return Outcome(job.name, status, outputs, record, error, stderr, time.perf_counter() - t0,
+                   f"{socket.gethostname()}:{os.getpid()}", code)
+
+
+def invoke(args: list[str]) -> tuple[int, str, str]:
+    """The mtwin command line in this process: (exit code, stdout, stderr)."""
+    click = click_module()
+    cmd = _command()
+    so, se = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
+        try:
+            code = cmd.main(args=args, prog_name="mtwin", standalone_mode=False)
+        except click.ClickException as exc:  # a usage error (an unknown option)
+            se.write(f"error: {exc.format_message()}\n")
+            code = exc.exit_code
+        except click.exceptions.Abort:
+            code = 130
+    return int(code or 0), so.getvalue(), se.getvalue()
+
+
+def click_module():
+    """The click the command line is built on (this typer release carries its own copy)."""
+    try:
+        from typer import _click as click
+    except ImportError:
+        import click
+    return click
+
+
+def _command():
+    if "cmd" not in _COMMAND:
+        import typer
+
+        from ..cli import app
+
+        _COMMAND["cmd"] = typer.main.get_command(app)
+    return _COMMAND["cmd"]
+
+
+def _status(job: Job, code: int, record, stderr: str) -> tuple[str, str]:
+    if code == 0:
+        return "ok", ""
+    lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
+    said = next((ln for ln in reversed(lines) if ln.startswith(("error:", "internal error:"))), None)
+    said = said or (lines[-1] if lines else f"exit code {code}")
+    said = said.split(":", 1)[1].strip() if said.startswith(("error:", "internal error:")) else said
+    refused = job.command == "optimize" and isinstance(record, dict) and record.get("written") is False
+    return ("refused" if refused else "failed"), said
+
+
+def _json(text: str):
+    try:
+        return json.loads(text) if text.strip() else {}
+    except ValueError:
+        return {}
+
+
+@contextlib.contextmanager
+def _workdir(job: Job, inputs: dict):
+    """(the folder the job runs in, a private scratch folder), the working directory set to
+    the first; the client's folder where its files are here as they were sent, else a copy."""
+    here = os.getcwd()
+    tmp = tempfile.mkdtemp(prefix="mtwin-job-")
+    try:
+        where = job.base if _same_files(job.base, inputs) else _stage(os.path.join(tmp, "in"), inputs)
+        os.chdir(where)
+        yield where, tmp
+    finally:
+        os.chdir(here)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _same_files(base: str, inputs: dict) -> bool:
+    def digest(b):
+        return hashlib.sha256(b).digest()
+
+    try:
+        return all(digest(Path(base, p).read_bytes()) == digest(b) for p, b in inputs.items())
+    except OSError:
+        return False
+
+
+def _stage(root: str, inputs: dict) -> str:
+    for p, data in inputs.items():
+        dst = Path(root, _staged_name(p))
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_bytes(data)
+    return root
+
+
+def _staged_name(p: str) -> str:
+    # a relative path keeps its place under the copy; an absolute one (or one climbing out
+    # with ..) is put under _abs/ — the job then names the copy
+    q = os.path.normpath(p)
+    return p if not (os.path.isabs(q) or q.startswith("..")) else os.path.join("_abs", q.lstrip(os.sep).replace("..", "__"))
+
+
+def _relocated(job: Job, where: str) -> Job:
+    from dataclasses import replace
+
+    m = (lambda p: _staged_name(p) if p else p)
+    return replace(job, program=m(job.program), twin=m(job.twin), measurement=m(job.measurement), base=where)

@@ -1,0 +1,133 @@
+"""Where a batch's jobs run: one by one in this process, or on Dask — a local cluster of one
+single-threaded worker process per core, or an existing cluster by its scheduler's address.
+
+The client reads each job's input files and sends them with the task; the worker runs
+:func:`~mtwin.fleet.job.run_job` and sends the outputs back; ``on_done`` (the client) writes
+them as results arrive (``as_completed``), so workers need no shared file system and nothing
+is written twice.  A bounded number of tasks is in flight at a time (four per worker thread):
+the client holds few programs in memory, and Ctrl-C cancels little.
+"""
+from __future__ import annotations
+
+import logging
+import os
+from typing import Callable, Optional
+
+from ..errors import MtwinError
+from .job import Outcome, read_inputs, run_job
+from .manifest import Job
+
+FLEET_HINT = "pip install 'mtwin[fleet]'"
+IN_FLIGHT_PER_THREAD = 4
+# the environment of a local cluster's workers: one numba thread each (the worker is the unit
+# of parallelism), and no background compile (the first task warms the worker's cache)
+WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "MTWIN_BACKGROUND_COMPILE": "0", "OMP_NUM_THREADS": "1",
+              "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+_WARM = {}
+
+
+def cores() -> int:
+    """The cores this process may use (a container's or a job scheduler's share, not the host's)."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def have_dask() -> bool:
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def run_serial(jobs: list[Job], common: tuple, on_done: Callable[[Outcome], None]) -> None:
+    """Each job in turn in this process (what batch does without Dask, or with --workers 0)."""
+    for job in jobs:
+        on_done(run_job(job, read_inputs(job), common))
+
+
+def warmed_job(job: Job, inputs: dict, common: tuple) -> Outcome:
+    """A job on a worker: the worker's kernel cache is warmed by its first task (compiled
+    kernels loaded, or compiled once into the worker's cache), then the job runs."""
+    if not _WARM:
+        os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # (too late if numba is in already: the env says it)
+        from ..warmup import warm
+
+        warm()
+        _WARM["done"] = True
+    return run_job(job, inputs, common)
+
+
+class Cluster:
+    """A Dask client on a local cluster (``workers`` processes) or on a scheduler's address /
+    scheduler file; refuses, before any job runs, a scheduler it cannot reach."""
+
+    def __init__(self, workers: Optional[int] = None, scheduler: Optional[str] = None,
+                 scheduler_file: Optional[str] = None, retries: int = 1, timeout: float = 10.0):
+        import dask
+        from distributed import Client, LocalCluster
+
+        self.cluster = None
+        dask.config.set({"distributed.scheduler.allowed-failures": max(0, int(retries)),
+                         "distributed.worker.daemon": False})
+        try:
+            if scheduler or scheduler_file:
+                self.client = Client(scheduler, scheduler_file=scheduler_file, timeout=f"{timeout}s")
+            else:
+                n = workers or cores()
+                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                            dashboard_address=None, silence_logs=logging.ERROR, env=dict(WORKER_ENV))
+                self.client = Client(self.cluster)
+        except (OSError, TimeoutError) as exc:
+            where = scheduler or f"the scheduler file {scheduler_file}"
+            raise MtwinError(f"cannot reach the Dask scheduler at {where}: {exc}") from None
+        self.retries = retries
+
+    @property
+    def threads(self) -> int:
+        return max(1, sum(self.client.nthreads().values()))
+
+    def describe(self) -> str:
+        nt = self.client.nthreads()
+        kind = "local cluster" if self.cluster is not None else f"scheduler {self.client.scheduler.address}"
+        return f"{kind}: {len(nt)} worker(s), {sum(nt.values())} thread(s)"
+
+    def run(self, jobs: list[Job], common: tuple, on_done: Callable[[Outcome], None]) -> None:
+        from distributed import as_completed
+
+        todo = list(reversed(jobs))
+        by_key = {}
+
+        def submit():
+            job = todo.pop()
+            fut = self.client.submit(warmed_job, job, read_inputs(job), common, key=f"mtwin-job-{job.name}-{id(self)}",
+                                     retries=self.retries, pure=False)
+            by_key[fut.key] = job
+            return fut
+
+        flight = as_completed([submit() for _ in range(min(len(todo), IN_FLIGHT_PER_THREAD * self.threads))])
+        try:
+            for fut in flight:
+                job = by_key.pop(fut.key)
+                if fut.status == "finished":
+                    out = fut.result()
+                else:  # the task itself failed: a worker that died more often than allowed
+                    exc = fut.exception()
+                    out = Outcome(job.name, "failed", error=f"{type(exc).__name__}: {exc}")
+                fut.release()
+                on_done(out)
+                if todo:
+                    flight.add(submit())
+        except BaseException:
+            for fut in list(flight.futures):
+                fut.cancel()
+            raise
+
+    def close(self) -> None:
+        try:
+            self.client.close()
+        finally:
+            if self.cluster is not None:
+                self.cluster.close()
