@@ -32,6 +32,8 @@ SCHEDULER = typer.Option(None, "--scheduler", help="An existing Dask scheduler's
 SCHEDULER_FILE = typer.Option(None, "--scheduler-file", help="An existing Dask cluster's scheduler file.")
 RETRIES = typer.Option(1, "--retries", help="Times a job is run again after its worker died (or the task failed).")
 JSON_OUT = typer.Option(False, "--json", help="The jobs and the summary as JSON on stdout.")
+RECIPE = typer.Option(None, "--recipe", help="calibrate: a procedure of steps ([[step]] options = \"--fit …\"), "
+                      "each from the twin file the step before wrote, run on every machine (docs/fleet.md).")
 
 
 def _command(name: str):
@@ -41,7 +43,8 @@ def _command(name: str):
     def command(ctx: typer.Context, manifest: Optional[str] = MANIFEST, output: str = OUT_DIR,
                 twin: Optional[list[str]] = TWINS, measurement: Optional[list[str]] = MEASUREMENTS,
                 workers: Optional[int] = WORKERS, scheduler: Optional[str] = SCHEDULER,
-                scheduler_file: Optional[str] = SCHEDULER_FILE, retries: int = RETRIES, json_out: bool = JSON_OUT):
+                scheduler_file: Optional[str] = SCHEDULER_FILE, retries: int = RETRIES, json_out: bool = JSON_OUT,
+                recipe: Optional[str] = RECIPE):
         from ..fleet import read_batch_jobs
         from ..fleet.cli_support import check_common, split_args
 
@@ -50,6 +53,7 @@ def _command(name: str):
         check_common(name, common)
         for j in {j.options: j for j in jobs if j.options}.values():  # each job's own, before anything runs
             check_common(name, common + list(j.options), f"{j.origin}: options")
+        jobs = _with_recipe(name, jobs, recipe, common)
         if retries < 0:
             raise MtwinError(f"--retries {retries}: give 0 or more")
         runner = _runner(workers, scheduler, scheduler_file, retries, len(jobs))
@@ -72,6 +76,22 @@ def _command(name: str):
 
 for _name in ("optimize", "simulate", "compare", "calibrate"):
     _command(_name)
+
+
+def _with_recipe(name, jobs, recipe, common):
+    if recipe is None:
+        return jobs
+    if name != "calibrate":
+        raise MtwinError("--recipe is a calibration procedure: batch calibrate")
+    from dataclasses import replace
+
+    from ..fleet.cli_support import check_common
+    from ..fleet.manifest import read_recipe
+
+    steps = read_recipe(recipe)
+    for k, opts in enumerate(steps, start=1):
+        check_common(name, list(common) + list(opts), f"{recipe}: step {k}")
+    return [replace(j, steps=steps) for j in jobs]
 
 
 def _runner(workers, scheduler, scheduler_file, retries, n_jobs):
@@ -136,6 +156,8 @@ def _print_batch(b) -> None:
                   f(r["cycle_after_s"] if r["cycle_after_s"] is not None else r["error_after"]), ch,
                   f"{r['seconds']:.1f}")
     err.print(t)
+    if b.command == "calibrate":
+        _print_parameters(b)
     s = b.summary()
     for r in b.rows():
         if r["status"] != "ok":
@@ -145,3 +167,27 @@ def _print_batch(b) -> None:
     say(f"{s['ok']} ok, {s['failed']} failed, {s['refused']} refused" + (f", {s['not run']} not run (interrupted)"
                                                                            if s["not run"] else "")
         + f" in {s['seconds']:.1f} s{saved}; summary: {b.out_dir}/index.html")
+
+
+def _print_parameters(b) -> None:
+    """The fleet table: each fitted parameter per machine, as the ratio to the fleet's median
+    where the fleet has three machines or more (the machine that differs stands out)."""
+    import statistics
+
+    from ..fleet.batch import fitted
+    from .render import table
+
+    fits = fitted(b)
+    names = sorted({k for p in fits.values() for k in p})
+    if not names:
+        return
+    held = {r["job"]: r["holdout_error"] for r in b.rows()}
+    t = table("parameter", *((m, "right") for m in fits), title="fitted per machine (× the fleet's median)")
+    for k in names:
+        vals = [p[k] for p in fits.values() if k in p]
+        med = statistics.median(vals) if len(vals) > 2 else None
+        t.add_row(k, *("—" if k not in p else f"{p[k]:.4g}" + (f" ({p[k] / med:.2f}×)" if med else "")
+                       for p in fits.values()))
+    if any(v is not None for v in held.values()):
+        t.add_row("held-out cycle error", *("" if held.get(m) is None else f"{held[m] * 100:+.2f} %" for m in fits))
+    err.print(t)

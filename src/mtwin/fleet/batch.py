@@ -25,7 +25,7 @@ from .job import Outcome
 from .manifest import Job
 
 SUMMARY_FIELDS = ("job", "machine", "program", "twin", "measurement", "status", "cycle_before_s", "cycle_after_s",
-                  "saved_s", "saved_pct", "error_before", "error_after", "error", "seconds", "worker")
+                  "saved_s", "saved_pct", "error_before", "error_after", "holdout_error", "error", "seconds", "worker")
 
 
 @dataclass
@@ -148,14 +148,42 @@ def write_summary(b: Batch) -> None:
                     for k in SUMMARY_FIELDS})
     write_bytes(buf.getvalue().encode(), os.path.join(b.out_dir, "summary.csv"))
     write_bytes((json.dumps(b.as_dict(), indent=1) + "\n").encode(), os.path.join(b.out_dir, "summary.json"))
+    if b.command == "calibrate":
+        write_bytes(parameters_csv(b).encode(), os.path.join(b.out_dir, "parameters.csv"))
     write_bytes(fleet_html(b), os.path.join(b.out_dir, "index.html"))
+
+
+def fitted(b: Batch) -> dict:
+    """calibrate: each machine's fitted parameters (job -> name -> value), the jobs that ran."""
+    out = {}
+    for j in b.jobs:
+        o = b.outcomes.get(j.name)
+        if o is not None and o.status == "ok" and isinstance(o.record, dict):
+            out[j.name] = dict(o.record.get("params") or {})
+    return out
+
+
+def parameters_csv(b: Batch) -> str:
+    """The fleet table: a row per machine, its fitted parameters, held-out cycle-time error."""
+    fits = fitted(b)
+    names = sorted({k for p in fits.values() for k in p})
+    held = {r["job"]: r["holdout_error"] for r in b.rows()}
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    sd = {j.name: (b.outcomes[j.name].record.get("uncertainty") or {}) for j in b.jobs if j.name in fits}
+    w.writerow(["machine", *(c for k in names for c in (k, f"{k}_sd")), "holdout_cycle_error"])
+    for job, p in fits.items():
+        w.writerow([job, *(c for k in names for c in ((f"{p[k]:.6g}" if k in p else ""),
+                                                       (f"{sd[job][k]:.3g}" if k in sd[job] else ""))),
+                    "" if held.get(job) is None else f"{held[job]:.6g}"])
+    return buf.getvalue()
 
 
 def summary_row(j: Job, o: Outcome, out_dir: str) -> dict:
     """One job's figures: cycle time before/after (optimize; simulate: the time), the error
     before/after (compare: the cycle-time error; calibrate: the fit's RMS)."""
     rec = o.record if isinstance(o.record, dict) else {}
-    before = after = err_b = err_a = None
+    before = after = err_b = err_a = hold = None
     if o.status == "ok" and j.command == "optimize":
         before = rec.get("before", {}).get("cycle_time")
         after = rec.get("after", {}).get("cycle_time")
@@ -165,12 +193,16 @@ def summary_row(j: Job, o: Outcome, out_dir: str) -> dict:
         ct = rec.get("cycle_time") or {}
         before, err_b = ct.get("measured"), ct.get("relative_error")
     elif o.status == "ok" and j.command == "calibrate":
-        err_b, err_a = _rms(rec.get("rms_before")), _rms(rec.get("rms_after"))
+        first = (rec.get("steps") or [rec])[0]
+        err_b, err_a = _rms(first.get("rms_before")), _rms(rec.get("rms_after"))
+        held = [h["cycle_time"].get("relative_error") for h in rec.get("holdout", []) if h.get("cycle_time")]
+        hold = max(held, key=abs) if held else None
     saved = before - after if before is not None and after is not None else None
-    return {"job": j.name, "machine": j.machine, "program": j.program, "twin": j.twin or "", "measurement":
+    machine = j.name if j.command == "calibrate" else j.machine  # (a calibration's rows are named per machine)
+    return {"job": j.name, "machine": machine, "program": j.program, "twin": j.twin or "", "measurement":
             j.measurement or "", "status": o.status, "cycle_before_s": before, "cycle_after_s": after,
             "saved_s": saved, "saved_pct": 100.0 * saved / before if saved is not None and before else None,
-            "error_before": err_b, "error_after": err_a, "error": o.error, "seconds": o.seconds, "worker": o.worker,
+            "error_before": err_b, "error_after": err_a, "holdout_error": hold, "error": o.error, "seconds": o.seconds, "worker": o.worker,
             "outputs": {k: f"{j.name}/{n}" for k, (n, _) in o.outputs.items()}}
 
 
@@ -179,7 +211,7 @@ def _rms(v):
     if isinstance(v, (int, float)):
         return float(v)
     if isinstance(v, dict):
-        for k in ("block_time", "window", "rms"):
+        for k in ("window_time", "block_time", "rms"):
             if isinstance(v.get(k), (int, float)):
                 return float(v[k])
         vals = [x for x in v.values() if isinstance(x, (int, float))]

@@ -7,24 +7,12 @@ from ..errors import MtwinError
 from .manifest import NEEDS_MEASUREMENT, own_options
 
 
-def _target(name: str):
-    import typer
-
-    from ..cli import app
-
-    group = typer.main.get_command(app)
-    return group.get_command(None, name)
-
-
 def split_args(name: str, args: list[str]) -> tuple[list[str], list[str]]:
     """(the programs named, the command's options with their values) from the arguments the
     batch did not take itself."""
-    cmd = _target(name)
-    takes_value = {}
-    for p in cmd.params:
-        for o in list(p.opts) + list(p.secondary_opts):
-            if o.startswith("-"):
-                takes_value[o] = not (getattr(p, "is_flag", False) or getattr(p, "count", False))
+    from .job import option_arity
+
+    takes_value = option_arity(name)
     programs, common, k = [], [], 0
     while k < len(args):
         a = args[k]
@@ -50,7 +38,7 @@ def split_args(name: str, args: list[str]) -> tuple[list[str], list[str]]:
 
 def check_common(name: str, common: list[str], where: str = "") -> None:
     """Parse the options as the command would (types, choices), on a stand-in program."""
-    from .job import click_module
+    from .job import click_module, command_named
 
     click = click_module()
 
@@ -58,6 +46,6 @@ def check_common(name: str, common: list[str], where: str = "") -> None:
     if name in ("optimize", "calibrate"):
         args += ["-o", "OUT"]
     try:
-        _target(name).make_context(name, args, resilient_parsing=False)
+        command_named(name).make_context(name, args, resilient_parsing=False)
     except click.ClickException as exc:
         raise MtwinError(f"{where or f'mtwin batch {name}'}: {exc.format_message()}") from None

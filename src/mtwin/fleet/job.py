@@ -90,16 +90,72 @@ def run_job(job: Job, inputs: dict, common: tuple = ()) -> Outcome:
         os.mkdir(out)
         staged = where != job.base
         j = job if not staged else _relocated(job, where)
-        args, files = arguments(j, common, out)
-        code, stdout, stderr = invoke(args)
+        if job.command == "calibrate":
+            code, record, stderr, files = _procedure(j, common, out)
+        else:
+            args, files = arguments(j, common, out)
+            code, stdout, stderr = invoke(args)
+            record = _json(stdout)
         outputs = {k: (name, Path(out, name).read_bytes()) for k, name in files.items()
                    if code == 0 and os.path.isfile(os.path.join(out, name))}
         if job.command == "simulate" and code == 0:
             outputs["summary"] = ("simulate.json", stdout.encode())
-    record = _json(stdout)
     status, error = _status(job, code, record, stderr)
     return Outcome(job.name, status, outputs, record, error, stderr, time.perf_counter() - t0,
                    f"{socket.gethostname()}:{os.getpid()}", code)
+
+
+def _procedure(job: Job, common: tuple, out: str):
+    """calibrate: the procedure's steps in turn (each from the twin file the step before wrote;
+    one step of the job's options when there are none), then the calibrated twin compared with
+    each held-out log.  (exit code, record, stderr, outputs)"""
+    _, files = outputs_of(job, out)
+    final = os.path.join(out, files["twin"])
+    steps = job.steps or ((),)
+    twin, logs, records = job.twin, [], []
+    more = [p for pair in job.pairs for p in pair]
+    for k, opts in enumerate(steps, start=1):
+        dst = final if k == len(steps) else os.path.join(out, f"step{k}.toml")
+        args = ["calibrate", job.program, job.measurement, *more, "-o", dst, "--json"]
+        args += (["--twin", twin] if twin else []) + list(common) + list(job.options) + list(opts)
+        code, stdout, stderr = invoke(args)
+        logs.append(stderr)
+        rec = _json(stdout)
+        records.append(rec)
+        if code != 0:
+            return code, {"steps": records}, "".join(logs), files
+        twin = dst
+    record = {**records[-1], "steps": records, "holdout": []}
+    shared = _shared_options("compare", list(common) + list(job.options))
+    for prog, meas in job.holdout:
+        code, stdout, stderr = invoke(["compare", prog, meas, "--json", "--twin", final, *shared])
+        logs.append(stderr)
+        if code != 0:
+            return code, record, "".join(logs), files
+        c = _json(stdout)
+        record["holdout"].append({"program": prog, "measurement": meas, "cycle_time": c.get("cycle_time"),
+                                  "blocks": c.get("blocks")})
+    return 0, record, "".join(logs), files
+
+
+def _shared_options(name: str, opts: list[str], source: str = "calibrate") -> list[str]:
+    """The options of ``opts`` (``source``'s, with their values) that command ``name`` takes too."""
+    arity, known = option_arity(source), option_arity(name)
+    out, k = [], 0
+    while k < len(opts):
+        flag = opts[k].split("=", 1)[0]
+        n = 2 if arity.get(flag) and "=" not in opts[k] else 1
+        if flag in known:
+            out += opts[k:k + n]
+        k += n
+    return out
+
+
+def option_arity(name: str) -> dict:
+    """A command's options: flag -> whether it takes a value."""
+    cmd = command_named(name)
+    return {o: not (getattr(p, "is_flag", False) or getattr(p, "count", False))
+            for p in cmd.params for o in list(p.opts) + list(p.secondary_opts) if o.startswith("-")}
 
 
 def invoke(args: list[str]) -> tuple[int, str, str]:
@@ -125,6 +181,11 @@ def click_module():
     except ImportError:
         import click
     return click
+
+
+def command_named(name: str):
+    """The click command of ``mtwin NAME``."""
+    return _command().get_command(None, name)
 
 
 def _command():

@@ -25,7 +25,8 @@ from typing import Optional
 from ..errors import MtwinError, SourceLocation
 
 COMMANDS = ("optimize", "simulate", "compare", "calibrate")
-COLUMNS = ("program", "twin", "measurement", "options", "name")
+COLUMNS = ("program", "twin", "measurement", "options", "name", "holdout")
+YES = ("yes", "true", "1", "y")
 NEEDS_MEASUREMENT = ("compare", "calibrate")
 PROGRAM_SUFFIXES = (".nc", ".ngc", ".tap", ".gcode", ".gc", ".cnc", ".txt", ".mpf", ".eia", ".min")
 # options a job may not set: the batch decides where outputs go and reads the JSON itself
@@ -52,6 +53,12 @@ class Job:
     options: tuple = ()  # the job's own flags, after the batch's common ones
     base: str = "."  # absolute folder the relative paths are read from (the job's working directory)
     origin: str = ""  # manifest:line, for messages
+    # calibrate: more (program, measurement) pairs fitted together; pairs held out (the
+    # calibrated twin compared with them after the fit); the procedure's steps (each one's
+    # options; each step starts from the twin file the one before wrote)
+    pairs: tuple = ()
+    holdout: tuple = ()
+    steps: tuple = ()
 
     @property
     def machine(self) -> str:
@@ -60,11 +67,13 @@ class Job:
 
     def files(self) -> list[str]:
         """The input files the job reads (travel with the task)."""
-        return [p for p in (self.program, self.twin, self.measurement) if p]
+        more = [p for pair in self.pairs + self.holdout for p in pair]
+        return list(dict.fromkeys(p for p in (self.program, self.twin, self.measurement, *more) if p))
 
     def key(self) -> tuple:
         res = (lambda p: os.path.normpath(os.path.join(self.base, p)) if p else None)
-        return (res(self.program), res(self.twin), res(self.measurement), self.options)
+        return (res(self.program), res(self.twin), res(self.measurement), self.options,
+                tuple((res(a), res(b)) for a, b in self.pairs))
 
 
 def read_manifest(path: str, command: str) -> list[Job]:
@@ -81,7 +90,32 @@ def read_manifest(path: str, command: str) -> list[Job]:
     if not rows:
         raise ManifestError(f"{path}: the manifest lists no job")
     jobs = [_job(command, row, base, where) for row, where in rows]
+    if command == "calibrate":
+        jobs = _machines(jobs, [row for row, _ in rows])
     return check_jobs(jobs)
+
+
+def _machines(jobs: list[Job], rows: list) -> list[Job]:
+    """calibrate: the rows of one name are one machine's job — its pairs fitted together (the
+    first row's twin file and options), its ``holdout`` rows compared after the fit."""
+    from dataclasses import replace
+
+    out: dict = {}
+    for j, row in zip(jobs, rows):
+        held = row.get("holdout", ("", 1))[0].lower() in YES
+        key = j.name or f"#{len(out)}"
+        if key not in out:
+            if held:
+                raise ManifestError(f"{j.origin}: a held-out row comes after the rows fitted for {j.name!r}")
+            out[key] = j
+            continue
+        first = out[key]
+        if (j.twin, j.options) != (first.twin, first.options):
+            raise ManifestError(f"{j.origin}: the rows of {j.name!r} differ in twin file or options from "
+                                f"{first.origin} (one machine, one twin file and one set of options)")
+        pair = ((j.program, j.measurement),)
+        out[key] = replace(first, holdout=first.holdout + pair) if held else replace(first, pairs=first.pairs + pair)
+    return list(out.values())
 
 
 def _csv_rows(path: str, text: str) -> list:
@@ -153,8 +187,12 @@ def _job(command: str, cols: dict, base: str, where) -> Job:
         raise ManifestError(f"{pre}no program", loc("program") if "program" in cols else None)
     for c in ("program", "twin", "measurement"):
         v = val(c)
+        if v and c == "twin" and not v.lower().endswith(".toml"):
+            raise ManifestError(f"{pre}twin {v!r}: a twin file is TOML (.toml)", loc(c))
         if v and not os.path.isfile(os.path.join(base, v)):
             raise ManifestError(f"{pre}{c} {v!r} does not exist (relative paths are read from {base})", loc(c))
+    if val("holdout") and command != "calibrate":
+        raise ManifestError(f"{pre}'holdout' marks a calibration's held-out logs (batch calibrate)", loc("holdout"))
     if command in NEEDS_MEASUREMENT and not val("measurement"):
         raise ManifestError(f"{pre}batch {command} needs a 'measurement' for every job",
                             loc("program"))
@@ -212,6 +250,8 @@ def jobs_from_paths(command: str, programs: list[str], twins: list[str], measure
 
 def check_jobs(jobs: list[Job]) -> list[Job]:
     """Refuse a job listed twice; give every job a name of its own (its folder)."""
+    from dataclasses import replace
+
     seen: dict = {}
     for j in jobs:
         k = j.key()
@@ -229,11 +269,41 @@ def check_jobs(jobs: list[Job]) -> list[Job]:
         while n in names:
             n, k = f"{name}-{k}", k + 1
         names[n] = j.origin
-        out.append(Job(n, *[getattr(j, f) for f in ("command", "program", "twin", "measurement", "options", "base",
-                                                    "origin")]))
+        out.append(replace(j, name=n))
     return out
 
 
 def _safe(text: str) -> str:
     """A folder name: letters, digits and ._-@ kept, the rest one underscore."""
     return re.sub(r"[^A-Za-z0-9._@-]+", "_", text).strip("_.") or "job"
+
+
+def read_recipe(path: str) -> tuple:
+    """A calibration procedure: ``[[step]]`` tables, each with the ``options`` of one
+    ``mtwin calibrate`` run (a string or a list); each step starts from the twin file the step
+    before wrote — the procedure run on every machine of a batch calibrate."""
+    from ..config import tomllib
+
+    try:
+        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ManifestError(f"cannot read the recipe {path}: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ManifestError(f"{path}: not a TOML recipe: {exc}") from None
+    unknown = [k for k in doc if k not in ("step", "description")]
+    steps = doc.get("step")
+    if unknown or not (isinstance(steps, list) and steps and all(isinstance(x, dict) for x in steps)):
+        raise ManifestError(f"{path}: a recipe is [[step]] tables with options (and a description)")
+    out = []
+    for k, st in enumerate(steps, start=1):
+        bad = [x for x in st if x not in ("options", "description")]
+        if bad:
+            raise ManifestError(f"{path}: step {k}: unknown key {bad[0]!r} (options, description)")
+        o = st.get("options", "")
+        try:
+            opts = tuple(o) if isinstance(o, list) and all(isinstance(x, str) for x in o) else tuple(shlex.split(o))
+        except (TypeError, AttributeError, ValueError):
+            raise ManifestError(f"{path}: step {k}: options must be a string or a list of strings") from None
+        own_options(opts, f"{path}: step {k}")
+        out.append(opts)
+    return tuple(out)

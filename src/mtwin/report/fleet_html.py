@@ -84,11 +84,9 @@ def _parameters(b) -> str:
     """The fleet table of a calibration: each machine's fitted values, each against the
     median of the fleet (marked where it is over 25 % away: the machine that differs)."""
     e = html.escape
-    fits = {}
-    for j in b.jobs:
-        o = b.outcomes.get(j.name)
-        if o is not None and o.status == "ok":
-            fits[j.name] = o.record.get("params", {}) or {}
+    from ..fleet.batch import fitted
+
+    fits = fitted(b)
     names = sorted({k for p in fits.values() for k in p})
     if not names:
         return ""
