@@ -65,7 +65,7 @@ class Cluster:
     scheduler file; refuses, before any job runs, a scheduler it cannot reach."""
 
     def __init__(self, workers: Optional[int] = None, scheduler: Optional[str] = None,
-                 scheduler_file: Optional[str] = None, retries: int = 1, timeout: float = 10.0):
+                 scheduler_file: Optional[str] = None, retries: int = 1, timeout: float = 5.0):
         import dask
         from distributed import Client, LocalCluster
 
