@@ -113,13 +113,14 @@ def test_summary_page_renders_in_headless_chromium(fleet):
 def test_a_job_on_a_worker_without_the_files_runs_on_their_copy(tmp_path):
     """A worker that does not see the client's files runs the job on the copy that travelled
     with the task: relative paths keep their names, so the outputs are the same bytes."""
+    from mtwin.cli import run_command
     from mtwin.fleet.job import read_inputs, run_job
     from mtwin.fleet.manifest import Job
 
     here = Job("pocket@default", "optimize", "samples/pocket.nc", base=str(SAMPLES.parent))
-    a = run_job(here, read_inputs(here))
+    a = run_job(here, read_inputs(here), (), run_command)
     away = Job("pocket@default", "optimize", "samples/pocket.nc", base=str(tmp_path / "not-on-this-worker"))
-    b = run_job(away, read_inputs(here))
+    b = run_job(away, read_inputs(here), (), run_command)
     assert a.status == b.status == "ok"
     assert a.outputs == b.outputs and b"samples/pocket.nc" in a.outputs["report"][1]
     assert os.getcwd() != str(tmp_path) and not list(tmp_path.iterdir())

@@ -20,7 +20,36 @@ import sys
 from . import program, simulate, optimize, batch, loop, chatter, tools, admin, grind  # noqa: F401,I001  (register their commands)
 from .app import INTERRUPTED, app, err, state
 
-__all__ = ["app", "main"]
+__all__ = ["app", "main", "run_command"]
+
+_CLICK = {}
+
+
+def command(name: str = ""):
+    """The click command of ``mtwin NAME`` (the whole application for "")."""
+    if "app" not in _CLICK:
+        import typer
+
+        _CLICK["app"] = typer.main.get_command(app)
+    return _CLICK["app"].get_command(None, name) if name else _CLICK["app"]
+
+
+def run_command(args: list) -> tuple:
+    """``mtwin ARGS…`` in this process, as from a shell: (exit code, stdout, stderr) — what a
+    batch job runs (mtwin.fleet), so that its outputs are the command's own."""
+    import contextlib
+    import io
+
+    so, se = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
+        try:
+            code = command().main(args=[str(a) for a in args], prog_name="mtwin", standalone_mode=False)
+        except Exception as exc:  # noqa: BLE001 (click's usage errors; the command's own are mapped by it)
+            if not hasattr(exc, "format_message"):
+                raise
+            se.write(f"error: {exc.format_message()}\n")  # a usage error: an unknown option, a bad value
+            code = getattr(exc, "exit_code", 2)
+    return int(code or 0), so.getvalue(), se.getvalue()
 
 
 def main() -> None:

@@ -46,7 +46,7 @@ def _command(name: str):
                 scheduler_file: Optional[str] = SCHEDULER_FILE, retries: int = RETRIES, json_out: bool = JSON_OUT,
                 recipe: Optional[str] = RECIPE):
         from ..fleet import read_batch_jobs
-        from ..fleet.cli_support import check_common, split_args
+        from .batchargs import check_common, split_args
 
         programs, common = split_args(name, ctx.args)
         jobs = read_batch_jobs(name, manifest, programs, twin or (), measurement or ())
@@ -54,6 +54,13 @@ def _command(name: str):
         for j in {j.options: j for j in jobs if j.options}.values():  # each job's own, before anything runs
             check_common(name, common + list(j.options), f"{j.origin}: options")
         jobs = _with_recipe(name, jobs, recipe, common)
+        if name == "calibrate":  # the held-out comparisons take the options compare knows
+            from dataclasses import replace
+
+            from .batchargs import shared_options
+
+            jobs = [replace(j, compare_options=shared_options("compare", common + list(j.options), name))
+                    for j in jobs]
         if retries < 0:
             raise MtwinError(f"--retries {retries}: give 0 or more")
         runner = _runner(workers, scheduler, scheduler_file, retries, len(jobs))
@@ -85,8 +92,8 @@ def _with_recipe(name, jobs, recipe, common):
         raise MtwinError("--recipe is a calibration procedure: batch calibrate")
     from dataclasses import replace
 
-    from ..fleet.cli_support import check_common
     from ..fleet.manifest import read_recipe
+    from .batchargs import check_common
 
     steps = read_recipe(recipe)
     for k, opts in enumerate(steps, start=1):
@@ -120,6 +127,7 @@ def _run(name, jobs, output, common, runner):
     """The batch with a progress display: a bar with done/failed and the time left on a
     terminal, a line per finished job otherwise."""
     from ..fleet import run_batch
+    from . import run_command
 
     if runner is not None:
         say(f"{len(jobs)} job(s) on {runner.describe()}")
@@ -130,7 +138,7 @@ def _run(name, jobs, output, common, runner):
             say(f"[{counts['done']}/{len(jobs)}] {o.name}: {o.status}" + (f" ({o.error})" if o.error else "")
                 + f", {o.seconds:.1f} s")
 
-        return run_batch(name, jobs, output, common, runner, on_done=line)
+        return run_batch(name, jobs, output, run_command, common, runner, on_done=line)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn(f"batch {name}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[bad]}"),
@@ -141,7 +149,7 @@ def _run(name, jobs, output, common, runner):
             counts["bad"] += o.status != "ok"
             bar.update(task, advance=1, bad=f"{counts['bad']} failed" if counts["bad"] else "")
 
-        return run_batch(name, jobs, output, common, runner, on_done=tick)
+        return run_batch(name, jobs, output, run_command, common, runner, on_done=tick)
 
 
 def _print_batch(b) -> None:
@@ -174,10 +182,9 @@ def _print_parameters(b) -> None:
     where the fleet has three machines or more (the machine that differs stands out)."""
     import statistics
 
-    from ..fleet.batch import fitted
     from .render import table
 
-    fits = fitted(b)
+    fits = b.fitted()
     names = sorted({k for p in fits.values() for k in p})
     if not names:
         return

@@ -40,6 +40,15 @@ class Batch:
     seconds: float = 0.0
     interrupted: bool = False
 
+    def fitted(self) -> dict:
+        """calibrate: each machine's fitted parameters (job -> name -> value), the jobs that ran."""
+        out = {}
+        for j in self.jobs:
+            o = self.outcomes.get(j.name)
+            if o is not None and o.status == "ok" and isinstance(o.record, dict):
+                out[j.name] = dict(o.record.get("params") or {})
+        return out
+
     def rows(self) -> list[dict]:
         return [summary_row(j, self.outcomes[j.name], self.out_dir) for j in self.jobs if j.name in self.outcomes]
 
@@ -94,11 +103,12 @@ class Batch:
         return {"jobs": jobs, "summary": self.summary()}
 
 
-def run_batch(command: str, jobs: list[Job], out_dir: str, common: tuple = (), runner=None,
+def run_batch(command: str, jobs: list[Job], out_dir: str, run: Callable, common: tuple = (), runner=None,
               on_done: Optional[Callable[[Outcome], None]] = None) -> Batch:
     """Run the jobs (``runner``: a :class:`~mtwin.fleet.runner.Cluster`, or None for one by one
-    in this process), write each one's outputs as it arrives, then the summary files.  Ctrl-C
-    stops the batch: the jobs finished stay written, the summary says which did not run."""
+    in this process) with ``run``, the command line in a process (``mtwin.cli.run_command``);
+    write each one's outputs as it arrives, then the summary files.  Ctrl-C stops the batch:
+    the jobs finished stay written, the summary says which did not run."""
     from .runner import run_serial
 
     b = Batch(command, jobs, out_dir=os.path.abspath(out_dir),
@@ -116,9 +126,9 @@ def run_batch(command: str, jobs: list[Job], out_dir: str, common: tuple = (), r
 
     try:
         if runner is None:
-            run_serial(jobs, common, done)
+            run_serial(jobs, common, done, run)
         else:
-            runner.run(jobs, common, done)
+            runner.run(jobs, common, done, run)
     except KeyboardInterrupt:
         b.interrupted = True
     b.seconds = time.perf_counter() - t0
@@ -153,19 +163,9 @@ def write_summary(b: Batch) -> None:
     write_bytes(fleet_html(b), os.path.join(b.out_dir, "index.html"))
 
 
-def fitted(b: Batch) -> dict:
-    """calibrate: each machine's fitted parameters (job -> name -> value), the jobs that ran."""
-    out = {}
-    for j in b.jobs:
-        o = b.outcomes.get(j.name)
-        if o is not None and o.status == "ok" and isinstance(o.record, dict):
-            out[j.name] = dict(o.record.get("params") or {})
-    return out
-
-
 def parameters_csv(b: Batch) -> str:
     """The fleet table: a row per machine, its fitted parameters, held-out cycle-time error."""
-    fits = fitted(b)
+    fits = b.fitted()
     names = sorted({k for p in fits.values() for k in p})
     held = {r["job"]: r["holdout_error"] for r in b.rows()}
     buf = io.StringIO()

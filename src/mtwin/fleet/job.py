@@ -2,8 +2,9 @@
 the batch's common options) → (its output files' bytes, its record).
 
 The job *is* the command a user would type — ``mtwin optimize PROGRAM --twin T -o … --report …
---json`` — run in this process through the same command-line code, with its stdout and stderr
-captured and its outputs written to a private folder and read back.  So a batch job's outputs
+--json`` — run in this process through the same command-line code (handed in as ``run``: the
+command line sits above this package), with its stdout and stderr captured and its outputs
+written to a private folder and read back.  So a batch job's outputs
 are the single command's, byte for byte, by construction, and every option of the command is
 a batch option too.
 
@@ -26,12 +27,13 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from .manifest import Job
 
-# one job at a time per process: a job sets the working directory and sys.stdout/stderr
+# one job at a time per process: a job sets the working directory (and the command line it
+# runs, sys.stdout/stderr)
 _LOCK = threading.Lock()
-_COMMAND = {}
 
 
 @dataclass
@@ -80,8 +82,10 @@ def arguments(job: Job, common: tuple, out: str) -> tuple[list[str], dict]:
     return args + list(common) + list(job.options), files
 
 
-def run_job(job: Job, inputs: dict, common: tuple = ()) -> Outcome:
-    """Run the job here (see the module's doc); never raises for the job's own failure."""
+def run_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
+    """Run the job here (see the module's doc) with ``run(args) -> (exit code, stdout,
+    stderr)``, the mtwin command line in this process (``mtwin.cli.run_command``); never
+    raises for the job's own failure."""
     import socket
 
     t0 = time.perf_counter()
@@ -91,10 +95,10 @@ def run_job(job: Job, inputs: dict, common: tuple = ()) -> Outcome:
         staged = where != job.base
         j = job if not staged else _relocated(job, where)
         if job.command == "calibrate":
-            code, record, stderr, files = _procedure(j, common, out)
+            code, record, stderr, files = _procedure(j, common, out, run)
         else:
             args, files = arguments(j, common, out)
-            code, stdout, stderr = invoke(args)
+            code, stdout, stderr = run(args)
             record = _json(stdout)
         outputs = {k: (name, Path(out, name).read_bytes()) for k, name in files.items()
                    if code == 0 and os.path.isfile(os.path.join(out, name))}
@@ -105,7 +109,7 @@ def run_job(job: Job, inputs: dict, common: tuple = ()) -> Outcome:
                    f"{socket.gethostname()}:{os.getpid()}", code)
 
 
-def _procedure(job: Job, common: tuple, out: str):
+def _procedure(job: Job, common: tuple, out: str, run: Callable):
     """calibrate: the procedure's steps in turn (each from the twin file the step before wrote;
     one step of the job's options when there are none), then the calibrated twin compared with
     each held-out log.  (exit code, record, stderr, outputs)"""
@@ -118,7 +122,7 @@ def _procedure(job: Job, common: tuple, out: str):
         dst = final if k == len(steps) else os.path.join(out, f"step{k}.toml")
         args = ["calibrate", job.program, job.measurement, *more, "-o", dst, "--json"]
         args += (["--twin", twin] if twin else []) + list(common) + list(job.options) + list(opts)
-        code, stdout, stderr = invoke(args)
+        code, stdout, stderr = run(args)
         logs.append(stderr)
         rec = _json(stdout)
         records.append(rec)
@@ -126,9 +130,8 @@ def _procedure(job: Job, common: tuple, out: str):
             return code, {"steps": records}, "".join(logs), files
         twin = dst
     record = {**records[-1], "steps": records, "holdout": []}
-    shared = _shared_options("compare", list(common) + list(job.options))
     for prog, meas in job.holdout:
-        code, stdout, stderr = invoke(["compare", prog, meas, "--json", "--twin", final, *shared])
+        code, stdout, stderr = run(["compare", prog, meas, "--json", "--twin", final, *job.compare_options])
         logs.append(stderr)
         if code != 0:
             return code, record, "".join(logs), files
@@ -136,66 +139,6 @@ def _procedure(job: Job, common: tuple, out: str):
         record["holdout"].append({"program": prog, "measurement": meas, "cycle_time": c.get("cycle_time"),
                                   "blocks": c.get("blocks")})
     return 0, record, "".join(logs), files
-
-
-def _shared_options(name: str, opts: list[str], source: str = "calibrate") -> list[str]:
-    """The options of ``opts`` (``source``'s, with their values) that command ``name`` takes too."""
-    arity, known = option_arity(source), option_arity(name)
-    out, k = [], 0
-    while k < len(opts):
-        flag = opts[k].split("=", 1)[0]
-        n = 2 if arity.get(flag) and "=" not in opts[k] else 1
-        if flag in known:
-            out += opts[k:k + n]
-        k += n
-    return out
-
-
-def option_arity(name: str) -> dict:
-    """A command's options: flag -> whether it takes a value."""
-    cmd = command_named(name)
-    return {o: not (getattr(p, "is_flag", False) or getattr(p, "count", False))
-            for p in cmd.params for o in list(p.opts) + list(p.secondary_opts) if o.startswith("-")}
-
-
-def invoke(args: list[str]) -> tuple[int, str, str]:
-    """The mtwin command line in this process: (exit code, stdout, stderr)."""
-    click = click_module()
-    cmd = _command()
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        try:
-            code = cmd.main(args=args, prog_name="mtwin", standalone_mode=False)
-        except click.ClickException as exc:  # a usage error (an unknown option)
-            se.write(f"error: {exc.format_message()}\n")
-            code = exc.exit_code
-        except click.exceptions.Abort:
-            code = 130
-    return int(code or 0), so.getvalue(), se.getvalue()
-
-
-def click_module():
-    """The click the command line is built on (this typer release carries its own copy)."""
-    try:
-        from typer import _click as click
-    except ImportError:
-        import click
-    return click
-
-
-def command_named(name: str):
-    """The click command of ``mtwin NAME``."""
-    return _command().get_command(None, name)
-
-
-def _command():
-    if "cmd" not in _COMMAND:
-        import typer
-
-        from ..cli import app
-
-        _COMMAND["cmd"] = typer.main.get_command(app)
-    return _COMMAND["cmd"]
 
 
 def _status(job: Job, code: int, record, stderr: str) -> tuple[str, str]:

@@ -59,6 +59,7 @@ class Job:
     pairs: tuple = ()
     holdout: tuple = ()
     steps: tuple = ()
+    compare_options: tuple = ()  # the options of the batch that the held-out comparisons take
 
     @property
     def machine(self) -> str:

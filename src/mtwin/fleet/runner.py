@@ -34,6 +34,13 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
+def _size(job: Job) -> int:
+    try:
+        return sum(os.path.getsize(os.path.join(job.base, p)) for p in job.files() if p != job.twin)
+    except OSError:
+        return 0
+
+
 def have_dask() -> bool:
     try:
         import distributed  # noqa: F401
@@ -42,13 +49,13 @@ def have_dask() -> bool:
     return True
 
 
-def run_serial(jobs: list[Job], common: tuple, on_done: Callable[[Outcome], None]) -> None:
+def run_serial(jobs: list[Job], common: tuple, on_done: Callable[[Outcome], None], run: Callable) -> None:
     """Each job in turn in this process (what batch does without Dask, or with --workers 0)."""
     for job in jobs:
-        on_done(run_job(job, read_inputs(job), common))
+        on_done(run_job(job, read_inputs(job), common, run))
 
 
-def warmed_job(job: Job, inputs: dict, common: tuple) -> Outcome:
+def warmed_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
     """A job on a worker: the worker's kernel cache is warmed by its first task (compiled
     kernels loaded, or compiled once into the worker's cache), then the job runs."""
     if not _WARM:
@@ -57,7 +64,7 @@ def warmed_job(job: Job, inputs: dict, common: tuple) -> Outcome:
 
         warm()
         _WARM["done"] = True
-    return run_job(job, inputs, common)
+    return run_job(job, inputs, common, run)
 
 
 class Cluster:
@@ -94,15 +101,17 @@ class Cluster:
         kind = "local cluster" if self.cluster is not None else f"scheduler {self.client.scheduler.address}"
         return f"{kind}: {len(nt)} worker(s), {sum(nt.values())} thread(s)"
 
-    def run(self, jobs: list[Job], common: tuple, on_done: Callable[[Outcome], None]) -> None:
+    def run(self, jobs: list[Job], common: tuple, on_done: Callable[[Outcome], None], run: Callable) -> None:
         from distributed import as_completed
 
-        todo = list(reversed(jobs))
+        # the biggest programs first (their size a proxy for their time): the batch does not end
+        # on one long job that started last while the other workers idle
+        todo = sorted(jobs, key=lambda j: _size(j))
         by_key = {}
 
         def submit():
             job = todo.pop()
-            fut = self.client.submit(warmed_job, job, read_inputs(job), common, key=f"mtwin-job-{job.name}-{id(self)}",
+            fut = self.client.submit(warmed_job, job, read_inputs(job), common, run, key=f"mtwin-job-{job.name}-{id(self)}",
                                      retries=self.retries, pure=False)
             by_key[fut.key] = job
             return fut

@@ -84,9 +84,7 @@ def _parameters(b) -> str:
     """The fleet table of a calibration: each machine's fitted values, each against the
     median of the fleet (marked where it is over 25 % away: the machine that differs)."""
     e = html.escape
-    from ..fleet.batch import fitted
-
-    fits = fitted(b)
+    fits = b.fitted()
     names = sorted({k for p in fits.values() for k in p})
     if not names:
         return ""

@@ -4,14 +4,33 @@ exit 2, not every job with exit 1)."""
 from __future__ import annotations
 
 from ..errors import MtwinError
-from .manifest import NEEDS_MEASUREMENT, own_options
+from ..fleet.manifest import NEEDS_MEASUREMENT, own_options
+
+
+def option_arity(name: str) -> dict:
+    """A command's options: flag -> whether it takes a value."""
+    from . import command
+
+    return {o: not (getattr(p, "is_flag", False) or getattr(p, "count", False))
+            for p in command(name).params for o in list(p.opts) + list(p.secondary_opts) if o.startswith("-")}
+
+
+def shared_options(name: str, opts: list, source: str) -> tuple:
+    """The options of ``opts`` (``source``'s, with their values) that command ``name`` takes too."""
+    arity, known = option_arity(source), option_arity(name)
+    out, k = [], 0
+    while k < len(opts):
+        flag = opts[k].split("=", 1)[0]
+        n = 2 if arity.get(flag) and "=" not in opts[k] else 1
+        if flag in known:
+            out += opts[k:k + n]
+        k += n
+    return tuple(out)
 
 
 def split_args(name: str, args: list[str]) -> tuple[list[str], list[str]]:
     """(the programs named, the command's options with their values) from the arguments the
     batch did not take itself."""
-    from .job import option_arity
-
     takes_value = option_arity(name)
     programs, common, k = [], [], 0
     while k < len(args):
@@ -38,14 +57,14 @@ def split_args(name: str, args: list[str]) -> tuple[list[str], list[str]]:
 
 def check_common(name: str, common: list[str], where: str = "") -> None:
     """Parse the options as the command would (types, choices), on a stand-in program."""
-    from .job import click_module, command_named
-
-    click = click_module()
+    from . import command
 
     args = ["PROGRAM"] + (["MEASUREMENT"] if name in NEEDS_MEASUREMENT else []) + list(common)
     if name in ("optimize", "calibrate"):
         args += ["-o", "OUT"]
     try:
-        command_named(name).make_context(name, args, resilient_parsing=False)
-    except click.ClickException as exc:
+        command(name).make_context(name, args, resilient_parsing=False)
+    except Exception as exc:  # noqa: BLE001 (click's usage errors, whichever click typer carries)
+        if not hasattr(exc, "format_message"):
+            raise
         raise MtwinError(f"{where or f'mtwin batch {name}'}: {exc.format_message()}") from None
