@@ -139,10 +139,17 @@ def _run(name, jobs, output, common, runner):
                 + f", {o.seconds:.1f} s")
 
         return run_batch(name, jobs, output, run_command, common, runner, on_done=line)
+    import sys
+
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
+    # the bar on this process's stderr as it is now: a job run in this process captures
+    # sys.stderr for its command, and the bar must not draw into the job's log
+    screen = Console(file=sys.stderr)
     with Progress(TextColumn(f"batch {name}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[bad]}"),
-                  TimeRemainingColumn(), console=err, transient=True) as bar:
+                  TimeRemainingColumn(), console=screen, transient=True, redirect_stdout=False,
+                  redirect_stderr=False) as bar:
         task = bar.add_task(name, total=len(jobs), bad="")
 
         def tick(o):

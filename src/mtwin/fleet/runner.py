@@ -123,7 +123,10 @@ class Cluster:
                 if fut.status == "finished":
                     out = fut.result()
                 else:  # the task itself failed: a worker that died more often than allowed
-                    exc = fut.exception()
+                    try:
+                        exc = fut.exception()
+                    except Exception as lost:  # noqa: BLE001 (cancelled by the scheduler: lost with it)
+                        exc = lost
                     out = Outcome(job.name, "failed", error=f"{type(exc).__name__}: {exc}")
                 fut.release()
                 on_done(out)
