@@ -16,7 +16,7 @@ from .render import emit_json, say
 
 batch_app = typer.Typer(help="Run a command over many programs × twin files (a fleet), on Dask or one by one.",
                         no_args_is_help=True, rich_markup_mode=None)
-app.add_typer(batch_app, name="batch")
+app.add_typer(batch_app, name="batch", short_help="Run a command over many programs × machines, on Dask.")
 
 EXTRA = {"allow_extra_args": True, "ignore_unknown_options": True, "help_option_names": ["-h", "--help"]}
 MANIFEST = typer.Option(None, "--manifest", help="Jobs as CSV (header: program, twin[, measurement, options, name]) "
