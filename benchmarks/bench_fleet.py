@@ -54,19 +54,9 @@ def _batch(jobs, out, runner):
 def _warm_seconds(cache_dir=None) -> list:
     """Each worker's warm-up (its first task's kernel loading or compiling), on a 1-worker
     cluster whose worker uses ``cache_dir`` (None: the user's cache)."""
-    from mtwin.fleet.runner import WORKER_ENV, Cluster
+    from mtwin.fleet.runner import Cluster
 
-    env = dict(WORKER_ENV)
-    if cache_dir:
-        env["NUMBA_CACHE_DIR"] = cache_dir
-    old = dict(WORKER_ENV)
-    WORKER_ENV.clear()
-    WORKER_ENV.update(env)
-    try:
-        c = Cluster(workers=1)
-    finally:
-        WORKER_ENV.clear()
-        WORKER_ENV.update(old)
+    c = Cluster(workers=1, env={"NUMBA_CACHE_DIR": cache_dir} if cache_dir else None)
     try:
         def warm():
             import time as _t

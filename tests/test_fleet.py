@@ -259,14 +259,17 @@ def test_fleet_calibration_finds_the_machine_that_differs(tmp_path):
     """Three machines' logs (synthetic: the same spindle, machine c's no-load power 2.5×): batch
     calibrate fits each, and the fleet table shows c at about 2.5× the median; the held-out
     program (a second log of each machine) is predicted too."""
+    from mtwin.cli import run_command
+
     p0 = {"a": 150.0, "b": 160.0, "c": 400.0}
     rows = ["name,program,measurement,holdout"]
     for name, v in p0.items():
         for prog, held in (("pocket", ""), ("contour", "yes")):
             meas = tmp_path / f"{name}-{prog}.csv"
-            r = mtwin("synth", SAMPLES / f"{prog}.nc", "-o", meas, "--effect", f"spindle-no-load:p0={v},b=0.002",
-                      "--signals", "spindle_power", "--rate", "20", "--noise", "0.01", "--seed", "3")
-            assert r.returncode == 0, r.stderr
+            code, _, err = run_command(["synth", SAMPLES / f"{prog}.nc", "-o", meas, "--effect",
+                                        f"spindle-no-load:p0={v},b=0.002", "--signals", "spindle_power", "--rate",
+                                        "20", "--noise", "0.01", "--seed", "3"])
+            assert code == 0, err
             rows.append(f"{name},{SAMPLES / f'{prog}.nc'},{meas},{held}")
     m = tmp_path / "fleet.csv"
     m.write_text("\n".join(rows) + "\n")
@@ -280,3 +283,51 @@ def test_fleet_calibration_finds_the_machine_that_differs(tmp_path):
         assert (tmp_path / "cal" / k / "twin.toml").is_file()
         assert table[k]["holdout_cycle_error"] != ""
     assert "(2.5" in r.stderr or "(2.4" in r.stderr or "(2.6" in r.stderr  # c against the median (b)
+
+
+@pytest.mark.parametrize("case", ["bom", "name", "measurement", "ledger", "out-file", "scheduler-file"])
+def test_more_bad_input_is_a_message_not_a_traceback(tmp_path, case):
+    pocket = SAMPLES / "pocket.nc"
+    m = tmp_path / "jobs.csv"
+    out = tmp_path / "out"
+    args = ["--manifest", m, "-o", out]
+    if case == "bom":  # a spreadsheet's CSV reads as written: the error here is the missing file, not the header
+        m.write_bytes(b"\xef\xbb\xbfprogram,twin,\n" + f"{tmp_path / 'gone.nc'},,\n".encode())
+        want = f"{m}:2:1: program"
+    elif case == "name":
+        m.write_text(f"program,name\n{pocket},summary.csv\n")
+        want = "the name 'summary.csv' is the summary's file"
+    elif case == "measurement":
+        m.write_text(f"program,measurement\n{pocket},{SAMPLES / 'measurements' / 'pocket_hidden.csv'}\n")
+        want = "batch optimize takes no measurement"
+    elif case == "ledger":
+        m.write_text(f"program\n{pocket}\n")
+        args += ["--ledger", tmp_path / "tools.db", "--tool-id", "T1=EM1"]
+        want = "--ledger names a file that does not travel with a job"
+    elif case == "out-file":
+        m.write_text(f"program\n{pocket}\n")
+        out.write_text("taken")
+        want = "a file, not a folder"
+    else:
+        pytest.importorskip("distributed")
+        m.write_text(f"program\n{pocket}\n")
+        (tmp_path / "sched.json").write_text("{}")
+        args += ["--scheduler-file", tmp_path / "sched.json"]
+        want = "no scheduler address in it"
+    r = mtwin("batch", "optimize", *args)
+    assert r.returncode == 2, r.stderr
+    assert want in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists() or out.read_text() == "taken"
+
+
+def test_a_calibrated_twin_file_equals_the_command_alone_at_the_batch_date(tmp_path):
+    meas = SAMPLES / "measurements" / "pocket_hidden.csv"
+    r = mtwin("batch", "calibrate", SAMPLES / "pocket.nc", "--measurement", meas, "-o", tmp_path / "cal",
+              "--workers", "0", "--fit", "spindle-no-load", "--json")
+    assert r.returncode == 0, r.stderr
+    epoch = json.loads(r.stdout)["summary"]["source_date_epoch"]
+    alone = tmp_path / "alone.toml"
+    a = mtwin("calibrate", SAMPLES / "pocket.nc", meas, "--fit", "spindle-no-load", "-o", alone,
+              env={**os.environ, "SOURCE_DATE_EPOCH": str(epoch)})
+    assert a.returncode == 0, a.stderr
+    assert (tmp_path / "cal" / "pocket@default" / "twin.toml").read_bytes() == alone.read_bytes()

@@ -41,6 +41,8 @@ def run_command(args: list) -> tuple:
     import io
 
     so, se = io.StringIO(), io.StringIO()
+    traceback = state["traceback"]
+    state["traceback"] = False  # (the batch's --traceback is the batch's, not every job's)
     with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
         try:
             code = command().main(args=[str(a) for a in args], prog_name="mtwin", standalone_mode=False)
@@ -49,6 +51,8 @@ def run_command(args: list) -> tuple:
                 raise
             se.write(f"error: {exc.format_message()}\n")  # a usage error: an unknown option, a bad value
             code = getattr(exc, "exit_code", 2)
+        finally:
+            state["traceback"] = traceback
     return int(code or 0), so.getvalue(), se.getvalue()
 
 

@@ -6,6 +6,8 @@ command's own parser before anything runs); a manifest's ``options`` column adds
 """
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
 from typing import Optional
 
 import typer
@@ -55,14 +57,16 @@ def _command(name: str):
             check_common(name, common + list(j.options), f"{j.origin}: options")
         jobs = _with_recipe(name, jobs, recipe, common)
         if name == "calibrate":  # the held-out comparisons take the options compare knows
-            from dataclasses import replace
-
             from .batchargs import shared_options
 
             jobs = [replace(j, compare_options=shared_options("compare", common + list(j.options), name))
                     for j in jobs]
         if retries < 0:
             raise MtwinError(f"--retries {retries}: give 0 or more")
+        _check_out_dir(output)
+        import time
+
+        jobs = [replace(j, date_epoch=int(time.time())) for j in jobs]
         runner = _runner(workers, scheduler, scheduler_file, retries, len(jobs))
         try:
             b = _run(name, jobs, output, tuple(common), runner)
@@ -90,8 +94,6 @@ def _with_recipe(name, jobs, recipe, common):
         return jobs
     if name != "calibrate":
         raise MtwinError("--recipe is a calibration procedure: batch calibrate")
-    from dataclasses import replace
-
     from ..fleet.manifest import read_recipe
     from .batchargs import check_common
 
@@ -101,12 +103,23 @@ def _with_recipe(name, jobs, recipe, common):
     return [replace(j, steps=steps) for j in jobs]
 
 
+def _check_out_dir(output: str) -> None:
+    """The output folder: a folder (made) or a name not yet taken, in a folder that exists."""
+    p = Path(output)
+    if p.exists() and not p.is_dir():
+        raise MtwinError(f"-o {output}: a file, not a folder")
+    if not p.exists() and not p.resolve().parent.is_dir():
+        raise MtwinError(f"-o {output}: the folder {p.resolve().parent} does not exist")
+
+
 def _runner(workers, scheduler, scheduler_file, retries, n_jobs):
     """A Dask cluster, or None (one job at a time here): without Dask, say how to get it."""
     from ..fleet.runner import FLEET_HINT, Cluster, have_dask
 
     if scheduler and scheduler_file:
         raise MtwinError("give --scheduler or --scheduler-file, not both")
+    if workers is not None and (scheduler or scheduler_file):
+        raise MtwinError("--workers makes a local cluster; an existing cluster's workers are its own")
     if workers is not None and workers < 0:
         raise MtwinError(f"--workers {workers}: give 0 (in this process) or more")
     if not have_dask():
@@ -185,23 +198,23 @@ def _print_batch(b) -> None:
 
 
 def _print_parameters(b) -> None:
-    """The fleet table: each fitted parameter per machine, as the ratio to the fleet's median
+    """The fleet table: each fitted parameter per machine, with its ratio to the fleet's median
     where the fleet has three machines or more (the machine that differs stands out)."""
-    import statistics
-
     from .render import table
 
-    fits = b.fitted()
-    names = sorted({k for p in fits.values() for k in p})
-    if not names:
+    rows = b.fleet_table()
+    if not rows:
         return
+    machines = list(b.fitted())
     held = {r["job"]: r["holdout_error"] for r in b.rows()}
-    t = table("parameter", *((m, "right") for m in fits), title="fitted per machine (× the fleet's median)")
-    for k in names:
-        vals = [p[k] for p in fits.values() if k in p]
-        med = statistics.median(vals) if len(vals) > 2 else None
-        t.add_row(k, *("—" if k not in p else f"{p[k]:.4g}" + (f" ({p[k] / med:.2f}×)" if med else "")
-                       for p in fits.values()))
+    t = table("parameter", *((m, "right") for m in machines), title="fitted per machine (× the fleet's median)")
+    for row in rows:
+        cells = []
+        for m in machines:
+            x = row["machines"].get(m)
+            cells.append("—" if x is None else f"{x['value']:.4g}" + ("" if x["ratio"] is None else
+                                                                      f" ({x['ratio']:.2f}×)"))
+        t.add_row(row["parameter"], *cells)
     if any(v is not None for v in held.values()):
-        t.add_row("held-out cycle error", *("" if held.get(m) is None else f"{held[m] * 100:+.2f} %" for m in fits))
+        t.add_row("held-out cycle error", *("" if held.get(m) is None else f"{held[m] * 100:+.2f} %" for m in machines))
     err.print(t)

@@ -17,8 +17,9 @@ __all__ = ["Batch", "COMMANDS", "Job", "ManifestError", "Outcome", "jobs_from_pa
 
 def read_batch_jobs(command: str, manifest=None, programs=(), twins=(), measurements=()) -> list:
     """The jobs from a manifest, or from programs × twin files."""
-    if manifest and programs:
-        raise ManifestError("give either --manifest or programs, not both")
+    if manifest and (programs or twins or measurements):
+        raise ManifestError("give either --manifest or programs (with --twin, --measurement), not both: a manifest "
+                            "names each job's twin file and measurement")
     if manifest:
         return read_manifest(manifest, command)
     return jobs_from_paths(command, list(programs), list(twins), list(measurements))

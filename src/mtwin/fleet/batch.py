@@ -16,6 +16,7 @@ import csv
 import io
 import json
 import os
+import statistics
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional
@@ -24,6 +25,7 @@ from ..io import write_bytes
 from .job import Outcome
 from .manifest import Job
 
+OUTLIER = 0.25  # a fitted parameter this far (relative) from the fleet's median is marked
 SUMMARY_FIELDS = ("job", "machine", "program", "twin", "measurement", "status", "cycle_before_s", "cycle_after_s",
                   "saved_s", "saved_pct", "error_before", "error_after", "holdout_error", "error", "seconds", "worker")
 
@@ -49,8 +51,27 @@ class Batch:
                 out[j.name] = dict(o.record.get("params") or {})
         return out
 
+    def fleet_table(self) -> list[dict]:
+        """calibrate: per fitted parameter, each machine's value, its standard deviation and its
+        ratio to the fleet's median (for three machines or more; ``odd`` when more than
+        ``OUTLIER`` from it) — the one table the CSV, stderr and the page show."""
+        fits = self.fitted()
+        sd = {j.name: (self.outcomes[j.name].record.get("uncertainty") or {}) for j in self.jobs if j.name in fits}
+        out = []
+        for k in sorted({k for p in fits.values() for k in p}):
+            vals = [p[k] for p in fits.values() if k in p]
+            med = statistics.median(vals) if len(vals) > 2 else None
+            cells = {}
+            for m, p in fits.items():
+                if k in p:
+                    r = p[k] / med if med else None
+                    cells[m] = {"value": p[k], "sd": sd[m].get(k), "ratio": r,
+                                "odd": r is not None and abs(r - 1) > OUTLIER}
+            out.append({"parameter": k, "machines": cells})
+        return out
+
     def rows(self) -> list[dict]:
-        return [summary_row(j, self.outcomes[j.name], self.out_dir) for j in self.jobs if j.name in self.outcomes]
+        return [summary_row(j, self.outcomes[j.name]) for j in self.jobs if j.name in self.outcomes]
 
     @property
     def counts(self) -> dict:
@@ -80,7 +101,9 @@ class Batch:
                     m["cycle_before_s"] += r["cycle_before_s"]
                     m["cycle_after_s"] += r["cycle_after_s"]
                     m["saved_s"] += r["saved_s"]
+        epoch = next((j.date_epoch for j in self.jobs if j.date_epoch is not None), None)
         return {"command": self.command, "jobs": len(self.jobs), **self.counts, "runner": self.runner,
+                "source_date_epoch": epoch,
                 "seconds": self.seconds, "interrupted": self.interrupted,
                 "cycle_saved_s": sum(saved) if saved else None,
                 "cycle_saved_pct": 100.0 * sum(saved) / sum(before) if before and sum(before) > 0 else None,
@@ -165,21 +188,21 @@ def write_summary(b: Batch) -> None:
 
 def parameters_csv(b: Batch) -> str:
     """The fleet table: a row per machine, its fitted parameters, held-out cycle-time error."""
-    fits = b.fitted()
-    names = sorted({k for p in fits.values() for k in p})
+    table = b.fleet_table()
     held = {r["job"]: r["holdout_error"] for r in b.rows()}
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    sd = {j.name: (b.outcomes[j.name].record.get("uncertainty") or {}) for j in b.jobs if j.name in fits}
-    w.writerow(["machine", *(c for k in names for c in (k, f"{k}_sd")), "holdout_cycle_error"])
-    for job, p in fits.items():
-        w.writerow([job, *(c for k in names for c in ((f"{p[k]:.6g}" if k in p else ""),
-                                                       (f"{sd[job][k]:.3g}" if k in sd[job] else ""))),
-                    "" if held.get(job) is None else f"{held[job]:.6g}"])
+    w.writerow(["machine", *(c for t in table for c in (t["parameter"], f"{t['parameter']}_sd")),
+                "holdout_cycle_error"])
+    num = (lambda v, fmt: "" if v is None else format(v, fmt))
+    for m in b.fitted():
+        cells = [t["machines"].get(m, {}) for t in table]
+        w.writerow([m, *(c for x in cells for c in (num(x.get("value"), ".6g"), num(x.get("sd"), ".3g"))),
+                    num(held.get(m), ".6g")])
     return buf.getvalue()
 
 
-def summary_row(j: Job, o: Outcome, out_dir: str) -> dict:
+def summary_row(j: Job, o: Outcome) -> dict:
     """One job's figures: cycle time before/after (optimize; simulate: the time), the error
     before/after (compare: the cycle-time error; calibrate: the fit's RMS)."""
     rec = o.record if isinstance(o.record, dict) else {}

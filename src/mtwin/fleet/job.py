@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import io
 import json
 import os
 import shutil
@@ -89,7 +88,7 @@ def run_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
     import socket
 
     t0 = time.perf_counter()
-    with _LOCK, _workdir(job, inputs) as (where, tmp):
+    with _LOCK, _workdir(job, inputs) as (where, tmp), _epoch(job.date_epoch):
         out = os.path.join(tmp, "out")
         os.mkdir(out)
         staged = where != job.base
@@ -104,6 +103,8 @@ def run_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
                    if code == 0 and os.path.isfile(os.path.join(out, name))}
         if job.command == "simulate" and code == 0:
             outputs["summary"] = ("simulate.json", stdout.encode())
+    if code == 130:  # Ctrl-C in this process (the command mapped it): the batch stops, not this job only
+        raise KeyboardInterrupt
     status, error = _status(job, code, record, stderr)
     return Outcome(job.name, status, outputs, record, error, stderr, time.perf_counter() - t0,
                    f"{socket.gethostname()}:{os.getpid()}", code)
@@ -160,6 +161,24 @@ def _json(text: str):
 
 
 @contextlib.contextmanager
+def _epoch(epoch):
+    """``SOURCE_DATE_EPOCH`` set to the batch's start for the job (the date a calibrated twin
+    file's journal entry carries), given back after."""
+    if epoch is None:
+        yield
+        return
+    old = os.environ.get("SOURCE_DATE_EPOCH")
+    os.environ["SOURCE_DATE_EPOCH"] = str(int(epoch))
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("SOURCE_DATE_EPOCH", None)
+        else:
+            os.environ["SOURCE_DATE_EPOCH"] = old
+
+
+@contextlib.contextmanager
 def _workdir(job: Job, inputs: dict):
     """(the folder the job runs in, a private scratch folder), the working directory set to
     the first; the client's folder where its files are here as they were sent, else a copy."""
@@ -203,4 +222,5 @@ def _relocated(job: Job, where: str) -> Job:
     from dataclasses import replace
 
     m = (lambda p: _staged_name(p) if p else p)
-    return replace(job, program=m(job.program), twin=m(job.twin), measurement=m(job.measurement), base=where)
+    return replace(job, program=m(job.program), twin=m(job.twin), measurement=m(job.measurement), base=where,
+                   pairs=tuple((m(a), m(b)) for a, b in job.pairs), holdout=tuple((m(a), m(b)) for a, b in job.holdout))

@@ -27,11 +27,19 @@ from ..errors import MtwinError, SourceLocation
 COMMANDS = ("optimize", "simulate", "compare", "calibrate")
 COLUMNS = ("program", "twin", "measurement", "options", "name", "holdout")
 YES = ("yes", "true", "1", "y")
+NO = ("", "no", "false", "0", "n")
+# names a job's folder may not take: the summary's files
+RESERVED = ("index.html", "summary.csv", "summary.json", "parameters.csv")
 NEEDS_MEASUREMENT = ("compare", "calibrate")
 PROGRAM_SUFFIXES = (".nc", ".ngc", ".tap", ".gcode", ".gc", ".cnc", ".txt", ".mpf", ".eia", ".min")
 # options a job may not set: the batch decides where outputs go and reads the JSON itself
 OWN_OPTIONS = ("-o", "--output", "--report", "--json", "--plot", "--stock-out", "--in-place", "--record",
                "--traceback", "--twin")
+# options naming files a job would read or write outside its inputs: they do not travel with
+# the task, and a ledger written by every job at once would be a shared mutable file
+FILE_OPTIONS = {"--effect-file": "put the effect in a package (entry point mtwin.effects) installed on the workers",
+                "--ledger": "a batch does not read or write a tool ledger", "--tool-id": "it belongs to --ledger",
+                "--validate": "batch calibrate holds rows out with the manifest's holdout column"}
 
 
 class ManifestError(MtwinError):
@@ -60,6 +68,7 @@ class Job:
     holdout: tuple = ()
     steps: tuple = ()
     compare_options: tuple = ()  # the options of the batch that the held-out comparisons take
+    date_epoch: Optional[int] = None  # the batch's start: the date of a calibrated twin file's journal entry
 
     @property
     def machine(self) -> str:
@@ -81,7 +90,7 @@ def read_manifest(path: str, command: str) -> list[Job]:
     """The jobs of a manifest: CSV with a header row, or TOML with ``[[job]]`` tables."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # (a byte-order mark, as spreadsheets write it)
     except OSError as exc:
         raise ManifestError(f"cannot read the manifest {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
@@ -103,11 +112,12 @@ def _machines(jobs: list[Job], rows: list) -> list[Job]:
 
     out: dict = {}
     for j, row in zip(jobs, rows):
-        held = row.get("holdout", ("", 1))[0].lower() in YES
+        held = row.get("holdout", ("", 1))[0].strip().lower() in YES
         key = j.name or f"#{len(out)}"
         if key not in out:
             if held:
-                raise ManifestError(f"{j.origin}: a held-out row comes after the rows fitted for {j.name!r}")
+                raise ManifestError(f"{j.origin}: a held-out row of {j.name or 'a job'!r} before any row fitted for "
+                                    f"it (list a machine's fitted rows first)")
             out[key] = j
             continue
         first = out[key]
@@ -124,9 +134,12 @@ def _csv_rows(path: str, text: str) -> list:
     head_at = next((i for i, ln in enumerate(lines) if ln and not ln[0].lstrip().startswith("#")), None)
     if head_at is None:
         return []
-    head = [h.strip().lower() for h in lines[head_at]]
+    raw_head = list(lines[head_at])
+    while raw_head and not raw_head[-1].strip():  # (a trailing comma, as spreadsheets write it)
+        raw_head.pop()
+    head = [h.strip().lower() for h in raw_head]
     col = 1
-    for h, raw in zip(head, lines[head_at]):
+    for h, raw in zip(head, raw_head):
         if h not in COLUMNS:
             raise ManifestError(f"unknown column {raw.strip()!r} (known: {', '.join(COLUMNS)})",
                                 SourceLocation(path, head_at + 1, col))
@@ -139,6 +152,8 @@ def _csv_rows(path: str, text: str) -> list:
     for i, ln in enumerate(lines[head_at + 1:], start=head_at + 2):
         if not any(c.strip() for c in ln) or ln[0].lstrip().startswith("#"):
             continue
+        while len(ln) > len(head) and not ln[-1].strip():
+            ln = ln[:-1]
         if len(ln) > len(head):
             raise ManifestError(f"{len(ln)} fields, the header has {len(head)}", SourceLocation(path, i, 1))
         cols, at = {}, 1
@@ -172,6 +187,8 @@ def _toml_rows(path: str, text: str) -> list:
             opts = shlex.join(opts)
         cols = {}
         for key, v in {**j, "options": opts}.items():
+            if key == "holdout" and isinstance(v, bool):
+                v = "yes" if v else ""
             if not isinstance(v, str):
                 raise ManifestError(f"{path}: job {k}: {key} must be a string")
             cols[key] = (v, 1)
@@ -181,7 +198,7 @@ def _toml_rows(path: str, text: str) -> list:
 
 def _job(command: str, cols: dict, base: str, where) -> Job:
     path, line = where
-    loc = (lambda c: SourceLocation(path, line, cols[c][1])) if isinstance(line, int) else (lambda c: None)
+    loc = (lambda c: SourceLocation(path, line, cols[c][1])) if isinstance(line, int) else (lambda _: None)
     pre = "" if isinstance(line, int) else f"{path}: {line}: "
     val = (lambda c: cols.get(c, ("", 1))[0] or None)
     if not val("program"):
@@ -194,6 +211,11 @@ def _job(command: str, cols: dict, base: str, where) -> Job:
             raise ManifestError(f"{pre}{c} {v!r} does not exist (relative paths are read from {base})", loc(c))
     if val("holdout") and command != "calibrate":
         raise ManifestError(f"{pre}'holdout' marks a calibration's held-out logs (batch calibrate)", loc("holdout"))
+    if (val("holdout") or "").lower() not in YES + NO:
+        raise ManifestError(f"{pre}holdout {val('holdout')!r}: yes or no", loc("holdout"))
+    if val("measurement") and command not in NEEDS_MEASUREMENT:
+        raise ManifestError(f"{pre}batch {command} takes no measurement (compare and calibrate do)",
+                            loc("measurement"))
     if command in NEEDS_MEASUREMENT and not val("measurement"):
         raise ManifestError(f"{pre}batch {command} needs a 'measurement' for every job",
                             loc("program"))
@@ -203,6 +225,8 @@ def _job(command: str, cols: dict, base: str, where) -> Job:
         raise ManifestError(f"{pre}options: {exc}", loc("options")) from None
     own_options(opts, f"{pre}options", loc("options") if "options" in cols else None)
     origin = f"{path}:{line}" if isinstance(line, int) else f"{path} {line}"
+    if val("name") and (val("name").lower() in RESERVED):
+        raise ManifestError(f"{pre}the name {val('name')!r} is the summary's file", loc("name"))
     return Job(val("name") or "", command, val("program"), val("twin"), val("measurement"), opts, base, origin)
 
 
@@ -213,6 +237,9 @@ def own_options(opts, what: str, loc=None) -> None:
         if flag in OWN_OPTIONS:
             raise ManifestError(f"{what}: {flag} is the batch's to set (outputs go to each job's folder; "
                                 f"the twin file is the 'twin' column)", loc)
+        if flag in FILE_OPTIONS:
+            raise ManifestError(f"{what}: {flag} names a file that does not travel with a job: "
+                                f"{FILE_OPTIONS[flag]}", loc)
 
 
 def jobs_from_paths(command: str, programs: list[str], twins: list[str], measurements: list[str]) -> list[Job]:
@@ -237,6 +264,10 @@ def jobs_from_paths(command: str, programs: list[str], twins: list[str], measure
     for t in twins:
         if not os.path.isfile(t):
             raise ManifestError(f"--twin {t}: no such twin file")
+        if not t.lower().endswith(".toml"):
+            raise ManifestError(f"--twin {t}: a twin file is TOML (.toml)")
+    if measurements and command not in NEEDS_MEASUREMENT:
+        raise ManifestError(f"batch {command} takes no --measurement (compare and calibrate do)")
     if command in NEEDS_MEASUREMENT and len(measurements) != len(found):
         raise ManifestError(f"batch {command} pairs each program with a measurement (--measurement, in order): "
                             f"{len(found)} program(s), {len(measurements)} measurement(s)")
@@ -257,19 +288,19 @@ def check_jobs(jobs: list[Job]) -> list[Job]:
     for j in jobs:
         k = j.key()
         if k in seen:
-            raise ManifestError(f"{j.origin}: duplicate job: the same program, twin file, measurement and options as "
-                                f"{seen[k]}")
+            raise ManifestError(f"{j.origin}: duplicate job: {j.program} on {j.twin or 'the default machine'} "
+                                f"with the same measurement and options as {seen[k]}")
         seen[k] = j.origin
     names: dict = {}
     out = []
     for j in jobs:
         name = _safe(j.name) if j.name else f"{_safe(Path(j.program).stem)}@{_safe(j.machine)}"
-        if j.name and name in names:
-            raise ManifestError(f"{j.origin}: the job name {j.name!r} is taken by {names[name]}")
+        if j.name and name.lower() in names:  # (case-folded: one folder on macOS and Windows)
+            raise ManifestError(f"{j.origin}: the job name {j.name!r} is taken by {names[name.lower()]}")
         n, k = name, 2
-        while n in names:
+        while n.lower() in names:
             n, k = f"{name}-{k}", k + 1
-        names[n] = j.origin
+        names[n.lower()] = j.origin
         out.append(replace(j, name=n))
     return out
 

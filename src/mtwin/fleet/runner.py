@@ -41,6 +41,21 @@ def _size(job: Job) -> int:
         return 0
 
 
+def _check_scheduler_file(path: str) -> None:
+    """A scheduler file that is there and names an address (Dask would wait for it forever)."""
+    import json
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            address = json.load(fh).get("address")
+    except OSError as exc:
+        raise MtwinError(f"--scheduler-file {path}: {exc.strerror or exc}") from None
+    except (ValueError, AttributeError):
+        raise MtwinError(f"--scheduler-file {path}: not a Dask scheduler file (JSON with an address)") from None
+    if not isinstance(address, str):
+        raise MtwinError(f"--scheduler-file {path}: no scheduler address in it")
+
+
 def have_dask() -> bool:
     try:
         import distributed  # noqa: F401
@@ -59,7 +74,11 @@ def warmed_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
     """A job on a worker: the worker's kernel cache is warmed by its first task (compiled
     kernels loaded, or compiled once into the worker's cache), then the job runs."""
     if not _WARM:
-        os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # (too late if numba is in already: the env says it)
+        import sys
+
+        os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # (read when numba is imported)
+        if "numba" in sys.modules:  # (a worker that imported it already: one thread from now on)
+            sys.modules["numba"].set_num_threads(1)
         from ..warmup import warm
 
         warm()
@@ -72,11 +91,14 @@ class Cluster:
     scheduler file; refuses, before any job runs, a scheduler it cannot reach."""
 
     def __init__(self, workers: Optional[int] = None, scheduler: Optional[str] = None,
-                 scheduler_file: Optional[str] = None, retries: int = 1, timeout: float = 5.0):
+                 scheduler_file: Optional[str] = None, retries: int = 1, timeout: float = 5.0,
+                 env: Optional[dict] = None):
         import dask
         from distributed import Client, LocalCluster
 
         self.cluster = None
+        if scheduler_file:
+            _check_scheduler_file(scheduler_file)
         dask.config.set({"distributed.scheduler.allowed-failures": max(0, int(retries)),
                          "distributed.worker.daemon": False})
         try:
@@ -85,9 +107,10 @@ class Cluster:
             else:
                 n = workers or cores()
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, silence_logs=logging.ERROR, env=dict(WORKER_ENV))
+                                            dashboard_address=None, silence_logs=logging.ERROR,
+                                            env={**WORKER_ENV, **(env or {})})
                 self.client = Client(self.cluster)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:  # (ValueError: an address Dask cannot read)
             where = scheduler or f"the scheduler file {scheduler_file}"
             raise MtwinError(f"cannot reach the Dask scheduler at {where}: {exc}") from None
         self.retries = retries

@@ -108,9 +108,21 @@ def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]
     return "\n\n".join(p for p in parts if p) + "\n"
 
 
+def _journal_date() -> str:
+    """Now, UTC — or the reproducible-builds convention's ``SOURCE_DATE_EPOCH`` where it is set
+    (a batch sets its start, so a calibrated twin file is the same bytes as the command run
+    alone with the same epoch)."""
+    import os
+
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    when = (_dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch.isdigit()
+            else _dt.datetime.now(_dt.timezone.utc))
+    return when.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
 def journal_entry(iteration: int, measurement: str, fit, validation: dict | None = None,
                   notes: list | None = None) -> dict:
-    e = {"iteration": iteration, "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+    e = {"iteration": iteration, "date": _journal_date(),
          "measurement": measurement, "effects": [x.name for x in fit.effects],
          "params": {k: v for k, v in fit.params.items()},
          "uncertainty": {k: (v if v is not None else float("nan")) for k, v in fit.uncertainty.items()},

@@ -5,13 +5,12 @@ failed and why."""
 from __future__ import annotations
 
 import html
-import statistics
+from urllib.parse import quote
 
 STYLE = ("body{font-family:system-ui,sans-serif;margin:2em;max-width:75em;color:#222}"
          "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.25em .6em;"
          "text-align:right}td.l,th.l{text-align:left}.ok{color:#070}.failed,.refused{color:#b00}"
          ".odd{background:#fde8e8}caption{text-align:left;font-weight:bold}")
-OUTLIER = 0.25  # a fitted parameter this far (relative) from the fleet's median is marked
 
 
 def fleet_html(b) -> bytes:
@@ -32,12 +31,12 @@ def fleet_html(b) -> bytes:
     parts.append(_machines(s["machines"], b.command))
     if b.command == "calibrate":
         parts.append(_parameters(b))
-    parts.append(_jobs(rows, b.command))
+    parts.append(_jobs(rows))
     bad = [r for r in rows if r["status"] != "ok"]
     if bad:
         parts.append("<h2>Failed and refused jobs</h2><ul>" + "".join(
             f"<li><b>{e(r['job'])}</b> ({e(r['status'])}): {e(r['error'] or '(no message)')} — "
-            f"<a href='{e(r['job'])}/result.json'>log</a></li>" for r in bad) + "</ul>")
+            f"<a href='{e(quote(r['job']))}/result.json'>log</a></li>" for r in bad) + "</ul>")
     doc = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>mtwin batch " + e(b.command) + "</title><style>"
            + STYLE + "</style></head><body>" + "".join(parts) + "</body></html>\n")
     return doc.encode()
@@ -82,31 +81,32 @@ def _machines(machines: dict, command: str) -> str:
 
 def _parameters(b) -> str:
     """The fleet table of a calibration: each machine's fitted values, each against the
-    median of the fleet (marked where it is over 25 % away: the machine that differs)."""
+    median of the fleet (marked where it is far from it: the machine that differs)."""
+    from ..fleet.batch import OUTLIER
+
     e = html.escape
-    fits = b.fitted()
-    names = sorted({k for p in fits.values() for k in p})
-    if not names:
+    table = b.fleet_table()
+    if not table:
         return ""
-    med = {k: statistics.median([p[k] for p in fits.values() if k in p]) for k in names}
-    head = "<tr><th class='l'>job</th>" + "".join(f"<th>{e(k)}</th>" for k in names) + "</tr>"
+    machines = list(b.fitted())
+    head = "<tr><th class='l'>parameter</th>" + "".join(f"<th>{e(m)}</th>" for m in machines) + "</tr>"
     body = ""
-    for job, p in fits.items():
+    for t in table:
         cells = ""
-        for k in names:
-            if k not in p:
+        for m in machines:
+            x = t["machines"].get(m)
+            if x is None:
                 cells += "<td>—</td>"
                 continue
-            r = p[k] / med[k] if med[k] else None
-            odd = r is not None and len(fits) > 2 and abs(r - 1) > OUTLIER
-            cells += (f"<td class='{'odd' if odd else ''}' title='{'' if r is None else f'{r:.2f}× the median'}'>"
-                      f"{p[k]:.4g}{'' if r is None else f' ({r:.2f}×)'}</td>")
-        body += f"<tr><td class='l'>{e(job)}</td>{cells}</tr>"
-    return ("<h2>Fitted parameters</h2><p>Each machine's value, and its ratio to the fleet's median (marked when "
-            f"more than {OUTLIER:.0%} away).</p><table>{head}{body}</table>")
+            sd = "" if x["sd"] is None else f" ± {x['sd']:.2g}"
+            ratio = "" if x["ratio"] is None else f" ({x['ratio']:.2f}×)"
+            cells += f"<td class='{'odd' if x['odd'] else ''}'>{x['value']:.4g}{sd}{ratio}</td>"
+        body += f"<tr><td class='l'>{e(t['parameter'])}</td>{cells}</tr>"
+    return ("<h2>Fitted parameters</h2><p>Each machine's value ± its standard deviation, and its ratio to the "
+            f"fleet's median (marked when more than {OUTLIER:.0%} away).</p><table>{head}{body}</table>")
 
 
-def _jobs(rows: list, command: str) -> str:
+def _jobs(rows: list) -> str:
     e = html.escape
 
     def num(v, fmt="{:.2f}"):
@@ -117,8 +117,8 @@ def _jobs(rows: list, command: str) -> str:
             "<th class='l'>outputs</th></tr>")
     body = ""
     for r in rows:
-        links = " ".join(f"<a href='{e(p)}'>{e(k)}</a>" for k, p in r["outputs"].items())
-        links += f" <a href='{e(r['job'])}/result.json'>result</a>"
+        links = " ".join(f"<a href='{e(quote(p))}'>{e(k)}</a>" for k, p in r["outputs"].items())
+        links += f" <a href='{e(quote(r['job']))}/result.json'>result</a>"
         body += (f"<tr><td class='l'>{e(r['job'])}</td><td class='l'>{e(r['machine'])}</td>"
                  f"<td class='l'>{e(r['program'])}</td><td class='l {e(r['status'])}'>{e(r['status'])}</td>"
                  f"<td>{num(r['cycle_before_s'])}</td><td>{num(r['cycle_after_s'])}</td>"
