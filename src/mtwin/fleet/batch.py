@@ -41,6 +41,7 @@ class Batch:
     runner: str = ""
     seconds: float = 0.0
     interrupted: bool = False
+    outlier = OUTLIER  # (the fleet table's mark, for the page)
 
     def fitted(self) -> dict:
         """calibrate: each machine's fitted parameters (job -> name -> value), the jobs that ran."""
@@ -54,7 +55,8 @@ class Batch:
     def fleet_table(self) -> list[dict]:
         """calibrate: per fitted parameter, each machine's value, its standard deviation and its
         ratio to the fleet's median (for three machines or more; ``odd`` when more than
-        ``OUTLIER`` from it) — the one table the CSV, stderr and the page show."""
+        ``OUTLIER`` from it and more than two standard deviations: a difference the logs show,
+        not one of a parameter they hardly see) — the one table the CSV, stderr and the page show."""
         fits = self.fitted()
         sd = {j.name: (self.outcomes[j.name].record.get("uncertainty") or {}) for j in self.jobs if j.name in fits}
         out = []
@@ -65,8 +67,10 @@ class Batch:
             for m, p in fits.items():
                 if k in p:
                     r = p[k] / med if med else None
-                    cells[m] = {"value": p[k], "sd": sd[m].get(k), "ratio": r,
-                                "odd": r is not None and abs(r - 1) > OUTLIER}
+                    s = sd[m].get(k)
+                    seen = s is None or abs(p[k] - med) > 2 * s if med else False
+                    cells[m] = {"value": p[k], "sd": s, "ratio": r,
+                                "odd": r is not None and abs(r - 1) > OUTLIER and seen}
             out.append({"parameter": k, "machines": cells})
         return out
 

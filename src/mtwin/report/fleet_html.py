@@ -82,8 +82,6 @@ def _machines(machines: dict, command: str) -> str:
 def _parameters(b) -> str:
     """The fleet table of a calibration: each machine's fitted values, each against the
     median of the fleet (marked where it is far from it: the machine that differs)."""
-    from ..fleet.batch import OUTLIER
-
     e = html.escape
     table = b.fleet_table()
     if not table:
@@ -103,7 +101,8 @@ def _parameters(b) -> str:
             cells += f"<td class='{'odd' if x['odd'] else ''}'>{x['value']:.4g}{sd}{ratio}</td>"
         body += f"<tr><td class='l'>{e(t['parameter'])}</td>{cells}</tr>"
     return ("<h2>Fitted parameters</h2><p>Each machine's value ± its standard deviation, and its ratio to the "
-            f"fleet's median (marked when more than {OUTLIER:.0%} away).</p><table>{head}{body}</table>")
+            f"fleet's median (marked when more than {b.outlier:.0%} away and more than two standard deviations: a "
+            "difference the logs show).</p><table>{head}{body}</table>")
 
 
 def _jobs(rows: list) -> str:
@@ -113,7 +112,8 @@ def _jobs(rows: list) -> str:
         return "" if v is None else fmt.format(v)
 
     head = ("<tr><th class='l'>job</th><th class='l'>machine</th><th class='l'>program</th><th class='l'>status</th>"
-            "<th>before</th><th>after</th><th>saved %</th><th>error before</th><th>error after</th><th>s</th>"
+            "<th>before</th><th>after</th><th>saved %</th><th>error before</th><th>error after</th><th>held-out</th>"
+            "<th>s</th>"
             "<th class='l'>outputs</th></tr>")
     body = ""
     for r in rows:
@@ -123,6 +123,8 @@ def _jobs(rows: list) -> str:
                  f"<td class='l'>{e(r['program'])}</td><td class='l {e(r['status'])}'>{e(r['status'])}</td>"
                  f"<td>{num(r['cycle_before_s'])}</td><td>{num(r['cycle_after_s'])}</td>"
                  f"<td>{num(r['saved_pct'], '{:.1f}')}</td><td>{num(r['error_before'], '{:.4g}')}</td>"
-                 f"<td>{num(r['error_after'], '{:.4g}')}</td><td>{num(r['seconds'], '{:.1f}')}</td>"
+                 f"<td>{num(r['error_after'], '{:.4g}')}</td>"
+                 f"<td>{num(None if r['holdout_error'] is None else r['holdout_error'] * 100, '{:+.2f} %')}</td>"
+                 f"<td>{num(r['seconds'], '{:.1f}')}</td>"
                  f"<td class='l'>{links}</td></tr>")
     return f"<h2>Jobs</h2><table>{head}{body}</table>"
