@@ -331,3 +331,24 @@ def test_a_calibrated_twin_file_equals_the_command_alone_at_the_batch_date(tmp_p
               env={**os.environ, "SOURCE_DATE_EPOCH": str(epoch)})
     assert a.returncode == 0, a.stderr
     assert (tmp_path / "cal" / "pocket@default" / "twin.toml").read_bytes() == alone.read_bytes()
+
+
+def test_ctrl_c_stops_the_batch_keeps_the_finished_jobs_and_says_which_did_not_run(tmp_path):
+    progs = [SAMPLES / f for f in ("contour.nc", "pocket.nc", "finish_wall.nc", "wear_passes.nc")]
+    m = _manifest(tmp_path, progs, TWINS)
+    out = tmp_path / "out"
+    batch = subprocess.Popen([sys.executable, "-m", "mtwin", "batch", "optimize", "--manifest", str(m), "-o", str(out),
+                              "--workers", "0", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.time()
+    while not list(out.glob("*/result.json")) and time.time() - t0 < 120:
+        time.sleep(0.05)
+    batch.send_signal(signal.SIGINT)
+    stdout, stderr = batch.communicate(timeout=120)
+    assert batch.returncode == 130, stderr
+    doc = json.loads((out / "summary.json").read_text())
+    done = [j for j in doc["jobs"] if j["status"] == "ok"]
+    assert doc["summary"]["interrupted"] and doc["summary"]["not run"] >= 1 and done
+    assert len(done) + doc["summary"]["not run"] == len(doc["jobs"])  # the job interrupted is not run, not failed
+    for j in done:  # the finished jobs' outputs are whole
+        assert Path(j["outputs"]["program"]).stat().st_size > 0 and "</html>" in Path(j["outputs"]["report"]).read_text()
+    assert "not run (interrupted)" in stderr
