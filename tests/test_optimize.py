@@ -279,3 +279,18 @@ def test_a_tools_new_speed_may_carry_over_the_next_tools_rapids():
     assert set(np.round(r["spindle"][t1_cut])) == {6000.0}  # T1 moved into the range
     t2_cut = (r["tool"] == 2) & (r["kind"] != 0)
     assert set(np.round(r["spindle"][t2_cut])) == {5000.0}  # the drill's own S word, unchanged
+
+
+def test_spindle_range_on_a_machine_that_does_not_wait_for_the_spindle(tmp_path):
+    """linuxcnc-sim has wait_for_speed = false: no run-up pauses to reprice — the optimiser
+    chose S without them (it crashed with an AttributeError before)."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "mtwin", "optimize", str(SAMPLES / "contour.nc"), "--twin",
+                        str(SAMPLES / "machines" / "linuxcnc-sim.toml"), "--spindle-range", "6000,10000", "-o",
+                        str(tmp_path / "o.nc"), "--json"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    import json
+
+    assert json.loads(r.stdout)["spindle"]

@@ -944,8 +944,8 @@ def _runups(prob, program, plan, segs, machine) -> Runups:
 
     rec = program.records
     pauses = np.flatnonzero((plan.seg["kind"] == PAUSE) & (plan.seg["cat"] == CAT_SPINDLE))
-    if not len(pauses) or not segs.count:
-        return
+    if not len(pauses) or not segs.count:  # (a machine that does not wait for the spindle: none)
+        return Runups()
     # spindle variable of every record: that of the segment of its tool's (or its own) pieces
     var_of_rec = np.full(len(rec), -1, np.int64)
     first_seg_of_tool = {}
