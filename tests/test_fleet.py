@@ -281,8 +281,15 @@ def test_fleet_calibration_finds_the_machine_that_differs(tmp_path):
     for k, v in p0.items():
         assert fitted[k] == pytest.approx(v, rel=0.05)
         assert (tmp_path / "cal" / k / "twin.toml").is_file()
-        assert table[k]["holdout_cycle_error"] != ""
+        assert table[k]["holdout_cycle_error_pct"] != ""
     assert "(2.5" in r.stderr or "(2.4" in r.stderr or "(2.6" in r.stderr  # c against the median (b)
+    page = (tmp_path / "cal" / "index.html").read_text()
+    body = page[page.index("<body>"):]
+    assert "{" not in body and body.count("class='odd'") == 1  # c's no-load power, and nothing else, marked
+    assert "effects.spindle-no-load.p0" in page
+    doc = json.loads(r.stdout)
+    assert all(j["figures"]["fit_measure"] == "spindle_power" and j["figures"]["rms_after"] < j["figures"]["rms_before"]
+               for j in doc["jobs"])
 
 
 @pytest.mark.parametrize("case", ["bom", "name", "measurement", "ledger", "out-file", "scheduler-file"])

@@ -142,8 +142,7 @@ def _run(name, jobs, output, common, runner):
     from ..fleet import run_batch
     from . import run_command
 
-    if runner is not None:
-        say(f"{len(jobs)} job(s) on {runner.describe()}")
+    say(f"{len(jobs)} job(s) on {runner.describe() if runner is not None else 'this process, one at a time'}")
     counts = {"done": 0, "bad": 0}
     if not err.is_terminal:
         def line(o):
@@ -173,15 +172,14 @@ def _run(name, jobs, output, common, runner):
 
 
 def _print_batch(b) -> None:
+    from ..report.fleet_html import FIGURES
     from .render import table
 
-    t = table("job", "status", ("before", "right"), ("after", "right"), ("change", "right"), ("s", "right"),
+    cols = FIGURES[b.command]
+    t = table("job", "status", *((h, "right") for h, _, _ in cols), ("s", "right"),
               title=f"batch {b.command}: {b.out_dir}")
     for r in b.rows():
-        ch = f"{-r['saved_pct']:+.1f} %" if r["saved_pct"] is not None else ""
-        f = (lambda v: "" if v is None else f"{v:.2f}")
-        t.add_row(r["job"], r["status"], f(r["cycle_before_s"] if r["cycle_before_s"] is not None else r["error_before"]),
-                  f(r["cycle_after_s"] if r["cycle_after_s"] is not None else r["error_after"]), ch,
+        t.add_row(r["job"], r["status"], *("" if r[k] is None else fmt.format(r[k]) for _, k, fmt in cols),
                   f"{r['seconds']:.1f}")
     err.print(t)
     if b.command == "calibrate":
@@ -206,15 +204,16 @@ def _print_parameters(b) -> None:
     if not rows:
         return
     machines = list(b.fitted())
-    held = {r["job"]: r["holdout_error"] for r in b.rows()}
-    t = table("parameter", *((m, "right") for m in machines), title="fitted per machine (× the fleet's median)")
+    held = {r["job"]: r["holdout_error_pct"] for r in b.rows()}
+    title = "fitted per machine" + (" (± sd, × the fleet's median)" if len(machines) > 2 else " (± sd)")
+    t = table("parameter", *((m, "right") for m in machines), title=title)
     for row in rows:
         cells = []
         for m in machines:
             x = row["machines"].get(m)
-            cells.append("—" if x is None else f"{x['value']:.4g}" + ("" if x["ratio"] is None else
-                                                                      f" ({x['ratio']:.2f}×)"))
+            cells.append("—" if x is None else f"{x['value']:.4g}" + ("" if x["sd"] is None else f" ± {x['sd']:.2g}")
+                         + ("" if x["ratio"] is None else f" ({x['ratio']:.2f}×)"))
         t.add_row(row["parameter"], *cells)
     if any(v is not None for v in held.values()):
-        t.add_row("held-out cycle error", *("" if held.get(m) is None else f"{held[m] * 100:+.2f} %" for m in machines))
+        t.add_row("held-out cycle error", *("" if held.get(m) is None else f"{held[m]:+.2f} %" for m in machines))
     err.print(t)

@@ -41,7 +41,11 @@ def split_args(name: str, args: list[str]) -> tuple[list[str], list[str]]:
         if a.startswith("-") and a != "-":
             flag = a.split("=", 1)[0]
             if flag not in takes_value:
-                raise MtwinError(f"no such option: {flag} (mtwin {name} has no such option; see mtwin {name} --help)")
+                import difflib
+
+                near = difflib.get_close_matches(flag, list(takes_value), n=1)
+                raise MtwinError(f"no such option: {flag}" + (f" (did you mean {near[0]}?)" if near else
+                                                              f" (see mtwin {name} --help)"))
             common.append(a)
             if takes_value[flag] and "=" not in a:
                 if k + 1 >= len(args):

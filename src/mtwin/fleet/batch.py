@@ -27,7 +27,8 @@ from .manifest import Job
 
 OUTLIER = 0.25  # a fitted parameter this far (relative) from the fleet's median is marked
 SUMMARY_FIELDS = ("job", "machine", "program", "twin", "measurement", "status", "cycle_before_s", "cycle_after_s",
-                  "saved_s", "saved_pct", "error_before", "error_after", "holdout_error", "error", "seconds", "worker")
+                  "saved_s", "saved_pct", "measured_cycle_s", "cycle_error_pct", "fit_measure", "rms_before",
+                  "rms_after", "holdout_error_pct", "error", "seconds", "worker")
 
 
 @dataclass
@@ -96,15 +97,14 @@ class Batch:
         before = [r["cycle_before_s"] for r in rows if r["saved_s"] is not None]
         machines = {}
         for r in rows:
-            m = machines.setdefault(r["machine"], {"jobs": 0, "ok": 0, "cycle_before_s": 0.0, "cycle_after_s": 0.0,
-                                                   "saved_s": 0.0})
+            m = machines.setdefault(r["machine"], {"jobs": 0, "ok": 0, "cycle_before_s": None, "cycle_after_s": None,
+                                                   "saved_s": None})
             m["jobs"] += 1
             if r["status"] == "ok":
                 m["ok"] += 1
-                if r["saved_s"] is not None:
-                    m["cycle_before_s"] += r["cycle_before_s"]
-                    m["cycle_after_s"] += r["cycle_after_s"]
-                    m["saved_s"] += r["saved_s"]
+                if r["saved_s"] is not None:  # (optimize: the machine's cycle time before and after, saved)
+                    for k in ("cycle_before_s", "cycle_after_s", "saved_s"):
+                        m[k] = (m[k] or 0.0) + r[k]
         epoch = next((j.date_epoch for j in self.jobs if j.date_epoch is not None), None)
         return {"command": self.command, "jobs": len(self.jobs), **self.counts, "runner": self.runner,
                 "source_date_epoch": epoch,
@@ -116,15 +116,21 @@ class Batch:
     def as_dict(self) -> dict:
         """As ``mtwin batch … --json`` prints it."""
         jobs = []
+        rows = {r["job"]: r for r in self.rows()}
         for j in self.jobs:
             o = self.outcomes.get(j.name)
             rec = o.record if o else {}
+            if j.command == "calibrate" and isinstance(rec, dict):  # (a fit's before and after: its errors)
+                rec = {"before": {"rms": (rec.get("steps") or [rec])[0].get("rms_before") or {}},
+                       "after": {"rms": rec.get("rms_after") or {}}}
             jobs.append({"name": j.name, "program": j.program, "twin": j.twin, "measurement": j.measurement,
                          "status": o.status if o else "not run",
                          "outputs": {k: os.path.join(self.out_dir, j.name, n) for k, (n, _) in o.outputs.items()}
                          if o else {},
                          "before": rec.get("before", {}) if isinstance(rec, dict) else {},
                          "after": rec.get("after", {}) if isinstance(rec, dict) else {},
+                         "figures": {k: rows[j.name][k] for k in SUMMARY_FIELDS[6:-3]
+                                     if rows.get(j.name, {}).get(k) is not None},
                          "error": o.error if o else "", "seconds": o.seconds if o else None,
                          "worker": o.worker if o else ""})
         return {"jobs": jobs, "summary": self.summary()}
@@ -193,11 +199,11 @@ def write_summary(b: Batch) -> None:
 def parameters_csv(b: Batch) -> str:
     """The fleet table: a row per machine, its fitted parameters, held-out cycle-time error."""
     table = b.fleet_table()
-    held = {r["job"]: r["holdout_error"] for r in b.rows()}
+    held = {r["job"]: r["holdout_error_pct"] for r in b.rows()}
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["machine", *(c for t in table for c in (t["parameter"], f"{t['parameter']}_sd")),
-                "holdout_cycle_error"])
+                "holdout_cycle_error_pct"])
     num = (lambda v, fmt: "" if v is None else format(v, fmt))
     for m in b.fitted():
         cells = [t["machines"].get(m, {}) for t in table]
@@ -207,40 +213,49 @@ def parameters_csv(b: Batch) -> str:
 
 
 def summary_row(j: Job, o: Outcome) -> dict:
-    """One job's figures: cycle time before/after (optimize; simulate: the time), the error
-    before/after (compare: the cycle-time error; calibrate: the fit's RMS)."""
+    """One job's figures, by command (docs/fleet.md): optimize — the cycle time before and
+    after, saved; simulate — the cycle time (``cycle_before_s``: the program as written);
+    compare — the twin's cycle time, the measured one and the error in %; calibrate — the fit's
+    error before and after (``fit_measure``: the block-time windows of a timing fit, or the
+    signal the fit improved most) and the held-out cycle-time error in %."""
     rec = o.record if isinstance(o.record, dict) else {}
-    before = after = err_b = err_a = hold = None
+    row = {k: None for k in ("cycle_before_s", "cycle_after_s", "measured_cycle_s", "cycle_error_pct",
+                             "fit_measure", "rms_before", "rms_after", "holdout_error_pct")}
     if o.status == "ok" and j.command == "optimize":
-        before = rec.get("before", {}).get("cycle_time")
-        after = rec.get("after", {}).get("cycle_time")
+        row["cycle_before_s"] = rec.get("before", {}).get("cycle_time")
+        row["cycle_after_s"] = rec.get("after", {}).get("cycle_time")
     elif o.status == "ok" and j.command == "simulate":
-        before = rec.get("cycle_time")
+        row["cycle_before_s"] = rec.get("cycle_time")
     elif o.status == "ok" and j.command == "compare":
         ct = rec.get("cycle_time") or {}
-        before, err_b = ct.get("measured"), ct.get("relative_error")
+        row["cycle_before_s"], row["measured_cycle_s"] = ct.get("simulated"), ct.get("measured")
+        row["cycle_error_pct"] = _pct(ct.get("relative_error"))
     elif o.status == "ok" and j.command == "calibrate":
         first = (rec.get("steps") or [rec])[0]
-        err_b, err_a = _rms(first.get("rms_before")), _rms(rec.get("rms_after"))
+        row["fit_measure"], row["rms_before"], row["rms_after"] = _fit_error(first.get("rms_before"),
+                                                                            rec.get("rms_after"))
         held = [h["cycle_time"].get("relative_error") for h in rec.get("holdout", []) if h.get("cycle_time")]
-        hold = max(held, key=abs) if held else None
-    saved = before - after if before is not None and after is not None else None
+        row["holdout_error_pct"] = _pct(max(held, key=abs)) if held else None
+    b, a = row["cycle_before_s"], row["cycle_after_s"]
+    saved = b - a if b is not None and a is not None else None
     machine = j.name if j.command == "calibrate" else j.machine  # (a calibration's rows are named per machine)
-    return {"job": j.name, "machine": machine, "program": j.program, "twin": j.twin or "", "measurement":
-            j.measurement or "", "status": o.status, "cycle_before_s": before, "cycle_after_s": after,
-            "saved_s": saved, "saved_pct": 100.0 * saved / before if saved is not None and before else None,
-            "error_before": err_b, "error_after": err_a, "holdout_error": hold, "error": o.error, "seconds": o.seconds, "worker": o.worker,
-            "outputs": {k: f"{j.name}/{n}" for k, (n, _) in o.outputs.items()}}
+    return {"job": j.name, "machine": machine, "program": j.program, "twin": j.twin or "",
+            "measurement": j.measurement or "", "status": o.status, **row, "saved_s": saved,
+            "saved_pct": 100.0 * saved / b if saved is not None and b else None, "error": o.error,
+            "seconds": o.seconds, "worker": o.worker, "outputs": {k: f"{j.name}/{n}" for k, (n, _) in o.outputs.items()}}
 
 
-def _rms(v):
-    """A fit's error as one number: the value, or the block-time RMS of a timing fit."""
-    if isinstance(v, (int, float)):
-        return float(v)
-    if isinstance(v, dict):
-        for k in ("window_time", "block_time", "rms"):
-            if isinstance(v.get(k), (int, float)):
-                return float(v[k])
-        vals = [x for x in v.values() if isinstance(x, (int, float))]
-        return float(vals[0]) if len(vals) == 1 else None
-    return None
+def _pct(x):
+    return None if x is None else 100.0 * x
+
+
+def _fit_error(before, after):
+    """(what, before, after): a fit's error as one pair — the value of a single measure (the
+    block-time windows of a timing fit), else the signal whose RMS the fit lowered most."""
+    if not (isinstance(before, dict) and isinstance(after, dict)):
+        return None, None, None
+    both = [k for k in before if isinstance(before[k], (int, float)) and isinstance(after.get(k), (int, float))]
+    if not both:
+        return None, None, None
+    k = min(both, key=lambda n: after[n] / before[n] if before[n] else 1.0)
+    return k, float(before[k]), float(after[k])

@@ -101,6 +101,7 @@ def run_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
             record = _json(stdout)
         outputs = {k: (name, Path(out, name).read_bytes()) for k, name in files.items()
                    if code == 0 and os.path.isfile(os.path.join(out, name))}
+        record = _named(record, out)
         if job.command == "simulate" and code == 0:
             outputs["summary"] = ("simulate.json", stdout.encode())
     if code == 130:  # Ctrl-C in this process (the command mapped it): the batch stops, not this job only
@@ -140,6 +141,18 @@ def _procedure(job: Job, common: tuple, out: str, run: Callable):
         record["holdout"].append({"program": prog, "measurement": meas, "cycle_time": c.get("cycle_time"),
                                   "blocks": c.get("blocks")})
     return 0, record, "".join(logs), files
+
+
+def _named(doc, out: str):
+    """The record with the private folder's paths as the output's own names (the folder is gone
+    when the record is read)."""
+    if isinstance(doc, dict):
+        return {k: _named(v, out) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [_named(v, out) for v in doc]
+    if isinstance(doc, str) and doc.startswith(out + os.sep):
+        return doc[len(out) + 1:]
+    return doc
 
 
 def _status(job: Job, code: int, record, stderr: str) -> tuple[str, str]:

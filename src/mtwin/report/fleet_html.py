@@ -18,20 +18,21 @@ def fleet_html(b) -> bytes:
     s = b.summary()
     rows = b.rows()
     parts = [f"<h1>mtwin batch {e(b.command)}</h1>",
-             f"<p>{s['jobs']} job(s): <b class='ok'>{s['ok']} ok</b>, <b class='failed'>{s['failed']} failed</b>, "
-             f"<b class='refused'>{s['refused']} refused</b>" + (f", {s['not run']} not run (interrupted)"
+             f"<p>{s['jobs']} job(s): <b class='ok'>{s['ok']} ok</b>, <b class='{'failed' if s['failed'] else ''}'>"
+             f"{s['failed']} failed</b>, <b class='{'refused' if s['refused'] else ''}'>{s['refused']} refused</b>" + (f", {s['not run']} not run (interrupted)"
                                                                   if s["not run"] else "")
              + f"; {e(b.runner)}; {s['seconds']:.1f} s.</p>"]
     if s["cycle_saved_s"] is not None and b.command == "optimize":
         parts.append(f"<p>Cycle time saved over the jobs that ran: <b>{s['cycle_saved_s']:.1f} s</b> "
-                     f"({s['cycle_saved_pct']:.1f} % of {sum(m['cycle_before_s'] for m in s['machines'].values()):.1f} s)."
+                     f"({s['cycle_saved_pct']:.1f} % of "
+                     f"{sum(m['cycle_before_s'] or 0.0 for m in s['machines'].values()):.1f} s)."
                      "</p>")
         parts.append(_bars({m: v["saved_s"] / v["cycle_before_s"] * 100 for m, v in s["machines"].items()
-                            if v["cycle_before_s"] > 0}, "cycle time saved per machine, %"))
+                            if v["cycle_before_s"]}, "cycle time saved per machine, %"))
     parts.append(_machines(s["machines"], b.command))
     if b.command == "calibrate":
         parts.append(_parameters(b))
-    parts.append(_jobs(rows))
+    parts.append(_jobs(rows, b.command))
     bad = [r for r in rows if r["status"] != "ok"]
     if bad:
         parts.append("<h2>Failed and refused jobs</h2><ul>" + "".join(
@@ -74,7 +75,8 @@ def _machines(machines: dict, command: str) -> str:
     for m, v in sorted(machines.items()):
         body += f"<tr><td class='l'>{e(m)}</td><td>{v['jobs']}</td><td>{v['ok']}</td>"
         if command == "optimize":
-            body += f"<td>{v['cycle_before_s']:.1f}</td><td>{v['cycle_after_s']:.1f}</td><td>{v['saved_s']:.1f}</td>"
+            body += "".join(f"<td>{'' if v[k] is None else f'{v[k]:.1f}'}</td>"
+                            for k in ("cycle_before_s", "cycle_after_s", "saved_s"))
         body += "</tr>"
     return f"<h2>Per machine</h2><table>{head}{body}</table>"
 
@@ -102,29 +104,32 @@ def _parameters(b) -> str:
         body += f"<tr><td class='l'>{e(t['parameter'])}</td>{cells}</tr>"
     return ("<h2>Fitted parameters</h2><p>Each machine's value ± its standard deviation, and its ratio to the "
             f"fleet's median (marked when more than {b.outlier:.0%} away and more than two standard deviations: a "
-            "difference the logs show).</p><table>{head}{body}</table>")
+            f"difference the logs show).</p><table>{head}{body}</table>")
 
 
-def _jobs(rows: list) -> str:
+# a job's figures on the page and on stderr, by command: (heading, row key, format)
+FIGURES = {
+    "optimize": [("before s", "cycle_before_s", "{:.2f}"), ("after s", "cycle_after_s", "{:.2f}"),
+                 ("saved %", "saved_pct", "{:.1f}")],
+    "simulate": [("cycle s", "cycle_before_s", "{:.2f}")],
+    "compare": [("twin s", "cycle_before_s", "{:.2f}"), ("measured s", "measured_cycle_s", "{:.2f}"),
+                ("cycle error %", "cycle_error_pct", "{:+.2f}")],
+    "calibrate": [("fitted", "fit_measure", "{}"), ("error before", "rms_before", "{:.4g}"),
+                  ("error after", "rms_after", "{:.4g}"), ("held-out %", "holdout_error_pct", "{:+.2f}")],
+}
+
+
+def _jobs(rows: list, command: str) -> str:
     e = html.escape
-
-    def num(v, fmt="{:.2f}"):
-        return "" if v is None else fmt.format(v)
-
+    cols = FIGURES[command]
     head = ("<tr><th class='l'>job</th><th class='l'>machine</th><th class='l'>program</th><th class='l'>status</th>"
-            "<th>before</th><th>after</th><th>saved %</th><th>error before</th><th>error after</th><th>held-out</th>"
-            "<th>s</th>"
-            "<th class='l'>outputs</th></tr>")
+            + "".join(f"<th>{e(h)}</th>" for h, _, _ in cols) + "<th>s</th><th class='l'>outputs</th></tr>")
     body = ""
     for r in rows:
         links = " ".join(f"<a href='{e(quote(p))}'>{e(k)}</a>" for k, p in r["outputs"].items())
         links += f" <a href='{e(quote(r['job']))}/result.json'>result</a>"
+        figs = "".join(f"<td>{'' if r[k] is None else e(fmt.format(r[k]))}</td>" for _, k, fmt in cols)
         body += (f"<tr><td class='l'>{e(r['job'])}</td><td class='l'>{e(r['machine'])}</td>"
                  f"<td class='l'>{e(r['program'])}</td><td class='l {e(r['status'])}'>{e(r['status'])}</td>"
-                 f"<td>{num(r['cycle_before_s'])}</td><td>{num(r['cycle_after_s'])}</td>"
-                 f"<td>{num(r['saved_pct'], '{:.1f}')}</td><td>{num(r['error_before'], '{:.4g}')}</td>"
-                 f"<td>{num(r['error_after'], '{:.4g}')}</td>"
-                 f"<td>{num(None if r['holdout_error'] is None else r['holdout_error'] * 100, '{:+.2f} %')}</td>"
-                 f"<td>{num(r['seconds'], '{:.1f}')}</td>"
-                 f"<td class='l'>{links}</td></tr>")
+                 f"{figs}<td>{r['seconds']:.1f}</td><td class='l'>{links}</td></tr>")
     return f"<h2>Jobs</h2><table>{head}{body}</table>"
