@@ -15,46 +15,45 @@ def option_arity(name: str) -> dict:
             for p in command(name).params for o in list(p.opts) + list(p.secondary_opts) if o.startswith("-")}
 
 
+def _tokens(args: list, arity: dict):
+    """(flag, [the option and its value]) for each option, (None, [the argument]) for each
+    other argument; ``--`` ends the options (what follows it comes as one (None, rest))."""
+    k = 0
+    while k < len(args):
+        a = args[k]
+        if a == "--":
+            yield None, list(args[k + 1:])
+            return
+        flag = a.split("=", 1)[0] if a.startswith("-") and a != "-" else None
+        n = 2 if flag and arity.get(flag) and "=" not in a else 1
+        yield flag, list(args[k:k + n])
+        k += n
+
+
 def shared_options(name: str, opts: list, source: str) -> tuple:
     """The options of ``opts`` (``source``'s, with their values) that command ``name`` takes too."""
-    arity, known = option_arity(source), option_arity(name)
-    out, k = [], 0
-    while k < len(opts):
-        flag = opts[k].split("=", 1)[0]
-        n = 2 if arity.get(flag) and "=" not in opts[k] else 1
-        if flag in known:
-            out += opts[k:k + n]
-        k += n
-    return tuple(out)
+    known = option_arity(name)
+    return tuple(t for flag, toks in _tokens(opts, option_arity(source)) if flag in known for t in toks)
 
 
 def split_args(name: str, args: list[str]) -> tuple[list[str], list[str]]:
     """(the programs named, the command's options with their values) from the arguments the
     batch did not take itself."""
     takes_value = option_arity(name)
-    programs, common, k = [], [], 0
-    while k < len(args):
-        a = args[k]
-        if a == "--":
-            programs += args[k + 1:]
-            break
-        if a.startswith("-") and a != "-":
-            flag = a.split("=", 1)[0]
-            if flag not in takes_value:
-                import difflib
+    programs, common = [], []
+    for flag, toks in _tokens(args, takes_value):
+        if flag is None:
+            programs += toks
+            continue
+        if flag not in takes_value:
+            import difflib
 
-                near = difflib.get_close_matches(flag, list(takes_value), n=1)
-                raise MtwinError(f"no such option: {flag}" + (f" (did you mean {near[0]}?)" if near else
-                                                              f" (see mtwin {name} --help)"))
-            common.append(a)
-            if takes_value[flag] and "=" not in a:
-                if k + 1 >= len(args):
-                    raise MtwinError(f"option {flag} needs a value")
-                common.append(args[k + 1])
-                k += 1
-        else:
-            programs.append(a)
-        k += 1
+            near = difflib.get_close_matches(flag, list(takes_value), n=1)
+            raise MtwinError(f"no such option: {flag}" + (f" (did you mean {near[0]}?)" if near else
+                                                          f" (see mtwin {name} --help)"))
+        if takes_value[flag] and len(toks) == 1 and "=" not in toks[0]:
+            raise MtwinError(f"option {flag} needs a value")
+        common += toks
     own_options(common, f"mtwin batch {name}")
     return programs, common
 
