@@ -29,6 +29,7 @@ from ..gcode import records as R
 
 PERCENTILE = 95.0  # of a tool's engaged steps, by length: the learned level
 LONG_TRACE = 200_000  # samples from which the compiled contour kernel pays for loading
+TOP_CLEARANCE = 1e-3  # mm: a tip this close to a guessed stock's top is at the top (see inside_stock)
 FINISH_AE = 0.05  # radial width of cut / diameter at or under which a pass is a finishing pass
 # an operation named finishing ("FINISH WALL PASS", "2D Contour finish", "semi-finish"), not
 # FreeCAD's "(Finish operation: Profile)" that closes every operation, nor "program finished"
@@ -77,9 +78,11 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
 
 
 def inside_stock(program, cutting, box) -> np.ndarray:
-    """Per record: does the tool's whole sweep lie inside the stock box (its tip never above the
-    top, its XY extent, grown by the tool's radius, within the box's)?  Under a guessed stock,
-    only such a move's "air" is the work of earlier cuts rather than of the guess."""
+    """Per record: does the tool's whole sweep lie inside the stock box (its tip below the top,
+    its XY extent, grown by the tool's radius, within the box's)?  Under a guessed stock, only
+    such a move's "air" is the work of earlier cuts rather than of the guess.  A move at the
+    guessed top is not inside: the guess puts the top at the program's highest cut, while real
+    stock stands above the finished face (a facing pass, a skim cut at Z0 cuts material)."""
     rec = program.records
     n = len(rec)
     if box is None or not n:
@@ -105,7 +108,7 @@ def inside_stock(program, cutting, box) -> np.ndarray:
     other_plane = arc & (rec["plane"] != R.PLANE_XY)
     r3 = np.hypot(np.hypot(rec["sx"] - rec["cx"], rec["sy"] - rec["cy"]), rec["sz"] - rec["cz"])
     zmax = np.where(other_plane, np.maximum(zmax, rec["cz"] + r3), zmax)
-    return within & (zmax <= top + 1e-6)
+    return within & (zmax < top - TOP_CLEARANCE)
 
 
 def learned_levels(model, fz0: np.ndarray, usable: np.ndarray) -> dict[int, tuple[float, float, float]]:

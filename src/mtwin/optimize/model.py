@@ -224,6 +224,14 @@ def feed_records(program) -> np.ndarray:
     return ok
 
 
+def entry_records(program) -> np.ndarray:
+    """Ramps and helical entries: feed moves that go down while they move sideways (a G1 ramp,
+    a G2/G3 helix).  The CAM chose their feed, as a plunge's, for a tool entering material with
+    its end face as well as its side, which the load model does not judge."""
+    rec = program.records
+    return R.is_feed_kind(rec["kind"]) & (rec["z"] - rec["sz"] < -1e-6)
+
+
 def taylor_life(v_m_min: np.ndarray, n: float, c: float) -> np.ndarray:
     """Tool life (min) from Taylor's equation V·T^n = C."""
     with np.errstate(divide="ignore"):

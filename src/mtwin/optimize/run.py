@@ -14,7 +14,7 @@ from ..errors import MtwinError
 from ..gcode import records as R
 from ..cutting.engagement import GUESSED_STOCK
 from ..motion.path import PAUSE
-from .model import cutting_speed, feed_records, move_times, path_model
+from .model import cutting_speed, entry_records, feed_records, move_times, path_model
 from .problem import CostRates, Limits, Runups, build_problem
 from .chatter import chatter_tables, var_stable
 from .chatter import report as chatter_report
@@ -47,7 +47,9 @@ class InfeasibleError(MtwinError):
 class OptimizeOptions:
     objective: str = "time"
     method: str = "bisect"
-    force_limit: float | None = None  # N; None: cost.force_per_diameter x tool diameter
+    # N, for every tool; or {tool: N} for some (the others' limits learned from the program);
+    # None: every tool's learned from the program
+    force_limit: float | dict | None = None
     feed_range: tuple[float, float] | None = None  # mm/min; None: (10 % of the lowest F, machine max)
     spindle_range: tuple[float, float] | None = None  # rpm; None: S stays
     spindle_per: str = "tool"
@@ -55,7 +57,15 @@ class OptimizeOptions:
     target_power: float | None = None  # W, smooth; None: the percentile below
     target_percentile: float = 75.0
     power_tolerance: float = 0.05  # smooth: |P/P_target - 1|
-    tolerance: float = 0.02  # mm: a segment's re-simulated contour error may exceed the program's by this much
+    # mm: the contour error a raised segment may gain over the program's own on the re-simulated
+    # twin — ``tolerance`` where the segment leaves a final surface (a finishing pass, the last
+    # pass over a floor), ``rough_tolerance`` on roughing moves whose surface later passes cut
+    # again.  A guard never takes a feed below the program's own for accuracy: at its own
+    # feed a segment is as accurate as the program is
+    tolerance: float = 0.02
+    rough_tolerance: float = 0.1
+    ramp_feed: str = "keep"  # keep: ramps and helical entries keep their feed like plunges; optimize
+    chip_limit: str = "learned"  # learned: a tool's chip thickness held to the program's own level; none
     finish_feed: str = "keep"  # keep: finishing passes keep their feed per tooth; optimize: treated as any cut
     segmentation: str = "cluster"
     min_segment: float = 5.0  # mm, the reference's C
@@ -85,12 +95,18 @@ class OptimizeOptions:
              lambda: f"--chatter-margin must be in (0, 1] (a share of the stability limit), got {o.chatter_margin}"),
             (o.chatter_method in ("zoa", "sdm", "auto"),
              lambda: f"--chatter-method must be zoa, sdm or auto, got {o.chatter_method!r}"),
-            (positive(o.force_limit), lambda: f"--force-limit must be a positive number of N, got {o.force_limit:g}"),
+            (all(positive(v) for v in _force_values(o.force_limit)),
+             lambda: f"--force-limit must be a positive number of N (or T1=N,T3=N per tool), got {o.force_limit}"),
             (positive(o.target_power), lambda: f"--target-power must be a positive number of W, got {o.target_power:g}"),
             (0 < o.power_tolerance < 1, lambda: f"--power-tolerance must be between 0 and 1, got {o.power_tolerance:g}"),
             (o.tolerance >= 0 and math.isfinite(o.tolerance),
              lambda: f"--tolerance must be a contour error of 0 mm or more, got {o.tolerance:g}"),
             (o.finish_feed in ("keep", "optimize"), lambda: f"--finish-feed must be keep or optimize, got {o.finish_feed!r}"),
+            (o.rough_tolerance >= o.tolerance and math.isfinite(o.rough_tolerance),
+             lambda: f"--rough-tolerance must be a contour error of at least --tolerance ({o.tolerance:g} mm), "
+                     f"got {o.rough_tolerance:g}"),
+            (o.ramp_feed in ("keep", "optimize"), lambda: f"--ramp-feed must be keep or optimize, got {o.ramp_feed!r}"),
+            (o.chip_limit in ("learned", "none"), lambda: f"--chip-limit must be learned or none, got {o.chip_limit!r}"),
             (o.min_segment >= 0, lambda: f"--min-segment must be >= 0, got {o.min_segment:g}"),
             (o.ga.population >= 4 and o.ga.generations >= 1,
              lambda: "--population must be at least 4 and --generations at least 1"),
@@ -98,6 +114,34 @@ class OptimizeOptions:
         for ok, message in checks:
             if not ok:
                 raise MtwinError(message())
+
+
+def _force_values(limit) -> list:
+    if limit is None:
+        return []
+    return list(limit.values()) if isinstance(limit, dict) else [limit]
+
+
+def parse_force_limit(text: str):
+    """``--force-limit``: ``60`` (N, every tool) or ``T1=40,T3=120`` (per tool)."""
+    text = text.strip()
+    if "=" not in text:
+        try:
+            return float(text)
+        except ValueError:
+            raise MtwinError(f"--force-limit {text!r}: give N (60) or per tool T1=40,T3=120") from None
+    out = {}
+    for part in text.split(","):
+        key, _, value = part.partition("=")
+        key = key.strip().upper().lstrip("T")
+        try:
+            tool, n = int(key), float(value)
+        except ValueError:
+            raise MtwinError(f"--force-limit {text!r}: {part.strip()!r} is not TOOL=N (T1=40)") from None
+        if tool in out:
+            raise MtwinError(f"--force-limit {text!r}: T{tool} is given twice")
+        out[tool] = n
+    return out
 
 
 @dataclass
@@ -154,6 +198,9 @@ class OptimizeResult:
     chatter: dict = field(default_factory=dict)
     # the lobes behind it, for the report: tool -> (speed grid rpm, [(label, limits mm)])
     chatter_curves: dict = field(default_factory=dict)
+    # an answer slower than the program: per segment written below its own feed, the limit the
+    # program breaks there (empty: the answer is not slower, or only for the chatter margin)
+    slower_because: list = field(default_factory=list)
 
     @property
     def tools(self) -> list:
@@ -188,6 +235,7 @@ class OptimizeResult:
                 "tradeoff_source": self.tradeoff_source,
                 **({"tool_wear": {str(k): v for k, v in self.tool_wear.items()}} if self.tool_wear else {}),
                 **({"chatter": self.chatter} if self.chatter else {}),
+                "slower_because": self.slower_because,
                 "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in self.changed_lines]}
 
 
@@ -237,6 +285,8 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     rec = program.records
     cut = _program_cutting(twin, program)
     candidates = feed_records(program)
+    ramps = entry_records(program) & candidates if opts.ramp_feed == "keep" else np.zeros(len(rec), bool)
+    candidates &= ~ramps
     trust = trusted_records(program, cut, candidates)  # only where the twin knows the cut
     ok = trust.ok
     max_feed = m.max_cutting_feed
@@ -268,9 +318,12 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     # the program's own simulation's warnings (a spindle speed clamped to the machine's, a
     # travel limit…) hold for the optimiser's figures too
     warnings: list = list(getattr(before.summary, "warnings", []) or [])
-    never = R.is_feed_kind(rec["kind"]) & ~candidates & (R.move_lengths(rec) > 0)
+    never = R.is_feed_kind(rec["kind"]) & ~candidates & ~ramps & (R.move_lengths(rec) > 0)
     never_set = {"plunges, canned cycles, parameter feeds (never set)": sorted(set(rec["line"][never].tolist()))} \
         if never.any() else {}
+    if ramps.any():
+        never_set["ramps and helical entries (feed kept; --ramp-feed optimize sets them)"] = \
+            sorted(set(rec["line"][ramps].tolist()))
     if not candidates.any():
         # a drilling program, plunges only, inverse-time feeds: nothing the optimiser sets; in a
         # post-processing pipeline that is not an error — the program goes through unchanged
@@ -301,8 +354,19 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                         allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
     times = times_job.result()
 
-    # ---- the limits: given, or learned per tool from the program as written
-    learned = opts.force_limit is None
+    # ---- the limits: given (for every tool, or per tool), or learned per tool from the
+    # program as written
+    given = opts.force_limit
+    learned = given is None  # every tool's load limit learned
+
+    def given_for(tool: int):
+        return given.get(tool) if isinstance(given, dict) else given
+
+    if isinstance(given, dict):
+        unused = sorted(set(given) - set(int(t) for t in np.unique(rec["tool"][candidates])))
+        if unused:
+            warnings.append(f"{program.path}: warning: --force-limit names "
+                            f"{', '.join(f'T{t}' for t in unused)}, which no feed move of the program uses")
     # the load the program as written puts on a new tool is the load it may have: a tool that
     # starts worn (a ledger's) is held to it, so its feeds come down (docs/wear.md)
     new_tool = model
@@ -310,11 +374,15 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     if learned and worn:
         fresh = twin.replace(tool_state={})
         new_tool = path_model(fresh, program, plan, eng, _tool_effects(eng, plan, resolved, program, fresh).coefficients)
-    levels = learned_levels(new_tool, fz0, ok[model.rec]) if learned else {}
+    # (learned for every tool: a tool without a given load limit takes its learned one, and the
+    # learned chip thickness holds with a given load limit too — a 300 N limit meant for a face
+    # mill does not give a 2.4 mm end mill a chip it never ran at)
+    levels = learned_levels(new_tool, fz0, ok[model.rec])
 
     def force_of_tool(tool, diameter):
-        if not learned:
-            return opts.force_limit
+        g = given_for(int(tool))
+        if g is not None:
+            return g
         return max(levels[tool][0], 1e-3) if tool in levels else max(m.cost.force_per_diameter * diameter, 1e-3)
 
     c = m.cost
@@ -323,17 +391,15 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     limits = Limits(None, m.spindle.rated_power, m.spindle.base_speed, feed_range, spindle_range, opts.margin)
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
-    if learned:
+    seg_given = np.array([given_for(int(t)) is not None for t in prob.seg_tool], bool)
+    if opts.chip_limit == "learned" or learned:
         prob = replace(prob, seg_hlim=np.array([levels[int(t)][1] if int(t) in levels else np.inf
-                                                for t in prob.seg_tool]),
-                       # nothing is slowed below the program's own feed — unless a tool starts
-                       # worn (a ledger's state): held to the load of a new tool, it slows down
-                       f_floor=prob.f0_var.copy() if opts.objective in ("time", "cost") and not worn
-                       else None)
+                                                for t in prob.seg_tool]))
     if rates.slide_life:
         prob = replace(prob, seg_arc=_segment_arcs(model, segs, prob))
-    force_limits = {int(t): float(f) for t, f in zip(prob.seg_tool, prob.seg_force) if not learned or int(t) in levels}
-    limit_notes = _limit_notes(prob, levels, learned, opts, m)
+    force_limits = {int(t): float(f) for t, f, g in zip(prob.seg_tool, prob.seg_force, seg_given)
+                    if g or int(t) in levels}
+    limit_notes = _limit_notes(prob, levels, given_for, opts, m)
     if spindle_range is not None:
         prob = replace(prob, runups=_runups(prob, program, plan, segs, m))
     if opts.chatter_margin is not None and opts.objective != "air":
@@ -343,6 +409,15 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         if chat is not None:
             prob = replace(prob, chatter=chat)
             _chatter_warnings(chat, prob, segs, program, spindle_range, warnings)
+    # ---- the floor: no feed goes below the program's own unless a limit the program as
+    # written breaks there requires it — a given load limit, the spindle's power or torque, the
+    # chatter margin (a learned level is the program's own: it never requires it).  A tool
+    # that starts worn is held to its new load, so its floor goes.
+    breaks = _breaks_given(prob, seg_given)
+    if opts.objective in ("time", "cost") and not (learned and worn):
+        breaks_var = np.zeros(prob.nvar, bool)
+        np.logical_or.at(breaks_var, prob.seg_var, breaks)
+        prob = replace(prob, f_floor=np.where(breaks_var, 0.0, prob.f0_var))
 
     # ---- a program that breaks a limit even at the lowest feed is reported, not optimised
     # (with learned limits the program's own feeds are the floor and its own levels the limits)
@@ -350,7 +425,8 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     if spindle_range is not None:
         spins_try = np.full(prob.nspin, spindle_range[1])
     low = prob.evaluate(np.full((1, prob.nvar), feed_range[0]), spins_try[None, :])
-    over = (~prob.seg_air) & ((low["load"][0] > prob.seg_force) | (low["power"][0] > limits.power))
+    over = (~prob.seg_air) & (((low["load"][0] > prob.seg_force) & (seg_given | worn)) |
+                              (low["power"][0] > limits.power))
     if over.any() and opts.objective != "air" and (not learned or worn):
         lines = segs.seg_lines(program)
         reasons = []
@@ -487,30 +563,41 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                 keep |= fin_var
     feeds = _approach_feeds(prob, segs, feeds, program, keep)
 
-    # ---- write, verify, re-simulate; a segment over a limit, or less accurate than the
-    # program by more than the tolerance, on the full twin is slowed
+    # accuracy where it reaches the part: the tolerance on segments that leave a final surface,
+    # the roughing allowance on the others
+    surface_var = np.zeros(prob.nvar, bool)
+    np.logical_or.at(surface_var, prob.seg_var, _finishing_segments(program, model, segs, prob))
+    tol_v = np.where(surface_var, opts.tolerance, opts.rough_tolerance)
+
+    # ---- write, verify, re-simulate: the limits and the accuracy are held on the full twin.
+    # A guard lowers a feed below the program's own only for a limit the program itself breaks
+    # there (its floor is gone); for anything else — a move after it entered faster, accuracy —
+    # it goes at most back to the program's own feed, where the program was fine
     round_ = 0
-    scale = np.ones(prob.nvar)
     # under the LinuxCNC planner the written program's blends differ from the estimate's:
     # its engagement is computed afresh (once: the rounds change only feeds)
     tw_after = _fresh(twin) if twin.machine.controller.style == "linuxcnc" else twin
+    f0 = prob.f0_var
+    lo = feed_range[0]
     allowed = np.ones(prob.nvar)
     base_outside = None
     force_min = 1.0
-    contour_before = contour_after = None
-    by_contour = np.zeros(prob.nvar, bool)  # slowed for accuracy
-    frozen = np.zeros(prob.nvar, bool)  # set back to the program's feeds for accuracy
+    cap = np.full(prob.nvar, np.inf)
+    cur = feeds.copy()
+    lowered_for = np.full(prob.nvar, "", dtype=object)  # what a guard lowered each variable for
     c_prev = np.full(prob.nvar, np.nan)  # the last round's contour error and feed, per variable
     f_prev = np.full(prob.nvar, np.nan)
-    cap = np.full(prob.nvar, np.inf)
     prev = _previous_var(segs, prob)  # the segment run just before each variable's first
+    var_given = np.zeros(prob.nvar, bool)
+    np.logical_or.at(var_given, prob.seg_var, seg_given)
     ce_before = contour_error(before)
     loads_before = _Loads.of(before, limits)
+    settled_back = False
     while True:
         round_ += 1
         stage(f"writing and re-simulating (round {round_})")
-        f_try = _round_feeds(np.minimum(np.maximum(feeds * scale, floor), cap), prob.f0_var, program, segs, prob)
-        f_try = np.where(keep, prob.f0_var, f_try)
+        f_try = _round_feeds(np.minimum(np.maximum(cur, floor), cap), f0, program, segs, prob)
+        f_try = np.where(keep, f0, f_try)
         s_try = np.round(spins)
         feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep)
         out = rewrite(program, feeds_rec, spins_rec, splits)
@@ -535,26 +622,38 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
             contour_before = _per_var(ce_before, seg_before, prob)
             contour_rec_before = _per_rec(ce_before, seg_before, rec_before, program)
             own = _ratios(loads_before, segs, prob, seg_before) * 1.001
+            # what the program runs at on a learned level, on a kept segment, or (the air
+            # objective) on a cut it leaves alone is its own: it must only not get worse
+            own_ok = ~var_given | keep
             if opts.objective == "air":
-                # the air objective leaves the cuts alone: a limit the program already breaks
-                # there is the program's own, and must only not get worse
-                allowed = np.maximum(allowed, own)
-            if prob.f_floor is not None:
-                # learned limits: a segment the program runs over its tool's level stays at
-                # the program's feed (its own level), it is not slowed
-                allowed = np.maximum(allowed, own)
-            allowed = np.where(keep, np.maximum(allowed, own), allowed)
+                own_ok[:] = True
+            allowed = np.where(own_ok, np.maximum(allowed, own), allowed)
+        raised = (f_try > f0 * (1 + 1e-9)) & ~keep
+        at_floor = (f_try <= floor * (1 + 1e-9)) | keep
+        # 1. the limits on each segment itself
+        over = (over_v > allowed) & ~keep
+        # at its own feed over a given limit it also breaks in the program: its floor goes
+        drop = over & at_floor & (own > allowed) & (floor > lo)
+        if drop.any():
+            floor = np.where(drop, lo, floor)
+            at_floor &= ~drop
+        blame = np.zeros(prob.nvar)
+        # at its floor over a limit the program did not break there: the faster segment before
+        # it brought the load in (its entry), and that one is slowed
+        for v in np.flatnonzero(over & at_floor):
+            if prev[v] >= 0:
+                blame[prev[v]] = max(blame[prev[v]], float(over_v[v] / allowed[v]))
         # moves outside the segments (plunges, canned cycles, rapids) keep their feeds, but a
         # faster move before them changes how they are entered: each must stay within the
         # limits, or within what it had in the program; otherwise the segment before is slowed
         out_now = _outside_ratios(loads_after, seg_after, rec_after, len(rec), force_min)
         worse = out_now > np.maximum(1.0, base_outside * 1.01)
-        blame = np.zeros(prob.nvar)
         if worse.any():
-            blame = _blame_previous(seg_after, rec_after, worse, prob, out_now / np.maximum(1.0, base_outside))
-        # accuracy: the contour error in a segment, and in the moves outside after it
+            blame = np.maximum(blame, _blame_previous(seg_after, rec_after, worse, prob,
+                                                      out_now / np.maximum(1.0, base_outside)))
+        # 2. accuracy: the contour error in a segment, and in the moves outside after it
         contour_after = _per_var(ce_after, seg_after, prob)
-        c_ratio = np.where(frozen, 0.0, contour_after / (contour_before + opts.tolerance))
+        c_ratio = np.where(keep, 0.0, contour_after / (contour_before + tol_v))
         c_rec = _per_rec(ce_after, seg_after, rec_after, program)
         c_worse = c_rec > contour_rec_before + opts.tolerance
         cblame = np.zeros(prob.nvar)
@@ -562,94 +661,77 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
             excess = np.concatenate([c_rec / (contour_rec_before + opts.tolerance), np.zeros(len(rec))])
             cblame = _blame_previous(seg_after, rec_after, np.concatenate([c_worse, np.zeros(len(rec), bool)]),
                                      prob, excess)
-        at_floor = (f_try <= floor * (1 + 1e-9)) | keep
-        # a segment that cannot be slowed (kept, or at its floor) but lost accuracy lost it to
-        # the faster segment run just before it, which is slowed instead
-        for v in np.flatnonzero(at_floor & (c_ratio > 1.0)):
+        # a segment not raised that lost accuracy lost it to the raised segment run before it
+        for v in np.flatnonzero(~raised & (c_ratio > 1.0)):
             if prev[v] >= 0:
                 cblame[prev[v]] = max(cblame[prev[v]], float(c_ratio[v]))
-        cblame = np.where(frozen, 0.0, cblame)
-        c_bad = ((c_ratio > 1.0) | (cblame > 1.0)) & ~at_floor & ~keep
-        if c_bad.any() and round_ >= opts.max_rounds - 3:
-            # slowing has not brought the accuracy back: these segments, and the ones before
-            # them, go back to the program's own feeds (never above what they have now)
-            grp = c_bad.copy()
-            grp[prev[c_bad & (prev >= 0)]] = True
-            frozen |= grp & ~keep
-            # never above the program's feed; not raised to it either where a limit (a given load
-            # limit, the smoothing target) holds it lower — then the summary says the tolerance
-            # was not held there
-            cap = np.where(grp, np.minimum(cap, prob.f0_var), cap)
-            c_bad[:] = False
-            c_ratio = np.where(frozen, 0.0, c_ratio)
-            cblame = np.where(frozen, 0.0, cblame)
-            frozen_now = True
-        else:
-            frozen_now = False
-        blame = np.maximum(blame, cblame)
-        by_contour |= (c_ratio > 1.0) & ~at_floor
-        by_contour |= cblame > 1.0
-        by_contour |= frozen
-        bad = (over_v > allowed) & ~(at_floor & (prob.f_floor is not None))
-        # (blame on a segment already at its floor has nowhere to go: the move after it keeps
-        # what it got, which is at most the program's own entry at a lower feed)
-        bad |= ((blame > 1.0) | (c_ratio > 1.0)) & ~at_floor
-        bad &= ~keep
-        if not bad.any() and not frozen_now:
+        load_bad = over & ~at_floor
+        blame_bad = (blame > 1.0) & raised
+        acc_bad = (c_ratio > 1.0) & raised
+        cblame_bad = (cblame > 1.0) & raised
+        bad = load_bad | blame_bad | acc_bad | cblame_bad
+        if not bad.any():
             break
-        if round_ >= opts.max_rounds and prob.f_floor is not None:
-            if round_ == opts.max_rounds:
-                # learned limits: the segments that would not settle (and the ones run just
-                # before them) go back to the program's own feeds, and one more round checks
-                back = bad.copy()
-                back[prev[bad & (prev >= 0)]] = True
+        if round_ >= opts.max_rounds:
+            if not settled_back:
+                # the raised segments that would not settle (and the ones run just before them)
+                # go back to the program's own feeds, and one more round checks
+                back = (bad & raised) | np.isin(np.arange(prob.nvar), prev[bad & (prev >= 0)]) & raised
                 keep |= back
                 kept["would not settle (program's feed)"] = _var_lines(program, segs, prob, back)
-                allowed = np.where(back, np.maximum(allowed, own), allowed)
-                feeds = np.where(back, prob.f0_var, feeds)
-                scale = np.where(back, 1.0, scale)
-                continue
-            # still not: the program as it was is the answer with default options
-            return _unchanged(program, before, opts, warnings, kept, t_start,
-                              f"after {round_} rounds the re-simulated answer still broke a limit or the contour "
-                              f"tolerance: the program is written unchanged", limit_notes)
-        if round_ >= opts.max_rounds:
+                cur = np.where(back, f0, cur)
+                settled_back = True
+                if not load_bad.any():
+                    continue
+            if not var_given.any() and not (load_bad & var_given).any():
+                return _unchanged(program, before, opts, warnings, kept, t_start,
+                                  f"after {round_} rounds the re-simulated answer still broke a limit or the contour "
+                                  f"tolerance: the program is written unchanged", limit_notes)
             lines = segs.seg_lines(program)
             where = [f"lines {lines[np.flatnonzero(prob.seg_var == v)[0]][0]}-"
                      f"{lines[np.flatnonzero(prob.seg_var == v)[0]][-1]}" for v in np.flatnonzero(bad)[:6]]
             raise MtwinError(f"{program.path}: after {round_} rounds the re-simulated program still exceeds a limit "
                              f"or the contour tolerance in {int(bad.sum())} segment(s) ({', '.join(where)}); nothing "
                              f"was written")
-        ratio = np.maximum.reduce([np.where(over_v > allowed, over_v / allowed, 1.0), blame,
-                                   np.where(c_ratio > 1.0, c_ratio, 1.0)])
         # the load is f_z·a + b, not proportional to the feed: after the first round the
         # correction is squared, so a segment with a large edge term still converges
         power = 1.0 if round_ == 1 else 2.0
+        new_f = cur.copy()
         with np.errstate(divide="ignore", invalid="ignore"):
-            new_scale = np.where(bad, scale / ratio ** power * (1 - opts.margin), scale)
-            # a segment that lost accuracy because it was raised: the feed where the chord from
-            # the program's (feed, contour error) to this round's reaches the tolerance — the
-            # error grows faster than linearly with the feed, so the chord's answer is on the
-            # safe side, and it converges in a round or two where a ratio would crawl
-            raised = (c_ratio > 1.0) & (f_try > prob.f0_var * 1.001) & (contour_after > contour_before + 1e-9)
-            target_c = contour_before + 0.9 * opts.tolerance
+            ratio_l = np.where(over, over_v / allowed, 1.0)
+            # a limit on the segment itself: as low as it needs, down to its floor
+            new_f = np.where(load_bad, np.minimum(new_f, f_try / ratio_l ** power * (1 - opts.margin)), new_f)
+            lowered_for = np.where(load_bad, "load", lowered_for)
+            # the entry of the move after it: at most back to the program's own feed
+            back_to = np.maximum(f0, 0.0)
+            f_blame = np.maximum(back_to, f_try / np.maximum(blame, 1.0) ** power * (1 - opts.margin))
+            new_f = np.where(blame_bad, np.minimum(new_f, f_blame), new_f)
+            lowered_for = np.where(blame_bad & ~load_bad, "entry into the next move", lowered_for)
+            # accuracy: the feed where the chord from the program's (feed, contour error) to
+            # this round's reaches the tolerance — the error grows faster than linearly with the
+            # feed, so the chord's answer is on the safe side; from the second round the secant
+            # through the last two rounds' points (an error that jumps as soon as a segment is
+            # raised at all, then grows slowly, is undershot by the chord)
+            target_c = contour_before + 0.9 * tol_v
+            grew = contour_after > contour_before + 1e-9
             frac_c = np.clip((target_c - contour_before) / np.maximum(contour_after - contour_before, 1e-12), 0.0, 1.0)
-            f_new = prob.f0_var + (f_try - prob.f0_var) * frac_c
-            # from the second round, the secant through this round's and the last round's points
-            # (a segment's error often jumps as soon as it is raised at all, then grows slowly:
-            # the chord from the program's point undershoots, the last two points do not)
-            two = raised & np.isfinite(c_prev) & (c_prev > contour_after + 1e-9) & (f_prev > f_try * 1.001)
+            f_acc = f0 + (f_try - f0) * np.where(grew, frac_c, 0.0)
+            two = acc_bad & np.isfinite(c_prev) & (c_prev > contour_after + 1e-9) & (f_prev > f_try * 1.001)
             slope = (c_prev - contour_after) / np.maximum(f_prev - f_try, 1e-9)
             f_sec = f_try - (contour_after - target_c) / np.maximum(slope, 1e-12)
-            f_new = np.where(two, np.clip(f_sec, prob.f0_var, f_try), f_new)
-            c_prev = np.where(raised, contour_after, np.nan)
-            f_prev = np.where(raised, f_try, np.nan)
-            secant = np.where(raised, scale * f_new / np.maximum(f_try, 1e-9), np.inf)
-            load_only = np.where(over_v > allowed, scale / (over_v / allowed) ** power * (1 - opts.margin), np.inf)
-            cand = np.minimum(secant, load_only)
-            cand = np.where(blame > 1.0, np.minimum(cand, new_scale), cand)
-            scale = np.where(raised & bad, cand, new_scale)
-        feeds = _approach_feeds(prob, segs, feeds * scale, program, keep) / scale
+            f_acc = np.where(two, np.clip(f_sec, f0, f_try), f_acc)
+            c_prev = np.where(acc_bad, contour_after, np.nan)
+            f_prev = np.where(acc_bad, f_try, np.nan)
+            f_cb = np.maximum(f0, f_try / np.maximum(cblame, 1.0) ** power)
+            acc_f = np.where(acc_bad, f_acc, np.where(cblame_bad, f_cb, np.inf))
+            new_f = np.minimum(new_f, np.maximum(acc_f, f0))
+            lowered_for = np.where((acc_bad | cblame_bad) & ~load_bad & ~blame_bad, "accuracy (contour error)",
+                                   lowered_for)
+            if round_ >= opts.max_rounds - 3:
+                # accuracy that slowing has not brought back: the program's own feed
+                stuck = (acc_bad | cblame_bad) & ~load_bad
+                cap = np.where(stuck, np.minimum(cap, f0), cap)
+        cur = _approach_feeds(prob, segs, new_f, program, keep)
 
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
@@ -681,36 +763,51 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         warnings.append(f"{program.path}: warning: on the re-simulated answer, line(s) "
                         f"{', '.join(map(str, over[:10]))}{f' and {len(over) - 10} more' if len(over) > 10 else ''} "
                         f"are over the chatter margin {prob.chatter.margin:g} at their speeds")
-    if prob.f_floor is not None and not fixes_chatter and _worse(opts.objective, fig_before, fig_after):
-        # learned limits promise a program no slower (no dearer) than the user's: when the
-        # full twin says the answer is, the program stays as it was
+    # lowered below the program's own feed for a limit the program breaks there (named)
+    required = (f_try < f0 * (1 - 1e-9)) & (floor < f0 * (1 - 1e-9)) & ~keep
+    slower_because = _slower_because(prob, segs, program, required, own, allowed, var_given)
+    if not fixes_chatter and _worse(opts.objective, fig_before, fig_after) and opts.objective in ("time", "cost"):
         figs = (f"{fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s" if opts.objective == "time" else
                 f"cost {fig_before.cost:.3f} -> {fig_after.cost:.3f}")
         what = "slower" if opts.objective == "time" else "dearer"
-        return _unchanged(program, before, opts, warnings + [
-            f"{program.path}: warning: the re-simulated answer was {what} than the program "
-            f"({figs}): the program is written unchanged"],
-            kept, t_start, "", limit_notes)
+        if not slower_because:
+            # nothing the program breaks asks for a slower program: it stays as it was
+            return _unchanged(program, before, opts, warnings + [
+                f"{program.path}: warning: the re-simulated answer was {what} than the program "
+                f"({figs}): the program is written unchanged"],
+                kept, t_start, "", limit_notes)
+        warnings.append(f"{program.path}: warning: the answer is {what} than the program ({figs}): the program "
+                        f"breaks " + "; ".join(r["text"] for r in slower_because[:6])
+                        + (" …" if len(slower_because) > 6 else "") + " — those segments are slowed to the limit")
+    # the promise on every written answer, held from outside the rounds: no raised segment
+    # less accurate than its tolerance allows, nothing lowered below its own feed that no
+    # broken limit asks for
+    unasked = (f_try < f0 * (1 - 1e-9)) & ~required & ~keep
+    if unasked.any() and opts.objective in ("time", "cost"):
+        raise VerifyError(f"internal error: {int(unasked.sum())} segment(s) were written below the program's own "
+                          f"feed with no limit the program breaks there (lines "
+                          f"{', '.join(map(str, _var_lines(program, segs, prob, unasked)[:8]))}); nothing was written")
+    contour_held = (contour_after <= contour_before + tol_v + 1e-9) | ~(f_try > f0 * (1 + 1e-9))
+    if not contour_held.all():
+        raise VerifyError(f"internal error: {int((~contour_held).sum())} raised segment(s) are less accurate than "
+                          f"the tolerance allows on the re-simulated answer; nothing was written")
     lines = segs.seg_lines(program)
-    limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep)
+    keep_why = _keep_reasons(program, segs, prob, keep, kept)
+    approach_cap = _approach_feeds(prob, segs, np.full(prob.nvar, feed_range[1]), program, keep) < feed_range[1] - 1
+    limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep, keep_why, lowered_for, approach_cap)
     fin_seg = fin_var[prob.seg_var]
     ev_before = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
     seg_info = []
     for s in range(segs.count):
         v = prob.seg_var[s]
         why = limited[s]
-        if keep[v] and fin_seg[s]:
-            why = "kept (finishing pass)"
-        elif keep[v] and stock_guessed and prob.seg_air[s] and opts.objective in ("time", "cost"):
-            why = "kept (air cut under a guessed stock)"
-        elif fin_seg[s]:
+        if fin_seg[s] and not keep[v]:
             why = "finishing pass (feed per tooth kept)"
-        elif by_contour[v] and f_try[v] > floor[v] and why in ("objective", "feed range"):
-            why = "accuracy (contour error)"
         seg_info.append({"lines": [lines[s][0], lines[s][-1]], "air": bool(prob.seg_air[s]), "tool": int(prob.seg_tool[s]),
                          "feed_before": float(prob.f0_var[v]), "feed_after": float(f_try[v]),
                          "spindle_after": float(s_try[prob.seg_spin[s]]), "limited_by": why,
-                         "finishing": bool(fin_seg[s]),
+                         "finishing": bool(fin_seg[s]), "final_surface": bool(surface_var[v]),
+                         "contour_tolerance": float(tol_v[v]), "contour_held": bool(contour_held[v]),
                          "mean_power_before": float(ev_before["mean_power"][0][s]),
                          "mean_power_after": float(est["mean_power"][0][s]),
                          "peak_load_estimate": float(est["load"][0][s]),
@@ -718,7 +815,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                          "contour_error_after": float(contour_after[v])})
     # (with learned limits the load limit is not the binding knob — the chip thickness and the
     # program's own feeds are — so a curve over the load limit alone would mislead)
-    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") and not learned else []
+    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") and isinstance(given, (int, float)) else []
     changed = _changed_lines(program.data, out)
     spindle_chosen = {}
     if spindle_range is not None:
@@ -736,7 +833,17 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                           list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
                           spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter,
                           chatter_curves={} if prob.chatter is None else
-                          {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()})
+                          {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()},
+                          slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because])
+
+
+def _breaks_given(prob, seg_given: np.ndarray) -> np.ndarray:
+    """Per segment: does the program at its own F and S break a limit that is not its own — a
+    given load limit (``seg_given``), the spindle's power or torque, the chatter margin?"""
+    ev = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
+    over = 1.0 / (1.0 - prob.limits.margin) - 1.0 + 1e-9  # (the excess is over the limit x (1 - margin))
+    return (~prob.seg_air) & (((ev["v_load"][0] > over) & seg_given) | (ev["v_power"][0] > over) |
+                              (ev["v_torque"][0] > over) | (ev["v_chatter"][0] > 1e-9))
 
 
 def _chatter_warnings(chat, prob, segs, program, spindle_range, warnings: list) -> None:
@@ -905,12 +1012,15 @@ def _finishing_segments(program, model, segs, prob) -> np.ndarray:
     return out & ~prob.seg_air
 
 
-def _limit_notes(prob, levels: dict, learned: bool, opts, m) -> list:
+def _limit_notes(prob, levels: dict, given_for, opts, m) -> list:
     """Per tool: the load (and chip) limit used and where it came from."""
     out = []
     for t in sorted(set(int(x) for x in prob.seg_tool)):
-        if not learned:
-            out.append({"tool": t, "load": float(opts.force_limit), "chip_thickness": None, "source": "--force-limit"})
+        g = given_for(t)
+        h = levels[t][1] if t in levels and opts.chip_limit == "learned" else None
+        if g is not None:
+            out.append({"tool": t, "load": float(g), "chip_thickness": h, "source": "--force-limit"
+                        + ("; chip thickness learned from the program (--chip-limit none lifts it)" if h else "")})
         elif t in levels:
             lv, h, peak = levels[t]
             out.append({"tool": t, "load": lv, "chip_thickness": h, "program_peak_load": peak,
@@ -919,6 +1029,41 @@ def _limit_notes(prob, levels: dict, learned: bool, opts, m) -> list:
             out.append({"tool": t, "load": None, "chip_thickness": None,
                         "source": "none learned: the tool cuts no material in the twin (its air cuts only)"})
     out.append({"tool": None, "spindle_power": float(m.spindle.rated_power), "source": "the machine's rated power"})
+    return out
+
+
+def _slower_because(prob, segs, program, required, own, allowed, var_given) -> list:
+    """The segments written below the program's own feed and the limit the program breaks
+    there, as data and as a phrase: what makes an answer slower than the program allowed."""
+    out = []
+    lines = segs.seg_lines(program)
+    for v in np.flatnonzero(required):
+        ss = np.flatnonzero(prob.seg_var == v)
+        s = ss[np.argmax(prob.seg_force[ss])] if len(ss) else None
+        if s is None:
+            continue
+        ratio = float(own[v] / 1.001)
+        if var_given[v] and ratio > 1.0:
+            what, text = "load", f"the load limit {prob.seg_force[s]:.1f} N of T{prob.seg_tool[s]} by {100 * (ratio - 1):.0f} %"
+        else:
+            what, text = "machine", "the spindle's power or torque, or the chatter margin"
+        out.append({"limit": what, "tool": int(prob.seg_tool[s]), "lines": [lines[s][0], lines[s][-1]],
+                    "limit_value": float(prob.seg_force[s]) if what == "load" else None,
+                    "program_ratio": ratio, "text": f"{text} (lines {lines[s][0]}-{lines[s][-1]})"})
+    return out
+
+
+def _keep_reasons(program, segs, prob, keep: np.ndarray, kept: dict) -> np.ndarray:
+    """Per variable: why it kept its feeds ('' where it did not), from the ``kept`` notes."""
+    out = np.full(prob.nvar, "", dtype=object)
+    for v in np.flatnonzero(keep):
+        lines = set(_var_lines(program, segs, prob, np.arange(prob.nvar) == v))
+        for why, where in kept.items():
+            if lines & set(where):
+                out[v] = why
+                break
+        else:
+            out[v] = "not this objective's"
     return out
 
 
@@ -1243,25 +1388,37 @@ def _figures(trace, prog, segs, prob, rates, seg_of: np.ndarray, load: np.ndarra
                    cv)
 
 
-def _limited_by(prob, feeds, spins, feed_range, times, segs, keep) -> list:
-    """What held each segment's feed where it is."""
+def _limited_by(prob, feeds, spins, feed_range, times, segs, keep, keep_why, lowered_for, approach_cap) -> list:
+    """What held each segment's feed where it is: the label names what bound it."""
     out = []
     _, _, fz, load, torque, power, _, t_lim = prob._mechanics(feeds[None, :], spins[None, :])
     excess = dict(zip(("load", "power", "torque", "chip thickness"), prob._excess(load, power, torque, t_lim, fz)))
+    v_chat = None
+    if prob.chatter is not None:
+        v_chat = prob.chatter.at(spins[None, prob.seg_spin])[0] / prob.chatter.margin
     for s in range(len(prob.seg_var)):
-        f = feeds[prob.seg_var[s]]
-        if keep[prob.seg_var[s]]:
-            out.append("kept (not this objective's)")
+        v = prob.seg_var[s]
+        f = feeds[v]
+        f0 = prob.f0_var[v]
+        if keep[v]:
+            out.append(f"kept ({keep_why[v]})")
+            continue
+        if lowered_for[v] and f < feed_range[1] - 1:
+            out.append(lowered_for[v])
             continue
         if prob.seg_air[s]:
             if f >= feed_range[1] - 1:
                 out.append("feed range (air cut)")
-            elif f > prob.f0_var[prob.seg_var[s]] + 1e-9:
+            elif approach_cap[v] and f > f0 + 1e-9:
                 out.append("approach (the feed of the cut it enters)")
+            elif f <= f0 + 1e-9:
+                out.append("program's feed (the feed of the cut it enters)" if approach_cap[v] else "program's feed")
             else:
-                out.append("kept")
+                out.append("rounding")
             continue
         r = {name: float(e[0][s]) + 1.0 for name, e in excess.items()}  # value / (limit x margin)
+        if v_chat is not None:
+            r["chatter margin"] = float(v_chat[s])
         k = max(r, key=r.get)
         if r[k] > 0.97:
             out.append(k)
@@ -1272,6 +1429,10 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep) -> list:
             out.append("machine acceleration/speed" if v_cap < f * 0.95 else "feed range")
         elif f <= feed_range[0] + 1:
             out.append("feed range (minimum)")
+        elif abs(f - f0) <= 0.011 * f0 and prob.f_floor is not None:
+            # held at the program's own feed: a limit the program already runs at (its chip
+            # thickness or load level is at its learned one on some step of the segment)
+            out.append("program's feed (its own level)")
         else:
             out.append("objective")
     return out
