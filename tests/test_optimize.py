@@ -24,12 +24,18 @@ def _opt(text: bytes, path: str, **kw):
     # to the twin as --tool would (an undescribed tool keeps its feeds)
     tw = mtwin.Twin().with_tools({1: "flat:6:2"})
     prog = tw.load(text, path=path)
+    # (a load limit given to raise feeds: the learned chip-thickness limit is lifted as --chip-limit none does)
+    if kw.get("force_limit") is not None:
+        kw.setdefault("chip_limit", "none")
     return tw, prog, optimize(tw, prog, OptimizeOptions(**kw))
 
 
 def _run(path, **kw):
     tw = mtwin.Twin()
     prog = tw.load(path)
+    # (a load limit given to raise feeds: the learned chip-thickness limit is lifted as --chip-limit none does)
+    if kw.get("force_limit") is not None:
+        kw.setdefault("chip_limit", "none")
     return tw, prog, optimize(tw, prog, OptimizeOptions(**kw))
 
 

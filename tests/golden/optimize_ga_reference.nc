@@ -8,7 +8,7 @@ O1004 (GA-REFERENCE)
 (MTWIN STOCK 0,0,-10,30,50,0)
 G21 G90 G17 G40 G49 G80 G94
 T1 M6
-G54 G0 X-4. Y5. S7999 M3
+G54 G0 X-4. Y5. S8000 M3
 G43 H1 Z5. M8
 (slot 1 mm deep)
 G0 Z-1.
@@ -22,7 +22,7 @@ G0 Z5.
 (slot 3 mm deep, half at 1 mm: a step in the load)
 G0 X-4. Y25.
 G0 Z-1.
-G1 X12. F489.
+G1 X12. F494.
 G1 Z-3. F100.
 G1 X29.9 F460.
 G1 X34. F500.

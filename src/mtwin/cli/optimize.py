@@ -30,10 +30,17 @@ OUTPUT = typer.Option(..., "-o", "--output", help="Optimised program ('-' for st
 OBJECTIVE = typer.Option("time", "--objective", help="time | cost | smooth | air.")
 METHOD = typer.Option("bisect", "--method", help="bisect (per-segment bisection) | ga (genetic algorithm).")
 FORCE_LIMIT = typer.Option(None, "--force-limit",
-                           help="Cutting-load limit, N (default: learned per tool from the "
-                           "program — the load and chip thickness it already runs at; "
-                           "then no feed is lowered and a result that is not faster is "
-                           "written unchanged).")
+                           help="Cutting-load limit, N, for every tool (60) or per tool (T1=40,T3=120; "
+                           "the others learned). Default: learned per tool from the program — the load "
+                           "and chip thickness it already runs at. A feed goes below the program's own "
+                           "only where the program breaks a given limit.")
+CHIP_LIMIT = typer.Option("learned", "--chip-limit", help="learned (each tool's chip thickness held to the "
+                          "program's own level, with a given --force-limit too) | none.")
+ROUGH_TOLERANCE = typer.Option(None, "--rough-tolerance", help="Contour error, mm, a roughing segment (one whose "
+                               "surface later passes cut again) may gain over the program's own (default 0.1, "
+                               "or --tolerance where larger).")
+RAMP_FEED = typer.Option("keep", "--ramp-feed", help="keep (ramps and helical entries keep their feed, as "
+                         "plunges do) | optimize.")
 FEED_RANGE = typer.Option(None, "--feed-range", help="LOW,HIGH mm/min (default: 10 % of the "
                           "lowest F up to the machine's maximum cutting feed).")
 SPINDLE_RANGE = typer.Option(None, "--spindle-range",
@@ -43,8 +50,8 @@ ALLOW_S_CHANGES = typer.Option(False, "--allow-s-changes", help="Allow S words i
 TARGET_POWER = typer.Option(None, "--target-power",
                             help="smooth: target mean cutting power per segment, W "
                             "(default: the 75th percentile of the segments').")
-TOLERANCE = typer.Option(0.02, "--tolerance", help="Contour error, mm, a segment may gain over the "
-                         "program's own on the re-simulated twin.")
+TOLERANCE = typer.Option(0.02, "--tolerance", help="Contour error, mm, a segment that leaves a final "
+                         "surface (a finishing pass) may gain over the program's own on the re-simulated twin.")
 POWER_TOLERANCE = typer.Option(0.05, "--power-tolerance",
                                help="smooth: relative tolerance K on the target power.")
 FINISH_FEED = typer.Option("keep", "--finish-feed", help="keep (finishing passes keep their feed per "
@@ -70,7 +77,10 @@ def optimize(
     output: str = OUTPUT,
     objective: str = OBJECTIVE,
     method: str = METHOD,
-    force_limit: Optional[float] = FORCE_LIMIT,
+    force_limit: Optional[str] = FORCE_LIMIT,
+    chip_limit: str = CHIP_LIMIT,
+    rough_tolerance: Optional[float] = ROUGH_TOLERANCE,
+    ramp_feed: str = RAMP_FEED,
     feed_range: Optional[str] = FEED_RANGE,
     spindle_range: Optional[str] = SPINDLE_RANGE,
     spindle_per: str = SPINDLE_PER,
@@ -93,6 +103,7 @@ def optimize(
     the load, power, torque and feed limits, write the program through the byte-preserving
     writer, prove it cuts the same path and check the limits on its re-simulation."""
     from ..optimize import InfeasibleError, OptimizeOptions
+    from ..optimize.run import parse_force_limit
     from ..report.optimize_html import optimize_html
     from ..ledger import record_trace
     from ..twin.setup import Messages, load_part, open_twin
@@ -100,11 +111,13 @@ def optimize(
     _check_outputs(output, report, json_out)
     if record and not setup.ledger:
         raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
+    force_limit = parse_force_limit(force_limit) if force_limit is not None else None
     opts = OptimizeOptions(objective, method, force_limit, value_range(feed_range, "--feed-range"),
                            value_range(spindle_range, "--spindle-range"), spindle_per, allow_s_changes, target_power,
                            power_tolerance=power_tolerance, tolerance=tolerance, finish_feed=finish_feed,
                            segmentation=segmentation, min_segment=min_segment, ga=ga, chatter_margin=chatter_margin,
-                           chatter_method=chatter_method)
+                           chatter_method=chatter_method, rough_tolerance=rough_tolerance, ramp_feed=ramp_feed,
+                           chip_limit=chip_limit)
     tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
     prog = load_part(tw, part, Messages(message))
     try:

@@ -26,6 +26,9 @@ from .segment import locate, segment_path
 
 FAST_MAP = 50_000  # trace samples from which the sample-to-segment map runs as a kernel
 TIME_LEVELS = 5  # uniform feeds the planner is asked for move times at
+# mm: the contour error a roughing segment may gain by default — half of a 0.2 mm finishing
+# allowance, the low end of the 0.2-0.5 mm CAM systems leave for a finishing pass to remove
+ROUGH_TOLERANCE = 0.1
 
 
 class VerifyError(MtwinError):
@@ -63,7 +66,7 @@ class OptimizeOptions:
     # again.  A guard never takes a feed below the program's own for accuracy: at its own
     # feed a segment is as accurate as the program is
     tolerance: float = 0.02
-    rough_tolerance: float = 0.1
+    rough_tolerance: float | None = None  # None: ROUGH_TOLERANCE, or ``tolerance`` where that is larger
     ramp_feed: str = "keep"  # keep: ramps and helical entries keep their feed like plunges; optimize
     chip_limit: str = "learned"  # learned: a tool's chip thickness held to the program's own level; none
     finish_feed: str = "keep"  # keep: finishing passes keep their feed per tooth; optimize: treated as any cut
@@ -102,9 +105,8 @@ class OptimizeOptions:
             (o.tolerance >= 0 and math.isfinite(o.tolerance),
              lambda: f"--tolerance must be a contour error of 0 mm or more, got {o.tolerance:g}"),
             (o.finish_feed in ("keep", "optimize"), lambda: f"--finish-feed must be keep or optimize, got {o.finish_feed!r}"),
-            (o.rough_tolerance >= o.tolerance and math.isfinite(o.rough_tolerance),
-             lambda: f"--rough-tolerance must be a contour error of at least --tolerance ({o.tolerance:g} mm), "
-                     f"got {o.rough_tolerance:g}"),
+            (o.rough_tolerance is None or (o.rough_tolerance >= 0 and math.isfinite(o.rough_tolerance)),
+             lambda: f"--rough-tolerance must be a contour error of 0 mm or more, got {o.rough_tolerance:g}"),
             (o.ramp_feed in ("keep", "optimize"), lambda: f"--ramp-feed must be keep or optimize, got {o.ramp_feed!r}"),
             (o.chip_limit in ("learned", "none"), lambda: f"--chip-limit must be learned or none, got {o.chip_limit!r}"),
             (o.min_segment >= 0, lambda: f"--min-segment must be >= 0, got {o.min_segment:g}"),
@@ -414,10 +416,12 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     # chatter margin (a learned level is the program's own: it never requires it).  A tool
     # that starts worn is held to its new load, so its floor goes.
     breaks = _breaks_given(prob, seg_given)
+    broken = np.zeros(prob.nvar, bool)  # per variable: the program breaks a limit there (its floor is gone)
+    np.logical_or.at(broken, prob.seg_var, breaks)
     if opts.objective in ("time", "cost") and not (learned and worn):
-        breaks_var = np.zeros(prob.nvar, bool)
-        np.logical_or.at(breaks_var, prob.seg_var, breaks)
-        prob = replace(prob, f_floor=np.where(breaks_var, 0.0, prob.f0_var))
+        prob = replace(prob, f_floor=np.where(broken, 0.0, prob.f0_var))
+    else:
+        broken[:] = True  # (no floor: smoothing, the air objective, a worn tool held to its new load)
 
     # ---- a program that breaks a limit even at the lowest feed is reported, not optimised
     # (with learned limits the program's own feeds are the floor and its own levels the limits)
@@ -567,7 +571,8 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     # the roughing allowance on the others
     surface_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(surface_var, prob.seg_var, _finishing_segments(program, model, segs, prob))
-    tol_v = np.where(surface_var, opts.tolerance, opts.rough_tolerance)
+    rough = max(ROUGH_TOLERANCE, opts.tolerance) if opts.rough_tolerance is None else opts.rough_tolerance
+    tol_v = np.where(surface_var, opts.tolerance, rough)
 
     # ---- write, verify, re-simulate: the limits and the accuracy are held on the full twin.
     # A guard lowers a feed below the program's own only for a limit the program itself breaks
@@ -636,6 +641,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         drop = over & at_floor & (own > allowed) & (floor > lo)
         if drop.any():
             floor = np.where(drop, lo, floor)
+            broken |= drop
             at_floor &= ~drop
         blame = np.zeros(prob.nvar)
         # at its floor over a limit the program did not break there: the faster segment before
@@ -764,7 +770,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                         f"{', '.join(map(str, over[:10]))}{f' and {len(over) - 10} more' if len(over) > 10 else ''} "
                         f"are over the chatter margin {prob.chatter.margin:g} at their speeds")
     # lowered below the program's own feed for a limit the program breaks there (named)
-    required = (f_try < f0 * (1 - 1e-9)) & (floor < f0 * (1 - 1e-9)) & ~keep
+    required = (f_try < f0 * (1 - 1e-9)) & broken & ~keep
     slower_because = _slower_because(prob, segs, program, required, own, allowed, var_given)
     if not fixes_chatter and _worse(opts.objective, fig_before, fig_after) and opts.objective in ("time", "cost"):
         figs = (f"{fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s" if opts.objective == "time" else
@@ -782,7 +788,9 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     # the promise on every written answer, held from outside the rounds: no raised segment
     # less accurate than its tolerance allows, nothing lowered below its own feed that no
     # broken limit asks for
-    unasked = (f_try < f0 * (1 - 1e-9)) & ~required & ~keep
+    # (below the program's feed per tooth, where a spindle range lowers S: one rounding step)
+    fz_floor = f0 * np.minimum(1.0, s_try[prob.var_spin] / np.maximum(prob.n0_spin[prob.var_spin], 1e-9))
+    unasked = (f_try < fz_floor - 2.55) & ~required & ~keep
     if unasked.any() and opts.objective in ("time", "cost"):
         raise VerifyError(f"internal error: {int(unasked.sum())} segment(s) were written below the program's own "
                           f"feed with no limit the program breaks there (lines "

@@ -1,0 +1,131 @@
+"""`mtwin optimize` never makes a program worse (issue 31): no guard lowers a feed that no
+broken limit requires, kept means kept, no guessed air at a facing pass, ramps and helices keep
+their feeds, limits per tool."""
+from __future__ import annotations
+
+import pytest
+
+import mtwin
+from mtwin.errors import MtwinError
+from mtwin.optimize import OptimizeOptions, optimize
+from mtwin.optimize.run import parse_force_limit
+from conftest import SAMPLES
+
+
+def _lines(data: bytes) -> list[bytes]:
+    return data.split(b"\n")
+
+
+@pytest.fixture(scope="module")
+def pocket():
+    tw = mtwin.Twin()
+    return tw, tw.load(str(SAMPLES / "pocket.nc"))
+
+
+@pytest.mark.parametrize("limit", [100.0, 200.0])
+def test_a_higher_limit_never_gives_a_slower_program(pocket, limit):
+    tw, prog = pocket
+    r = optimize(tw, prog, OptimizeOptions(force_limit=limit))
+    assert r.after.cycle_time <= r.before.cycle_time
+    assert not r.slower_because
+    # nothing below its programmed feed: the program breaks no 100 N limit (it peaks at 77.5 N)
+    assert all(s["feed_after"] >= s["feed_before"] - 1e-9 for s in r.segments)
+    # every raised segment holds its contour promise, flagged per segment
+    assert all(s["contour_held"] for s in r.segments)
+    assert all(s["contour_tolerance"] in (0.02, 0.1) for s in r.segments)
+
+
+def test_a_limit_the_program_breaks_slows_only_those_segments_and_says_so(pocket):
+    tw, prog = pocket
+    r = optimize(tw, prog, OptimizeOptions(force_limit=60.0))
+    assert r.verdict[0] == "slower"
+    assert r.slower_because and all(x["limit"] == "load" and x["program_ratio"] > 1.0 for x in r.slower_because)
+    assert any("slower than the program" in w and "load limit 60.0 N" in w for w in r.warnings)
+    lowered = [s for s in r.segments if s["feed_after"] < s["feed_before"]]
+    assert lowered and all(s["limited_by"] in ("load", "chip thickness") for s in lowered)
+    assert r.after.peak_load <= 60.0 * 1.01
+
+
+def test_kept_segments_are_byte_identical(pocket):
+    tw, prog = pocket
+    r = optimize(tw, prog, OptimizeOptions(force_limit=200.0))
+    a, b = _lines(bytes(prog.data)), _lines(r.output)
+    assert len(a) == len(b)
+    kept = [s for s in r.segments if s["limited_by"].startswith("kept") or s["limited_by"].startswith("program's feed")]
+    assert kept
+    for s in kept:
+        for ln in range(s["lines"][0], s["lines"][1] + 1):
+            if s["lines"][0] == s["lines"][1] or ln not in (s["lines"][0], s["lines"][1]):
+                assert a[ln - 1] == b[ln - 1] or s["feed_after"] == s["feed_before"], (ln, a[ln - 1], b[ln - 1])
+
+
+FACE = b"""G21 G90 G17 G94
+T1 M6
+S6000 M3
+G0 X-10 Y0 Z5
+G1 Z0 F300
+G1 X60 F300
+G1 Y6
+G1 X-10
+G0 Z5
+G1 X-10 Y20 Z-1 F300
+G1 X60 F300
+G0 Z25
+M5
+M30
+"""
+
+
+def test_a_facing_pass_at_the_guessed_top_keeps_its_feed():
+    tw = mtwin.Twin().with_tools({1: "flat:12:3"})
+    prog = tw.load(FACE, path="face.nc")
+    r = optimize(tw, prog)
+    a, b = _lines(FACE), _lines(r.output)
+    for ln in (6, 7, 8):  # the pass at Z0: the real stock stands above the guessed top
+        assert a[ln - 1] == b[ln - 1], (ln, b[ln - 1])
+
+
+HELIX = b"""G21 G90 G17 G94
+T1 M6
+S8000 M3
+G0 X10 Y0 Z5
+G1 Z0.5 F300
+G3 X10 Y0 Z-0.5 I-10 J0 F80
+G3 X10 Y0 Z-1.5 I-10 J0 F80
+G1 X30 Y0 Z-2 F80
+G1 X60 F300
+G0 Z25
+M5
+M30
+(MTWIN STOCK -20,-20,-10,70,20,0)
+"""
+
+
+def test_helical_and_ramped_entries_keep_their_feed():
+    tw = mtwin.Twin().with_tools({1: "flat:6:2"})
+    prog = tw.load(HELIX, path="helix.nc")
+    r = optimize(tw, prog, OptimizeOptions(force_limit=200.0, chip_limit="none"))
+    a, b = _lines(HELIX), _lines(r.output)
+    for ln in (6, 7, 8):
+        assert a[ln - 1] == b[ln - 1], (ln, b[ln - 1])
+    assert any("helical" in k for k in r.kept)
+    r2 = optimize(tw, prog, OptimizeOptions(force_limit=200.0, chip_limit="none", ramp_feed="optimize"))
+    assert _lines(r2.output)[5] != a[5]  # asked for: the helix is set like any cut
+
+
+def test_force_limit_per_tool():
+    assert parse_force_limit("60") == 60.0
+    assert parse_force_limit("T1=40,t3=120") == {1: 40.0, 3: 120.0}
+    for bad in ("T1=x", "T1=40,T1=50", "sixty"):
+        with pytest.raises(MtwinError):
+            parse_force_limit(bad)
+    with pytest.raises(MtwinError):
+        OptimizeOptions(force_limit={1: -5.0})
+    tw = mtwin.Twin().with_tools({1: "flat:6:2"})
+    prog = tw.load(HELIX, path="helix.nc")
+    r = optimize(tw, prog, OptimizeOptions(force_limit={1: 150.0, 5: 40.0}))
+    assert any("T5" in w and "no feed move" in w for w in r.warnings)
+    notes = {n["tool"]: n for n in r.limits if n.get("tool") is not None}
+    assert notes[1]["load"] == 150.0 and notes[1]["source"].startswith("--force-limit")
+    # the learned chip thickness holds under a given load limit
+    assert notes[1]["chip_thickness"] is not None
