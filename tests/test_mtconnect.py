@@ -177,6 +177,8 @@ def test_per_block_timing_on_plate_13_shows_where_the_default_twin_is_wrong():
     assert kinds["tool change"]["error"] < -30
     assert kinds["small arc"]["error"] < -30
     assert kinds["short line"]["error"] < -10
-    assert kinds["rapid"]["error"] > 10
+    # (6.8 s since the default machine has velocity feed-forward: its in-position waits are
+    # shorter; 10.9 s without)
+    assert kinds["rapid"]["error"] > 5
     # (groups reported out of order, re-reports, are left out: a few seconds at most)
     assert b.measured.sum() == pytest.approx(m.end_time - m.t[0], abs=5.0)

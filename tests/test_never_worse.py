@@ -129,3 +129,26 @@ def test_force_limit_per_tool():
     assert notes[1]["load"] == 150.0 and notes[1]["source"].startswith("--force-limit")
     # the learned chip thickness holds under a given load limit
     assert notes[1]["chip_thickness"] is not None
+
+
+def test_report_curves_keep_every_peak():
+    import numpy as np
+    from mtwin.report.compare_html import MAX_POINTS, _thin
+
+    t = np.arange(200_000) * 1e-3
+    y = np.zeros_like(t)
+    y[123_457] = 460.2  # a one-sample peak (the table's peak load) between any thinning grid
+    z = np.full_like(t, np.nan)
+    z[1000:2000] = 5.0
+    tt, yy, zz = _thin(t, y, z)
+    assert len(tt) <= MAX_POINTS and yy.max() == 460.2
+    assert np.isnan(zz).any() and np.nanmax(zz) == 5.0
+
+
+def test_report_draws_each_tools_limit_over_its_own_segments(pocket):
+    from mtwin.report.optimize_html import optimize_html
+
+    tw, prog = pocket
+    r = optimize(tw, prog, OptimizeOptions(force_limit=200.0))
+    html = optimize_html(r, "pocket.nc").decode()
+    assert "limit per tool" in html

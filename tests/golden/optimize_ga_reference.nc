@@ -22,9 +22,9 @@ G0 Z5.
 (slot 3 mm deep, half at 1 mm: a step in the load)
 G0 X-4. Y25.
 G0 Z-1.
-G1 X12. F494.
+G1 X12. F500.
 G1 Z-3. F100.
-G1 X29.9 F460.
+G1 X29.9 F405.
 G1 X34. F500.
 G0 Z5.
 (side cut of the last slot's wall, 1.5 mm wide, 3 mm deep)

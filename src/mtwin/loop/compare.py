@@ -109,13 +109,7 @@ def _compare_series(trace, meas, align, xcorr_signal, regions) -> Comparison:
     if align == "line":
         if meas.line is None:
             raise MtwinError(f"{meas.path}: --align line needs a 'line' column")
-        known = meas.line >= 0
-        t_sim = np.full(len(tm), -np.inf)
-        t_sim[known] = _align_line(ts, np.asarray(trace.line), tm[known], meas.line[known])
-        ok = known & np.isfinite(t_sim)
-        if (~known).any() and ok.sum() > 1:
-            # a sample whose line cell is empty sits between its neighbours in time
-            t_sim[~known] = np.interp(tm[~known], tm[ok], t_sim[ok], left=-np.inf, right=-np.inf)
+        t_sim = line_alignment(ts, np.asarray(trace.line), tm, meas.line)
     elif align == "position":
         if not all(a in meas.signals for a in ("x", "y", "z")):
             raise MtwinError(f"{meas.path}: --align position needs x, y and z columns")
@@ -230,6 +224,19 @@ def _run_bounds(line: np.ndarray):
     starts = np.concatenate(([0], cut))
     ends = np.concatenate((cut, [len(line)]))
     return [(int(line[a]), int(a), int(b)) for a, b in zip(starts, ends)]
+
+
+def line_alignment(ts, sline, tm, mline) -> np.ndarray:
+    """Measured times ``tm`` (lines ``mline``, -1: empty) -> simulated times on a trace (times
+    ``ts``, lines ``sline``), run by run of the same line (``_align_line``)."""
+    known = mline >= 0
+    t_sim = np.full(len(tm), -np.inf)
+    t_sim[known] = _align_line(ts, sline, tm[known], mline[known])
+    ok = known & np.isfinite(t_sim)
+    if (~known).any() and ok.sum() > 1:
+        # a sample whose line cell is empty sits between its neighbours in time
+        t_sim[~known] = np.interp(tm[~known], tm[ok], t_sim[ok], left=-np.inf, right=-np.inf)
+    return t_sim
 
 
 def _align_line(ts, sline, tm, mline) -> np.ndarray:

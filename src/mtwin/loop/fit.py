@@ -48,6 +48,11 @@ class Target:
     stock: tuple | None = None  # the stock box every simulation of the fit uses
     # a summary measurement: per statistic column (``fy_rms``), the line range of each row
     rows: dict | None = None
+    # aligned by line: the used samples' measured times and lines, to align each candidate's
+    # trace afresh — an effect that changes the settling at exact stops moves the lines by
+    # milliseconds, and a signal with sharp steps (torque under feed-forward) is read at the
+    # wrong instant if the base simulation's alignment is kept
+    line_meas: tuple | None = None
 
     def simulated(self, trace, signals) -> dict:
         """The model's prediction of each measured value: the simulated signal at each sample's
@@ -56,7 +61,14 @@ class Target:
         if self.rows is not None:
             return row_statistics(trace, {s: self.rows[s] for s in signals})
         ts = np.asarray(trace.t, dtype=np.float64)
-        return {s: np.interp(self.t_sim, ts, trace.signal(s)) for s in signals}
+        t_sim = self.t_sim
+        if self.line_meas is not None and trace is not self.base and hasattr(trace, "line"):
+            from .compare import line_alignment
+
+            t_sim = line_alignment(ts, np.asarray(trace.line), *self.line_meas)
+            # (a sample the candidate's run leaves outside: read at the base alignment's time)
+            t_sim = np.where(np.isfinite(t_sim), t_sim, self.t_sim)
+        return {s: np.interp(t_sim, ts, trace.signal(s)) for s in signals}
 
 
 def row_statistics(trace, rows: dict) -> dict:
@@ -113,7 +125,12 @@ def target(twin, program, meas, align: str = "auto", signals=None, stock=None) -
     use = [s for s in (signals or c.measured) if s in c.measured]
     measured = {s: c.measured[s] for s in use}
     noise = {s: _noise(c.measured[s] - c.simulated[s], c.measured[s]) for s in use}
-    return Target(twin, program, meas, c.t_sim, measured, noise, c.alignment, base, stock)
+    line_meas = None
+    if c.alignment == "line" and meas.line is not None and not isinstance(base, list):
+        idx = np.searchsorted(meas.t, c.t)
+        if len(idx) and idx.max() < len(meas.t) and np.array_equal(meas.t[idx], c.t):
+            line_meas = (c.t, meas.line[idx])
+    return Target(twin, program, meas, c.t_sim, measured, noise, c.alignment, base, stock, line_meas=line_meas)
 
 
 def _summary_target(twin, program, meas, signals, stock, base) -> Target:

@@ -742,8 +742,10 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
     fig_after = _figures(after, new, segs, prob, rates, seg_after, loads_after.load)
+    contour_held = (contour_after <= contour_before + tol_v + 1e-9) | ~(f_try > f0 * (1 + 1e-9))
     contour = {"before": float(np.max(ce_before[seg_before >= 0], initial=0.0)),
                "after": float(np.max(ce_after[seg_after >= 0], initial=0.0)), "tolerance": opts.tolerance,
+               "rough_tolerance": rough, "segments_held": int(contour_held.sum()),
                "worst_segment_increase": float(np.max(contour_after - contour_before, initial=0.0))}
     chatter = {}
     if prob.chatter is not None:
@@ -770,8 +772,15 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                         f"{', '.join(map(str, over[:10]))}{f' and {len(over) - 10} more' if len(over) > 10 else ''} "
                         f"are over the chatter margin {prob.chatter.margin:g} at their speeds")
     # lowered below the program's own feed for a limit the program breaks there (named)
-    required = (f_try < f0 * (1 - 1e-9)) & broken & ~keep
-    slower_because = _slower_because(prob, segs, program, required, own, allowed, var_given)
+    # (a spindle range that excludes the program's own speed is a given limit it breaks: a feed
+    # held to its feed per tooth at the lower speed is what that range asks for)
+    off_range = np.zeros(prob.nvar, bool)
+    if spindle_range is not None:
+        n0 = prob.n0_spin[prob.var_spin]
+        off_range = (n0 < spindle_range[0] - 0.5) | (n0 > spindle_range[1] + 0.5)
+    required = (f_try < f0 * (1 - 1e-9)) & (broken | off_range) & ~keep
+    slower_because = _slower_because(prob, segs, program, required, own, allowed, var_given, off_range,
+                                     spindle_range)
     if not fixes_chatter and _worse(opts.objective, fig_before, fig_after) and opts.objective in ("time", "cost"):
         figs = (f"{fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s" if opts.objective == "time" else
                 f"cost {fig_before.cost:.3f} -> {fig_after.cost:.3f}")
@@ -795,7 +804,6 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         raise VerifyError(f"internal error: {int(unasked.sum())} segment(s) were written below the program's own "
                           f"feed with no limit the program breaks there (lines "
                           f"{', '.join(map(str, _var_lines(program, segs, prob, unasked)[:8]))}); nothing was written")
-    contour_held = (contour_after <= contour_before + tol_v + 1e-9) | ~(f_try > f0 * (1 + 1e-9))
     if not contour_held.all():
         raise VerifyError(f"internal error: {int((~contour_held).sum())} raised segment(s) are less accurate than "
                           f"the tolerance allows on the re-simulated answer; nothing was written")
@@ -898,6 +906,8 @@ def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limi
                            "peak_power": fig.peak_power}, [], [], True, 0, 0, time.perf_counter() - t_start, {}, [],
                           before, before, None, None, warnings, 0, None, "", list(c.defaults or []) if c else [], 0.0,
                           limits or [], kept, {"before": cmax, "after": cmax, "tolerance": opts.tolerance,
+                                               "rough_tolerance": opts.rough_tolerance or max(ROUGH_TOLERANCE,
+                                                                                              opts.tolerance),
                                                "worst_segment_increase": 0.0}, {})
 
 
@@ -1040,7 +1050,7 @@ def _limit_notes(prob, levels: dict, given_for, opts, m) -> list:
     return out
 
 
-def _slower_because(prob, segs, program, required, own, allowed, var_given) -> list:
+def _slower_because(prob, segs, program, required, own, allowed, var_given, off_range, spindle_range) -> list:
     """The segments written below the program's own feed and the limit the program breaks
     there, as data and as a phrase: what makes an answer slower than the program allowed."""
     out = []
@@ -1053,6 +1063,10 @@ def _slower_because(prob, segs, program, required, own, allowed, var_given) -> l
         ratio = float(own[v] / 1.001)
         if var_given[v] and ratio > 1.0:
             what, text = "load", f"the load limit {prob.seg_force[s]:.1f} N of T{prob.seg_tool[s]} by {100 * (ratio - 1):.0f} %"
+        elif off_range[v]:
+            n0 = float(prob.n0_spin[prob.var_spin[v]])
+            what, text = "spindle range", (f"the --spindle-range {spindle_range[0]:g}-{spindle_range[1]:g} rpm with its "
+                                           f"S{n0:g} (the feed per tooth is kept at the new speed)")
         else:
             what, text = "machine", "the spindle's power or torque, or the chatter margin"
         out.append({"limit": what, "tool": int(prob.seg_tool[s]), "lines": [lines[s][0], lines[s][-1]],

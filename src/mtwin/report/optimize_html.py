@@ -116,7 +116,6 @@ def _shade(ax, t, seg, air):
 def _curves(plt, res) -> str:
     air = np.array([s["air"] for s in res.segments] + [True], bool)
     fig, axes = plt.subplots(4, 1, figsize=(10, 9), dpi=100)
-    limit = max(res.force_limit.values()) if res.force_limit else None
     for row, (tr, seg, label) in enumerate(((res.trace_before, res.seg_before, "before"),
                                             (res.trace_after, res.seg_after, "after"))):
         t = np.asarray(tr.t)
@@ -128,9 +127,19 @@ def _curves(plt, res) -> str:
         _shade(al, t, seg, air)
         ap.plot(tt, pp, lw=0.7, color="#1f5fa8")
         al.plot(tt, ll, lw=0.7, color="#b03a2e")
-        if limit is not None:
-            al.axhline(limit, color="k", ls="--", lw=0.8, label=f"limit {limit:.0f} N")
-            al.legend(loc="upper right", fontsize=8)
+        if res.force_limit:
+            # each tool's limit over its own segments (one dashed line for all would put a
+            # 2.9 N limit under a 100 N tool's cuts)
+            first = True
+            for s_, u_, k in _spans(seg):
+                lim = res.force_limit.get(res.segments[k]["tool"]) if k < len(res.segments) else None
+                if lim is None or res.segments[k]["air"]:
+                    continue
+                al.hlines(lim, t[s_], t[min(u_, len(t) - 1)], colors="k", linestyles="--", lw=0.8,
+                          label="limit per tool" if first else None)
+                first = False
+            if not first:
+                al.legend(loc="upper right", fontsize=8)
         ap.set_ylabel(f"power {label} [W]")
         al.set_ylabel(f"load {label} [N]")
         for ax in (ap, al):
