@@ -152,3 +152,45 @@ def test_report_draws_each_tools_limit_over_its_own_segments(pocket):
     r = optimize(tw, prog, OptimizeOptions(force_limit=200.0))
     html = optimize_html(r, "pocket.nc").decode()
     assert "limit per tool" in html
+
+
+ROUTER = b"""G21 G90
+T1
+S10000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F200
+G1 X20 F800
+G0 Z5
+T2
+G0 X0 Y10
+G1 Z-1 F200
+G1 X20 F600
+G0 Z5
+M30
+"""
+
+
+def test_a_t_word_without_m6_is_the_tool_in_the_spindle():
+    tw = mtwin.Twin().with_tools({1: "flat:3:2", 2: "flat:6:2"})
+    prog = tw.load(ROUTER, path="router.nc")
+    r = prog.records
+    assert set(r["tool"][r["line"] <= 7].tolist()) == {1} and set(r["tool"][r["line"] >= 9].tolist()) == {2}
+    assert any("no M6" in str(w) for w in prog.warnings)
+    run = mtwin.simulate(tw, prog).as_dict()
+    assert run["tool_change_time"] == 0.0  # no changer: the operator put the bits in
+    # the tools --tool declares are the tools it cuts with: T1's 3 mm bit, not the default 6 mm
+    assert {t["number"]: t["diameter"] for t in run["tools"]} == {1: 3.0, 2: 6.0}
+    assert set(run["per_tool"]) == {"1", "2"}
+
+
+def test_a_tool_option_for_a_tool_the_program_never_uses_is_a_warning(tmp_path):
+    from conftest import ROOT
+    import subprocess
+    import sys
+
+    p = tmp_path / "r.nc"
+    p.write_bytes(ROUTER)
+    r = subprocess.run([sys.executable, "-m", "mtwin", "simulate", str(p), "--tool", "5=flat:3:2", "--tool",
+                        "1=flat:3:2"], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    assert "--tool 5=…: the program never uses T5" in r.stderr and "T1" in r.stderr

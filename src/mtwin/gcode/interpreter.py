@@ -79,6 +79,9 @@ class Program:
     expanded: object = None  # gcode.macro.Expanded: the straight-line program that was run
     unknown_calls: tuple = ()  # lines calling a program not at hand (--lenient): not simulable
     end_tool_change: int = 0  # line of a tool change after the last move (0: none)
+    # the tools come from T words alone (no M6 in the program: a router's post): nothing is
+    # changed by the machine, so no tool-change time is spent
+    tools_by_selection: bool = False
     # per record, the fraction of the machine's rapid speed its rapids run at (a logged rapid
     # override the twin replays, mtwin.loop.asrun); None: 100 %
     rapid_scale: np.ndarray | None = None
@@ -334,12 +337,47 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
         from .cutcomp import apply
 
         records = apply(records, lexed.path)
+    selected = False
+    if last_change[1] < 0:
+        old = records
+        records = _tool_without_m6(lexed, records, warnings)
+        selected = records is not old
     # a tool change after the last move (a post that puts the tool away before M30): no
     # record carries it, so the program says where it is for the twin to time it
     end_change = 0
     if last_change[1] >= 0 and last_change[2] >= n and (n == 0 or records["tool"][-1] != last_change[0]):
         end_change = int(last_change[1]) + 1
-    return Program(lexed, records, settings, dialect, warnings, end_tool_change=end_change)
+    return Program(lexed, records, settings, dialect, warnings, end_tool_change=end_change,
+                   tools_by_selection=selected)
+
+
+def _tool_without_m6(lexed: Lexed, records, warnings: list):
+    """A program that selects tools (``T1``) but never changes one (no M6 anywhere) — what
+    Fusion 360's and other router posts write for a machine without a changer, where the T word
+    names the bit the operator put in — runs each move with the tool last selected above it, as
+    its control does; warned once.  Only a program run top to bottom (no subprogram or loop
+    sends it back) and milling tool numbers (a lathe's T0101 selects and offsets)."""
+    letter, value = lexed.w_letter, lexed.w_value
+    is_t = letter == ord("T")
+    if not is_t.any() or ((letter == ord("M")) & (value == 6)).any() or not len(records):
+        return records
+    t_val = value[is_t]
+    if (t_val != np.floor(t_val)).any() or (t_val < 0).any() or (t_val >= 100).any():
+        return records
+    if (np.diff(records["line"]) < 0).any():
+        return records
+    t_line = lexed.w_line[is_t].astype(np.int64) + 1  # (1-based, as the records')
+    k = np.searchsorted(t_line, records["line"], side="right") - 1
+    tool = np.where(k >= 0, t_val[np.maximum(k, 0)].astype(records["tool"].dtype), records["tool"])
+    if np.array_equal(tool, records["tool"]):
+        return records
+    records = records.copy()
+    records["tool"] = tool
+    first = int(np.flatnonzero(is_t)[0])
+    warnings.append(GCodeWarning(SourceLocation(lexed.path, int(lexed.w_line[first]) + 1, 1),
+                                 f"T{int(value[first])} and no M6 in the program (a router post for a machine "
+                                 f"without a tool changer): each move runs with the tool last selected above it"))
+    return records
 
 
 def _dedupe(warnings: list) -> list:

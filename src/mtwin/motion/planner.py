@@ -156,7 +156,7 @@ def _m6_lines(program) -> np.ndarray:
 
 
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
-            m6: np.ndarray | None = None):
+            m6: np.ndarray | None = None, tool_changes: bool = True):
     """(record index, category, duration) of the pauses before each record, and dwells."""
     out = []
     sp = machine.spindle
@@ -169,7 +169,7 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
     change_tool = np.nonzero(tools != np.concatenate(([0], tools[:-1])))[0]
     change_speed = np.nonzero(target != np.concatenate(([0.0], target[:-1])))[0]
     for i in change_tool:
-        if machine.timing.tool_change > 0:
+        if machine.timing.tool_change > 0 and tool_changes:
             # the time belongs to the M6 line between the previous move and this one, where known
             line = int(rec["line"][i])
             prev = int(rec["line"][i - 1]) if i > 0 else 0
@@ -428,7 +428,8 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     check_feeds(rec, moves, program.path)
     check_travel(rec, moves, machine, program.path, None if machine.hard_travel_limits else warnings)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
-    pauses = _pauses(rec, machine, warnings, program.path, _m6_lines(program))
+    pauses = _pauses(rec, machine, warnings, program.path, _m6_lines(program),
+                     tool_changes=not getattr(program, "tools_by_selection", False))
     end_change = getattr(program, "end_tool_change", 0)
     if end_change and len(rec) and machine.timing.tool_change > 0:
         # a tool change after the last move (the tool put away before M30)

@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Optional
 
+import numpy as np
+
 from ..cutting.library import parse_box, parse_tool_option
 from ..effects import load_file
 from ..errors import GCodeError, MtwinError, SourceLocation, warning_text
@@ -71,8 +73,11 @@ class TwinSetup:
                             skip_block_delete=self.block_delete)
         if self.planner is not None:
             tw = tw.with_controller(style=self.planner)
+        declared = ()
         if self.tools:
-            tw = tw.with_tools(dict(parse_tool_option(t) for t in self.tools))
+            tools = dict(parse_tool_option(t) for t in self.tools)
+            tw = tw.with_tools(tools)
+            declared = tuple(sorted(int(n) for n in tools))
         if self.effects:
             tw = tw.with_effects(*self.effects)
         if self.tool_ids and not self.ledger:
@@ -84,6 +89,7 @@ class TwinSetup:
             if not ids:
                 raise MtwinError(f"--ledger {self.ledger}: say which tools are the ledger's with --tool-id T3=ID")
             tw = apply(tw, self.ledger, ids)
+        tw.declared_tools = declared  # (load_part says which of them the program never uses)
         return tw
 
     @property
@@ -116,9 +122,16 @@ def load_part(twin, program, messages: Optional[Messages] = None, need_motion: b
     if isinstance(program, Program):
         return program
     messages = messages if messages is not None else Messages()
-    prog = open_twin(twin).load(program)
+    tw = open_twin(twin)
+    prog = tw.load(program)
     for w in prog.warnings:
         messages.warn(str(w))
+    # a --tool for a tool the program never uses is a typo or the wrong program: said, not silent
+    unused = sorted(set(getattr(tw, "declared_tools", ())) - set(int(t) for t in np.unique(prog.records["tool"])))
+    if unused and prog.records.size:
+        messages.warn(warning_text(prog.path, 0, f"--tool {', '.join(f'{t}=…' for t in unused)}: the program never "
+                                   f"uses {', '.join(f'T{t}' for t in unused)} (its tools: "
+                                   f"{', '.join(f'T{int(t)}' for t in np.unique(prog.records['tool']))})"))
     if not prog.data.strip():
         raise GCodeError("the program is empty", SourceLocation(prog.path, 1, 1))
     if prog.records.size == 0:
