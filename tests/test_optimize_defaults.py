@@ -69,7 +69,8 @@ def test_an_unrecognised_or_unmodelled_tool_comment_keeps_its_feeds():
         text = b"G21 G90 G17 G94\n" + comment + body
         prog = tw.load(text, path="t.nc")
         r = optimize(tw, prog, OptimizeOptions())
-        assert r.output == text and "tool T0 not described" in r.kept, comment
+        # (not described, or declared as a tool the model cannot represent — named as simulate names it)
+        assert r.output == text and any(k.startswith("tool T0 not ") for k in r.kept), (comment, r.kept)
     # the control: the same program with the tool declared is optimised
     text = b"G21 G90 G17 G94\n(Bit: the sharp one from the blue box)" + body
     r = optimize(mtwin.Twin().with_tools({0: "flat:6:2"}), tw.load(text, path="t.nc"), OptimizeOptions())

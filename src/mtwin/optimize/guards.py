@@ -61,8 +61,14 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
         ok &= ~m
         lines = sorted(set(rec["line"][m].tolist()))
         undescribed[int(t)] = lines
-        warnings.append(warning_text(program.path, lines[0], f"tool T{int(t)} is not described (no tool table entry, "
-                        f"no comment the twin reads; it would be simulated as the default 6 mm end mill): its "
+        # (simulate's words for the same tool: one the program declares as a drill or a tap is
+        # declared, not unknown — the cutting model just cannot represent it)
+        declared_as = next((d.split(": ", 1)[1].split(", which")[0] for d in cutting.defaults_used
+                            if d.startswith(f"tool T{int(t)}: declared as")), None)
+        what = (f"is {declared_as}, which the cutting model cannot represent" if declared_as else
+                "is not described (no tool table entry, no comment the twin reads; it would be simulated as the "
+                "default 6 mm end mill)")
+        warnings.append(warning_text(program.path, lines[0], f"tool T{int(t)} {what}: its "
                         f"{int(m.sum())} feed move(s) keep their programmed feeds (lines {line_ranges(lines)}); declare "
                         f"it with --tool {int(t)}=flat:DIAMETER_MM[:FLUTES] (or ball, bull, vee:D:FLUTES:ANGLE:TIP) or a "
                         f"[tools.{int(t)}] "

@@ -333,7 +333,7 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                           "no feed move whose feed can be set (G1/G2/G3 in mm/min or in/min that are not plunges, "
                           "canned cycles, synchronised or macro-expression feeds): the program is written unchanged")
     warnings += trust.warnings
-    kept = {f"tool T{t} not described": lines for t, lines in trust.undescribed.items()}
+    kept = {_undescribed_reason(cut, t): lines for t, lines in trust.undescribed.items()}
     kept.update(never_set)
     if trust.stopped:
         kept["spindle stopped"] = trust.stopped
@@ -851,6 +851,15 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                           chatter_curves={} if prob.chatter is None else
                           {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()},
                           slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because])
+
+
+def _undescribed_reason(cut, tool: int) -> str:
+    """Why a tool's moves keep their feeds: nothing describes it, or the program declares a
+    tool the cutting model cannot represent (a drill) — as ``simulate`` says it."""
+    note = next((d for d in cut.defaults_used if d.startswith(f"tool T{tool}: declared as ")), None)
+    if note is None:
+        return f"tool T{tool} not described"
+    return f"tool T{tool} not modelled ({note.split(': ', 1)[1].split(' (line')[0]})"
 
 
 def _breaks_given(prob, seg_given: np.ndarray) -> np.ndarray:
