@@ -139,10 +139,25 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
             if m.any() and int(prog.records["tool"][m][0]) in undescribed:
                 raised.append(ln)
     rec["changed_on_undescribed_tool"] = raised[:20]
+    # a line counts as changed unless it is the same text, or the same text with an F word that
+    # restores its own programmed feed (the modal F a raised move before it changed)
+    import re
+
+    f_word = re.compile(r"\s*F[-+]?[0-9]*\.?[0-9]+", re.I)
+    f_line = {int(r["line"]): float(r["feed"]) for r in prog.records}
+    inch = {int(r["line"]): bool(r["flags"] & R.FL_F_INCH) for r in prog.records}
     changed = set()
     for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes():
-        if tag != "equal":
-            changed.update(range(i1 + 1, i2 + 1))
+        if tag == "equal":
+            continue
+        for k, ln in enumerate(range(i1 + 1, i2 + 1)):
+            if tag == "replace" and i2 - i1 == j2 - j1:
+                old, new_ = a[ln - 1], b[j1 + k]
+                m = re.search(r"F([-+]?[0-9]*\.?[0-9]+)", new_, re.I)
+                if f_word.sub("", old) == f_word.sub("", new_) and m and ln in f_line and \
+                        abs(float(m.group(1)) * (25.4 if inch.get(ln) else 1.0) - f_line[ln]) < 0.01:
+                    continue  # (the program's own feed, restored)
+            changed.add(ln)
     kept_lines = {ln for lines in res.kept.values() for ln in lines}
     rec["kept_changed"] = sorted(changed & kept_lines)[:20]
     r_ = prog.records
