@@ -7,6 +7,7 @@ import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -275,10 +276,36 @@ def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progr
 
 
 def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> OptimizeResult:
-    from ..gcode.verify import compare
-    from ..gcode.writer import rewrite
+    """The stages in turn on one run's state; a stage that settles the answer (nothing to set,
+    no answer better than the program) returns it, the last one always does."""
+    run = _Run(twin=twin, program=program, opts=opts, progress=progress, stock=stock, stage=stage)
+    for step in STAGES:
+        done = step(run)
+        if done is not None:
+            return done
+    raise AssertionError("the last stage returns the result")
+
+
+class _Run(SimpleNamespace):
+    """One optimisation's state, filled stage by stage (each stage takes what it reads by name
+    and puts what later stages read): the program and its simulation (``_baseline``), the
+    limits and the problem (``_limits``), the search's feeds and speeds (``_search``), what
+    keeps its feed and each segment's tolerance (``_guards``), the written, re-simulated answer
+    (``_rounds``)."""
+
+    def take(self, names: str) -> tuple:
+        return tuple(getattr(self, n) for n in names.split())
+
+    def put(self, **values) -> None:
+        vars(self).update(values)
+
+
+def _baseline(run: _Run) -> OptimizeResult | None:
+    """The program as written: its plan and simulation, the fast model, what the optimiser may set (trusted
+    records, ramps), the feed range, the segments and the planner's move times at other feeds."""
     from ..motion.simulate import _program_cutting, _tool_effects, simulate_plan
 
+    opts, program, stage, stock, twin = run.take("opts program stage stock twin")
     t_start = time.perf_counter()
     m = twin.machine
     stage = stage or (lambda text: None)
@@ -355,7 +382,20 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     segs = segment_path(program, model, power0, ok, min_length=opts.min_segment, method=opts.segmentation,
                         allow_splits=not getattr(program, "is_macro", False) and not per_segment_s)
     times = times_job.result()
+    run.put(before=before, candidates=candidates, cut=cut, eng=eng, feed_range=feed_range, fz0=fz0, kept=kept, m=m,
+            max_feed=max_feed, model=model, ok=ok, plan=plan, power0=power0, rec=rec, resolved=resolved, segs=segs,
+            spindle_range=spindle_range, stage=stage, t_start=t_start, times=times, trust=trust, warnings=warnings)
 
+
+def _limits(run: _Run) -> OptimizeResult | None:
+    """The limits each segment is held to (given per tool, or learned), the problem on the fast model, the
+    floor (the program's own feed where it breaks no limit), the refusal of a program over a given limit at
+    the lowest feed, and the smoothing target."""
+    from ..motion.simulate import _tool_effects
+    (before, candidates, cut, eng, feed_range, fz0, m, model, ok, opts, plan, power0, program, rec, resolved, segs,
+     spindle_range, stage, times, twin, warnings) = \
+        run.take("before candidates cut eng feed_range fz0 m model ok opts plan power0 program rec resolved segs "
+                 "spindle_range stage times twin warnings")
     # ---- the limits: given (for every tool, or per tool), or learned per tool from the
     # program as written
     given = opts.force_limit
@@ -465,7 +505,19 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         if not len(mp):
             raise MtwinError(f"{program.path}: nothing is cut: no power curve to smooth")
         target = float(np.percentile(mp, opts.target_percentile))
+    run.put(broken=broken, force_limits=force_limits, given=given, learned=learned, limit_notes=limit_notes,
+            limits=limits, prob=prob, rates=rates, seg_given=seg_given, target=target)
 
+
+def _search(run: _Run) -> OptimizeResult | None:
+    """Feeds (and speeds) by bisection or the genetic algorithm on the fast model; the floors; air cuts to the
+    top of the range; what the objective leaves alone."""
+    feed_range, learned, max_feed, opts, prob, progress, spindle_range, stage, target = run.take("feed_range "
+                                                                                                 "learned max_feed "
+                                                                                                 "opts prob "
+                                                                                                 "progress "
+                                                                                                 "spindle_range "
+                                                                                                 "stage target")
     # ---- search
     stage("searching")
     generations, history = 0, None
@@ -523,6 +575,17 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
         keep = cut_var.copy()
     elif opts.objective == "smooth":
         keep = air_var & ~cut_var
+    run.put(air_var=air_var, cut_var=cut_var, feeds=feeds, floor=floor, generations=generations, history=history,
+            keep=keep, search_seconds=search_seconds, spins=spins)
+
+
+def _guards(run: _Run) -> OptimizeResult | None:
+    """What keeps its feed: air under a guessed stock, finishing passes, approaches into a cut; the contour
+    tolerance of each segment (final surface or roughing)."""
+    (air_var, before, candidates, cut, cut_var, feeds, keep, kept, model, opts, prob, program, rec, segs,
+     spindle_range, spins, stock, trust, warnings) = \
+        run.take("air_var before candidates cut cut_var feeds keep kept model opts prob program rec segs "
+                 "spindle_range spins stock trust warnings")
     # an air cut under a stock the twin only guessed is raised only where the tool is provably
     # clear of that stock: the guess may hold material the program really cuts
     stock_box = before.summary.cutting.stock if before.summary.cutting else None
@@ -573,7 +636,18 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     np.logical_or.at(surface_var, prob.seg_var, _finishing_segments(program, model, segs, prob))
     rough = max(ROUGH_TOLERANCE, opts.tolerance) if opts.rough_tolerance is None else opts.rough_tolerance
     tol_v = np.where(surface_var, opts.tolerance, rough)
+    run.put(feeds=feeds, fin_var=fin_var, keep=keep, kept=kept, rough=rough, surface_var=surface_var, tol_v=tol_v)
 
+
+def _rounds(run: _Run) -> OptimizeResult | None:
+    """Write, verify and re-simulate until the limits and the accuracy hold on the full twin: a guard lowers a
+    feed below the program's own only for a limit the program breaks there."""
+    from ..gcode.verify import compare
+    from ..gcode.writer import rewrite
+    (before, broken, cut, feed_range, feeds, floor, keep, kept, limit_notes, limits, opts, prob, program, rec,
+     seg_given, segs, spindle_range, spins, stage, stock, t_start, tol_v, twin, warnings) = \
+        run.take("before broken cut feed_range feeds floor keep kept limit_notes limits opts prob program rec "
+                 "seg_given segs spindle_range spins stage stock t_start tol_v twin warnings")
     # ---- write, verify, re-simulate: the limits and the accuracy are held on the full twin.
     # A guard lowers a feed below the program's own only for a limit the program itself breaks
     # there (its floor is gone); for anything else — a move after it entered faster, accuracy —
@@ -738,7 +812,25 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
                 stuck = (acc_bad | cblame_bad) & ~load_bad
                 cap = np.where(stuck, np.minimum(cap, f0), cap)
         cur = _approach_feeds(prob, segs, new_f, program, keep)
+    run.put(after=after, allowed=allowed, broken=broken, ce_after=ce_after, ce_before=ce_before,
+            contour_after=contour_after, contour_before=contour_before, f0=f0, f_try=f_try, keep=keep, kept=kept,
+            loads_after=loads_after, loads_before=loads_before, lowered_for=lowered_for, new=new, out=out, own=own,
+            round_=round_, s_try=s_try, seg_after=seg_after, seg_before=seg_before, tw_after=tw_after,
+            var_given=var_given)
 
+
+def _result(run: _Run) -> OptimizeResult | None:
+    """The promise checked from outside the rounds (not slower for nothing, nothing lowered without a broken
+    limit, the contour held), the labels, and the result."""
+    (after, allowed, before, broken, ce_after, ce_before, contour_after, contour_before, f0, f_try, feed_range,
+     fin_var, force_limits, generations, given, history, keep, kept, learned, limit_notes, loads_after, loads_before,
+     lowered_for, new, opts, out, own, prob, program, rates, rough, round_, s_try, search_seconds, seg_after,
+     seg_before, segs, spindle_range, surface_var, t_start, times, tol_v, tw_after, twin, var_given, warnings) = \
+        run.take("after allowed before broken ce_after ce_before contour_after contour_before f0 f_try feed_range "
+                 "fin_var force_limits generations given history keep kept learned limit_notes loads_after "
+                 "loads_before lowered_for new opts out own prob program rates rough round_ s_try search_seconds "
+                 "seg_after seg_before segs spindle_range surface_var t_start times tol_v tw_after twin var_given "
+                 "warnings")
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
     fig_after = _figures(after, new, segs, prob, rates, seg_after, loads_after.load)
@@ -837,20 +929,25 @@ def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> O
     if spindle_range is not None:
         for s in range(segs.count):
             spindle_chosen.setdefault(int(prob.seg_tool[s]), float(s_try[prob.seg_spin[s]]))
-    return OptimizeResult(out, opts.objective, opts.method if opts.objective != "air" else "direct", fig_before,
-                          fig_after, {"cycle_time": float(est["time"][0]), "cost": float(est["cost"][0]),
-                                      "peak_load": float(est["load"][0][~prob.seg_air].max(initial=0.0)),
-                                      "peak_power": float(est["power"][0][~prob.seg_air].max(initial=0.0))},
-                          changed, seg_info, True, round_, prob.evaluations, time.perf_counter() - t_start,
-                          force_limits, tradeoff, before, after, seg_before,
-                          seg_after, warnings, generations, history,
-                          "" if not learned else "learned from the program (95th percentile of each tool's engaged "
-                          "steps at its programmed F and S); --force-limit sets one",
-                          list(before.summary.cutting.defaults or []), search_seconds, limit_notes, kept, contour,
-                          spindle_chosen, tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter,
-                          chatter_curves={} if prob.chatter is None else
-                          {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()},
-                          slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because])
+    estimate = {"cycle_time": float(est["time"][0]), "cost": float(est["cost"][0]),
+                "peak_load": float(est["load"][0][~prob.seg_air].max(initial=0.0)),
+                "peak_power": float(est["power"][0][~prob.seg_air].max(initial=0.0))}
+    return OptimizeResult(
+        output=out, objective=opts.objective, method=opts.method if opts.objective != "air" else "direct",
+        before=fig_before, after=fig_after, estimate=estimate, changed_lines=changed, segments=seg_info,
+        verified=True, rounds=round_, evaluations=prob.evaluations, seconds=time.perf_counter() - t_start,
+        force_limit=force_limits, tradeoff=tradeoff, trace_before=before, trace_after=after, seg_before=seg_before,
+        seg_after=seg_after, warnings=warnings, generations=generations, history=history,
+        force_limit_source="" if not learned else "learned from the program (95th percentile of each tool's "
+        "engaged steps at its programmed F and S); --force-limit sets one",
+        defaults=list(before.summary.cutting.defaults or []), search_seconds=search_seconds, limits=limit_notes,
+        kept=kept, contour_error=contour, spindle=spindle_chosen,
+        tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter,
+        chatter_curves={} if prob.chatter is None else {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()},
+        slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because])
+
+
+STAGES = (_baseline, _limits, _search, _guards, _rounds, _result)
 
 
 def _undescribed_reason(cut, tool: int) -> str:
@@ -910,14 +1007,16 @@ def _unchanged(program, before, opts, warnings, kept, t_start, reason: str, limi
     ce = contour_error(before)
     feed = _feed_samples(before, program)
     cmax = float(np.max(ce[feed], initial=0.0))
-    return OptimizeResult(bytes(program.data), opts.objective, opts.method, fig, fig,
-                          {"cycle_time": float(sm.cycle_time), "cost": None, "peak_load": fig.peak_load,
-                           "peak_power": fig.peak_power}, [], [], True, 0, 0, time.perf_counter() - t_start, {}, [],
-                          before, before, None, None, warnings, 0, None, "", list(c.defaults or []) if c else [], 0.0,
-                          limits or [], kept, {"before": cmax, "after": cmax, "tolerance": opts.tolerance,
-                                               "rough_tolerance": opts.rough_tolerance or max(ROUGH_TOLERANCE,
-                                                                                              opts.tolerance),
-                                               "worst_segment_increase": 0.0}, {})
+    rough = opts.rough_tolerance if opts.rough_tolerance is not None else max(ROUGH_TOLERANCE, opts.tolerance)
+    return OptimizeResult(
+        output=bytes(program.data), objective=opts.objective, method=opts.method, before=fig, after=fig,
+        estimate={"cycle_time": float(sm.cycle_time), "cost": None, "peak_load": fig.peak_load,
+                  "peak_power": fig.peak_power},
+        changed_lines=[], segments=[], verified=True, rounds=0, evaluations=0,
+        seconds=time.perf_counter() - t_start, force_limit={}, tradeoff=[], trace_before=before, trace_after=before,
+        warnings=warnings, defaults=list(c.defaults or []) if c else [], limits=limits or [], kept=kept,
+        contour_error={"before": cmax, "after": cmax, "tolerance": opts.tolerance, "rough_tolerance": rough,
+                       "worst_segment_increase": 0.0})
 
 
 def _slide_life(twin) -> float | None:
