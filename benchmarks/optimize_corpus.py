@@ -147,16 +147,21 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     f_line = {int(r["line"]): float(r["feed"]) for r in prog.records}
     inch = {int(r["line"]): bool(r["flags"] & R.FL_F_INCH) for r in prog.records}
     changed = set()
-    for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes():
-        if tag == "equal":
+    # lines paired by their text without F words (an F change must not derail the alignment of
+    # a program with many equal lines); a paired line is changed if its F word changed, unless
+    # the new F is its own programmed feed restored; an unpaired line (a split move) is changed
+    sa, sb = [f_word.sub("", x) for x in a], [f_word.sub("", x) for x in b]
+    for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, sa, sb, autojunk=False).get_opcodes():
+        if tag != "equal":
+            changed.update(range(i1 + 1, i2 + 1))
             continue
-        for k, ln in enumerate(range(i1 + 1, i2 + 1)):
-            if tag == "replace" and i2 - i1 == j2 - j1:
-                old, new_ = a[ln - 1], b[j1 + k]
-                m = re.search(r"F([-+]?[0-9]*\.?[0-9]+)", new_, re.I)
-                if f_word.sub("", old) == f_word.sub("", new_) and m and ln in f_line and \
-                        abs(float(m.group(1)) * (25.4 if inch.get(ln) else 1.0) - f_line[ln]) < 0.01:
-                    continue  # (the program's own feed, restored)
+        for k in range(i2 - i1):
+            ln, old, new_ = i1 + k + 1, a[i1 + k], b[j1 + k]
+            if old == new_:
+                continue
+            m = re.search(r"F([-+]?[0-9]*\.?[0-9]+)", new_, re.I)
+            if m and ln in f_line and abs(float(m.group(1)) * (25.4 if inch.get(ln) else 1.0) - f_line[ln]) < 0.01:
+                continue  # (the program's own feed, restored)
             changed.add(ln)
     kept_lines = {ln for lines in res.kept.values() for ln in lines}
     rec["kept_changed"] = sorted(changed & kept_lines)[:20]

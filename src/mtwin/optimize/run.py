@@ -733,7 +733,9 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                                                       out_now / np.maximum(1.0, base_outside)))
         # 2. accuracy: the contour error in a segment, and in the moves outside after it
         contour_after = _per_var(ce_after, seg_after, prob)
-        c_ratio = np.where(keep, 0.0, contour_after / (contour_before + tol_v))
+        # (on every segment, kept ones too: a kept segment entered faster by a raised one before
+        # it loses accuracy to that one, which is slowed)
+        c_ratio = contour_after / (contour_before + tol_v)
         c_rec = _per_rec(ce_after, seg_after, rec_after, program)
         c_worse = c_rec > contour_rec_before + opts.tolerance
         cblame = np.zeros(prob.nvar)
@@ -834,7 +836,12 @@ def _result(run: _Run) -> OptimizeResult | None:
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
     fig_after = _figures(after, new, segs, prob, rates, seg_after, loads_after.load)
-    contour_held = (contour_after <= contour_before + tol_v + 1e-9) | ~(f_try > f0 * (1 + 1e-9))
+    # (a segment is held to its tolerance where it, or the segment run before it, was raised:
+    # elsewhere its contour error is the program's own)
+    raised_v = (f_try > f0 * (1 + 1e-9)) & ~keep
+    prev = _previous_var(segs, prob)
+    touched = raised_v | ((prev >= 0) & raised_v[np.maximum(prev, 0)])
+    contour_held = (contour_after <= contour_before + tol_v + 1e-9) | ~touched
     contour = {"before": float(np.max(ce_before[seg_before >= 0], initial=0.0)),
                "after": float(np.max(ce_after[seg_after >= 0], initial=0.0)), "tolerance": opts.tolerance,
                "rough_tolerance": rough, "segments_held": int(contour_held.sum()),
@@ -897,8 +904,10 @@ def _result(run: _Run) -> OptimizeResult | None:
                           f"feed with no limit the program breaks there (lines "
                           f"{', '.join(map(str, _var_lines(program, segs, prob, unasked)[:8]))}); nothing was written")
     if not contour_held.all():
-        raise VerifyError(f"internal error: {int((~contour_held).sum())} raised segment(s) are less accurate than "
-                          f"the tolerance allows on the re-simulated answer; nothing was written")
+        raise VerifyError(f"internal error: {int((~contour_held).sum())} segment(s) raised, or after a raised one, "
+                          f"are less accurate than the tolerance allows on the re-simulated answer (lines "
+                          f"{', '.join(map(str, _var_lines(program, segs, prob, ~contour_held)[:8]))}); nothing was "
+                          f"written")
     lines = segs.seg_lines(program)
     keep_why = _keep_reasons(program, segs, prob, keep, kept)
     approach_cap = _approach_feeds(prob, segs, np.full(prob.nvar, feed_range[1]), program, keep) < feed_range[1] - 1
