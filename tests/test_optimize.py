@@ -74,11 +74,12 @@ def test_a_program_over_the_limit_at_the_lowest_feed_is_reported():
 
 @pytest.mark.parametrize("objective", ["time", "cost", "smooth"])
 def test_reference_sample_objectives(objective):
-    tw, prog, r = _run(GA_SAMPLE, objective=objective, method="ga", **REF)
+    tw, prog, r = _run(GA_SAMPLE, objective=objective, method="ga", chip_limit="learned", **REF)  # (as the README runs it)
     assert r.trace_after.summary.cutting.peak_load <= 60.0
     assert compare(prog, tw.load(r.output, path="out.nc")) is None
     if objective == "time":
-        assert r.after.cycle_time < r.before.cycle_time * 0.9
+        # the README's reference experiment: at least the reference's own −16.9 %
+        assert r.after.cycle_time <= r.before.cycle_time * (1 - 0.169)
     elif objective == "cost":
         assert r.after.cost < r.before.cost
     else:
