@@ -146,23 +146,30 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     f_word = re.compile(r"\s*F[-+]?[0-9]*\.?[0-9]+", re.I)
     f_line = {int(r["line"]): float(r["feed"]) for r in prog.records}
     inch = {int(r["line"]): bool(r["flags"] & R.FL_F_INCH) for r in prog.records}
+    # each original move paired with the written program's moves by where they end (a split
+    # move is several that end where it ended): a line is changed if one of its moves was split,
+    # runs at another feed, or its text differs other than by an F word restoring its own feed
     changed = set()
-    # lines paired by their text without F words (an F change must not derail the alignment of
-    # a program with many equal lines); a paired line is changed if its F word changed, unless
-    # the new F is its own programmed feed restored; an unpaired line (a split move) is changed
-    sa, sb = [f_word.sub("", x) for x in a], [f_word.sub("", x) for x in b]
-    for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, sa, sb, autojunk=False).get_opcodes():
-        if tag != "equal":
-            changed.update(range(i1 + 1, i2 + 1))
-            continue
-        for k in range(i2 - i1):
-            ln, old, new_ = i1 + k + 1, a[i1 + k], b[j1 + k]
-            if old == new_:
-                continue
-            m = re.search(r"F([-+]?[0-9]*\.?[0-9]+)", new_, re.I)
-            if m and ln in f_line and abs(float(m.group(1)) * (25.4 if inch.get(ln) else 1.0) - f_line[ln]) < 0.01:
-                continue  # (the program's own feed, restored)
+    ro, rn = prog.records, new.records
+    k = 0
+    for i in range(len(ro)):
+        start = k
+        end = np.array([ro["x"][i], ro["y"][i], ro["z"][i]])
+        while k < len(rn) and not np.allclose([rn["x"][k], rn["y"][k], rn["z"][k]], end, atol=1e-6):
+            k += 1
+        if k >= len(rn):
+            changed.update(ro["line"][i:].tolist())  # (cannot pair: counted as changed)
+            break
+        ln, ln_new = int(ro["line"][i]), int(rn["line"][k])
+        if k > start or abs(rn["feed"][k] - ro["feed"][i]) > 0.01:
             changed.add(ln)
+        elif a[ln - 1] != b[ln_new - 1]:
+            m = re.search(r"F([-+]?[0-9]*\.?[0-9]+)", b[ln_new - 1], re.I)
+            restored = f_word.sub("", a[ln - 1]) == f_word.sub("", b[ln_new - 1]) and m and \
+                abs(float(m.group(1)) * (25.4 if inch.get(ln) else 1.0) - f_line[ln]) < 0.01
+            if not restored:
+                changed.add(ln)
+        k += 1
     kept_lines = {ln for lines in res.kept.values() for ln in lines}
     rec["kept_changed"] = sorted(changed & kept_lines)[:20]
     r_ = prog.records

@@ -194,3 +194,22 @@ def test_a_tool_option_for_a_tool_the_program_never_uses_is_a_warning(tmp_path):
                         "1=flat:3:2"], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert "--tool 5=…: the program never uses T5" in r.stderr and "T1" in r.stderr
+
+
+def test_final_surfaces_are_read_off_the_stock(pocket):
+    """The pocket's three layers: the inner loops of the first two leave nothing final (the next
+    loop and the next layer cut their walls and floors again); each layer's outer loop leaves
+    the pocket's wall; the last layer leaves its floor — held to --tolerance, the rest to
+    --rough-tolerance."""
+    tw, prog = pocket
+    r = optimize(tw, prog, OptimizeOptions())
+    by_line = {}
+    for s in r.segments:
+        if not s["air"]:
+            for ln in range(s["lines"][0], s["lines"][1] + 1):
+                by_line.setdefault(ln, []).append(s)
+    assert not any(s["final_surface"] for s in by_line[14])  # layer 1, first loop
+    assert all(s["final_surface"] for s in by_line[36])  # layer 1, outer loop: the wall
+    assert all(s["final_surface"] for ln in (76, 86, 98) for s in by_line[ln])  # the last layer: the floor
+    assert {s["contour_tolerance"] for s in r.segments if s["final_surface"]} == {0.02}
+    assert {s["contour_tolerance"] for s in r.segments if not s["final_surface"] and not s["finishing"]} == {0.1}

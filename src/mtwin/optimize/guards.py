@@ -188,6 +188,65 @@ def finish_lines(program) -> np.ndarray:
     return flag[rec["line"]]
 
 
+SURFACE_SHARE = 0.05  # of a segment's engaged length: from this share on, it leaves a final surface
+SURFACE_DZ = 0.005  # mm: a cell's final height this close to a step's tip is the floor that step left
+
+
+def final_surface_steps(program, model, stock) -> np.ndarray:
+    """Per engaged step of the fast model: does it leave a final surface — the floor under its
+    tip, or the wall beside its edge, that no later move cuts again?  Read off the stock after
+    the whole program (``stock.heights``, the Z-map the simulation cut): the floor is final where
+    the cell under the tool's centre ends at the step's tip; the wall where a cell just beyond
+    the tool's radius (1.5 cells, on either side of the direction of travel) ends above the tip.
+    A roughing pass whose floor or wall a later pass cuts again (a deeper layer, the finishing
+    allowance) leaves neither."""
+    rec = program.records
+    n = len(model.rec)
+    if stock is None or not n:
+        return np.zeros(n, bool)
+    r, p = model.rec, model.pos
+    sx, sy, sz = rec["sx"][r], rec["sy"][r], rec["sz"][r]
+    ex, ey, ez = rec["x"][r], rec["y"][r], rec["z"][r]
+    kind = rec["kind"][r]
+    x, y, z = sx + p * (ex - sx), sy + p * (ey - sy), sz + p * (ez - sz)
+    tx, ty = ex - sx, ey - sy
+    arc = ((kind == R.ARC_CW) | (kind == R.ARC_CCW)) & (rec["plane"][r] == R.PLANE_XY)
+    if arc.any():
+        cx, cy = rec["cx"][r], rec["cy"][r]
+        a0 = np.arctan2(sy - cy, sx - cx)
+        a1 = np.arctan2(ey - cy, ex - cx)
+        ccw = kind == R.ARC_CCW
+        sweep = np.where(ccw, np.mod(a1 - a0, 2 * np.pi), -np.mod(a0 - a1, 2 * np.pi))
+        sweep = np.where(np.abs(sweep) < 1e-9, np.where(ccw, 2 * np.pi, -2 * np.pi), sweep)  # a full circle
+        ang = a0 + p * sweep
+        rad = np.hypot(sx - cx, sy - cy)
+        x = np.where(arc, cx + rad * np.cos(ang), x)
+        y = np.where(arc, cy + rad * np.sin(ang), y)
+        tx = np.where(arc, -np.sin(ang) * np.sign(sweep), tx)
+        ty = np.where(arc, np.cos(ang) * np.sign(sweep), ty)
+    norm = np.hypot(tx, ty)
+    moving = norm > 1e-12
+    nx = np.where(moving, -ty / np.where(moving, norm, 1.0), 0.0)
+    ny = np.where(moving, tx / np.where(moving, norm, 1.0), 0.0)
+    h = stock.heights
+    res = float(stock.resolution)
+    x0, y0 = float(stock.box[0]), float(stock.box[1])
+
+    def height(px, py):
+        ix = np.floor((px - x0) / res).astype(np.int64)
+        iy = np.floor((py - y0) / res).astype(np.int64)
+        inside = (ix >= 0) & (iy >= 0) & (ix < h.shape[1]) & (iy < h.shape[0])
+        out = np.full(len(px), -np.inf)  # (outside the stock: nothing stands there)
+        out[inside] = h[iy[inside], ix[inside]]
+        return out
+
+    floor = height(x, y) >= z - SURFACE_DZ
+    d = 0.5 * model.diameter + 1.5 * res
+    wall = moving & ((height(x + nx * d, y + ny * d) > z + SURFACE_DZ) |
+                     (height(x - nx * d, y - ny * d) > z + SURFACE_DZ))
+    return model.cutting & (floor | wall)
+
+
 def contour_error(trace) -> np.ndarray:
     """Per trace sample, the contour error (mm): the part of the following-error vector normal
     to the commanded direction of travel (central differences of the command) — the

@@ -20,8 +20,8 @@ from .problem import CostRates, Limits, Runups, build_problem
 from .chatter import chatter_tables, var_stable
 from .chatter import report as chatter_report
 from .search import GAOptions, bisect, fixed_spins, genetic
-from .guards import (FINISH_AE, contour_error, finish_lines, inside_stock, learned_levels, percentile_by_group,
-                     trusted_records)
+from .guards import (FINISH_AE, SURFACE_SHARE, contour_error, final_surface_steps, finish_lines, inside_stock,
+                     learned_levels, percentile_by_group, trusted_records)
 from .segment import locate, segment_path
 
 
@@ -634,6 +634,8 @@ def _guards(run: _Run) -> OptimizeResult | None:
     # the roughing allowance on the others
     surface_var = np.zeros(prob.nvar, bool)
     np.logical_or.at(surface_var, prob.seg_var, _finishing_segments(program, model, segs, prob))
+    # and the last pass over a floor or a wall, read off the stock the program leaves
+    np.logical_or.at(surface_var, prob.seg_var, _surface_segments(program, model, segs, before))
     rough = max(ROUGH_TOLERANCE, opts.tolerance) if opts.rough_tolerance is None else opts.rough_tolerance
     tol_v = np.where(surface_var, opts.tolerance, rough)
     run.put(feeds=feeds, fin_var=fin_var, keep=keep, kept=kept, rough=rough, surface_var=surface_var, tol_v=tol_v)
@@ -1145,6 +1147,21 @@ def _finishing_segments(program, model, segs, prob) -> np.ndarray:
         has = np.bincount(st, weights=model.length[m], minlength=segs.count) > 0
         out |= has & (median <= FINISH_AE)
     return out & ~prob.seg_air
+
+
+def _surface_segments(program, model, segs, before) -> np.ndarray:
+    """Per segment: at least SURFACE_SHARE of its engaged length leaves a final floor or wall
+    (``guards.final_surface_steps`` on the stock the program's simulation left)."""
+    eng = getattr(before, "engagement", None)
+    final = final_surface_steps(program, model, getattr(eng, "stock", None))
+    m = (segs.step_seg >= 0) & model.cutting
+    out = np.zeros(segs.count, bool)
+    if m.any():
+        w = model.length[m]
+        tot = np.bincount(segs.step_seg[m], weights=w, minlength=segs.count)
+        fin = np.bincount(segs.step_seg[m], weights=w * final[m], minlength=segs.count)
+        out = (tot > 0) & (fin >= SURFACE_SHARE * tot)
+    return out
 
 
 def _limit_notes(prob, levels: dict, given_for, opts, m) -> list:
