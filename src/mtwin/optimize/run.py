@@ -1559,11 +1559,13 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep, keep_why, low
         if keep[v]:
             out.append(f"kept ({keep_why[v]})")
             continue
-        if lowered_for[v] and f < feed_range[1] - 1:
+        if lowered_for[v] and f < feed_range[1] - 2.6:
             out.append(lowered_for[v])
             continue
+        # (at the top of the range: within one rounding step of it — 2.54 mm/min where F is in inches)
+        top = f >= feed_range[1] - 2.6
         if prob.seg_air[s]:
-            if f >= feed_range[1] - 1:
+            if top:
                 out.append("feed range (air cut)")
             elif approach_cap[v] and f > f0 + 1e-9:
                 out.append("approach (the feed of the cut it enters)")
@@ -1578,7 +1580,7 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep, keep_why, low
         k = max(r, key=r.get)
         if r[k] > 0.97:
             out.append(k)
-        elif f >= feed_range[1] - 1:
+        elif top:
             # at the top of the range: is the machine even reaching it?
             rr = segs.piece_rec[segs.piece_seg == s]
             v_cap = float(np.min(times.v_cap[rr])) * 60 if len(rr) else np.inf
