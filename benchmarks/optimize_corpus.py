@@ -143,7 +143,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     # restores its own programmed feed (the modal F a raised move before it changed)
     import re
 
-    f_word = re.compile(r"\s*F[-+]?[0-9]*\.?[0-9]+", re.I)
+    f_word = re.compile(r"\s*F[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)", re.I)
     f_line = {int(r["line"]): float(r["feed"]) for r in prog.records}
     inch = {int(r["line"]): bool(r["flags"] & R.FL_F_INCH) for r in prog.records}
     # each original move paired with the written program's moves by where they end (a split
