@@ -359,7 +359,8 @@ def _tool_without_m6(lexed: Lexed, records, warnings: list):
     sends it back) and milling tool numbers (a lathe's T0101 selects and offsets)."""
     letter, value = lexed.w_letter, lexed.w_value
     is_t = letter == ord("T")
-    if not is_t.any() or ((letter == ord("M")) & (value == 6)).any() or not len(records):
+    # (M61 Q sets the tool without a change: the program says which tool is in the spindle)
+    if not is_t.any() or ((letter == ord("M")) & ((value == 6) | (value == 61))).any() or not len(records):
         return records
     t_val = value[is_t]
     if (t_val != np.floor(t_val)).any() or (t_val < 0).any() or (t_val >= 100).any():

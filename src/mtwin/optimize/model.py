@@ -224,12 +224,16 @@ def feed_records(program) -> np.ndarray:
     return ok
 
 
+RAMP_DZ = 0.01  # mm: a feed move that goes down by more than this is an entry (a ramp, a helix)
+
+
 def entry_records(program) -> np.ndarray:
     """Ramps and helical entries: feed moves that go down while they move sideways (a G1 ramp,
     a G2/G3 helix).  The CAM chose their feed, as a plunge's, for a tool entering material with
     its end face as well as its side, which the load model does not judge."""
     rec = program.records
-    return R.is_feed_kind(rec["kind"]) & (rec["z"] - rec["sz"] < -1e-6)
+    # (down by more than CAM rounding: a few µm of descent on a 3D surface move is not an entry)
+    return R.is_feed_kind(rec["kind"]) & (rec["z"] - rec["sz"] < -RAMP_DZ)
 
 
 def taylor_life(v_m_min: np.ndarray, n: float, c: float) -> np.ndarray:

@@ -506,7 +506,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
             raise MtwinError(f"{program.path}: nothing is cut: no power curve to smooth")
         target = float(np.percentile(mp, opts.target_percentile))
     run.put(broken=broken, force_limits=force_limits, given=given, learned=learned, limit_notes=limit_notes,
-            limits=limits, prob=prob, rates=rates, seg_given=seg_given, target=target)
+            limits=limits, prob=prob, rates=rates, seg_given=seg_given, target=target, worn=worn)
 
 
 def _search(run: _Run) -> OptimizeResult | None:
@@ -646,10 +646,10 @@ def _rounds(run: _Run) -> OptimizeResult | None:
     feed below the program's own only for a limit the program breaks there."""
     from ..gcode.verify import compare
     from ..gcode.writer import rewrite
-    (before, broken, cut, feed_range, feeds, floor, keep, kept, limit_notes, limits, opts, prob, program, rec,
-     seg_given, segs, spindle_range, spins, stage, stock, t_start, tol_v, twin, warnings) = \
-        run.take("before broken cut feed_range feeds floor keep kept limit_notes limits opts prob program rec "
-                 "seg_given segs spindle_range spins stage stock t_start tol_v twin warnings")
+    (before, broken, cut, feed_range, feeds, floor, keep, kept, learned, limit_notes, limits, opts, prob, program,
+     rec, seg_given, segs, spindle_range, spins, stage, stock, t_start, tol_v, twin, warnings, worn) = \
+        run.take("before broken cut feed_range feeds floor keep kept learned limit_notes limits opts prob program rec "
+                 "seg_given segs spindle_range spins stage stock t_start tol_v twin warnings worn")
     # ---- write, verify, re-simulate: the limits and the accuracy are held on the full twin.
     # A guard lowers a feed below the program's own only for a limit the program itself breaks
     # there (its floor is gone); for anything else — a move after it entered faster, accuracy —
@@ -705,7 +705,8 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             own = _ratios(loads_before, segs, prob, seg_before) * 1.001
             # what the program runs at on a learned level, on a kept segment, or (the air
             # objective) on a cut it leaves alone is its own: it must only not get worse
-            own_ok = ~var_given | keep
+            # (not a tool that starts worn: it is held to the load of a new tool, docs/wear.md)
+            own_ok = (~var_given & ~(learned and worn)) | keep
             if opts.objective == "air":
                 own_ok[:] = True
             allowed = np.where(own_ok, np.maximum(allowed, own), allowed)
@@ -714,7 +715,10 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         # 1. the limits on each segment itself
         over = (over_v > allowed) & ~keep
         # at its own feed over a given limit it also breaks in the program: its floor goes
-        drop = over & at_floor & (own > allowed) & (floor > lo)
+        # — or over a given limit with no raised segment before it to blame: its own entry is
+        # over the limit in the written program, so it must come down too
+        prev_raised = (prev >= 0) & raised[np.maximum(prev, 0)]
+        drop = over & at_floor & (floor > lo) & ((own > allowed) | (var_given & ~prev_raised))
         if drop.any():
             floor = np.where(drop, lo, floor)
             broken |= drop
@@ -737,12 +741,13 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         contour_after = _per_var(ce_after, seg_after, prob)
         # (on every segment, kept ones too: a kept segment entered faster by a raised one before
         # it loses accuracy to that one, which is slowed)
-        c_ratio = contour_after / (contour_before + tol_v)
+        c_ratio = contour_after / np.maximum(contour_before + tol_v, 1e-12)
         c_rec = _per_rec(ce_after, seg_after, rec_after, program)
         c_worse = c_rec > contour_rec_before + opts.tolerance
         cblame = np.zeros(prob.nvar)
         if c_worse.any():
-            excess = np.concatenate([c_rec / (contour_rec_before + opts.tolerance), np.zeros(len(rec))])
+            excess = np.concatenate([c_rec / np.maximum(contour_rec_before + opts.tolerance, 1e-12),
+                                     np.zeros(len(rec))])
             cblame = _blame_previous(seg_after, rec_after, np.concatenate([c_worse, np.zeros(len(rec), bool)]),
                                      prob, excess)
         # a segment not raised that lost accuracy lost it to the raised segment run before it
@@ -762,12 +767,14 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                 # go back to the program's own feeds, and one more round checks
                 back = (bad & raised) | np.isin(np.arange(prob.nvar), prev[bad & (prev >= 0)]) & raised
                 keep |= back
-                kept["would not settle (program's feed)"] = _var_lines(program, segs, prob, back)
+                if back.any():
+                    kept["would not settle (program's feed)"] = _var_lines(program, segs, prob, back)
                 cur = np.where(back, f0, cur)
                 settled_back = True
-                if not load_bad.any():
+                if not (load_bad & ~back).any():
                     continue
-            if not var_given.any() and not (load_bad & var_given).any():
+            if not (load_bad & broken).any():
+                # nothing the program breaks is left over: the program as it was is the answer
                 return _unchanged(program, before, opts, warnings, kept, t_start,
                                   f"after {round_} rounds the re-simulated answer still broke a limit or the contour "
                                   f"tolerance: the program is written unchanged", limit_notes)
@@ -829,12 +836,13 @@ def _result(run: _Run) -> OptimizeResult | None:
     (after, allowed, before, broken, ce_after, ce_before, contour_after, contour_before, f0, f_try, feed_range,
      fin_var, force_limits, generations, given, history, keep, kept, learned, limit_notes, loads_after, loads_before,
      lowered_for, new, opts, out, own, prob, program, rates, rough, round_, s_try, search_seconds, seg_after,
-     seg_before, segs, spindle_range, surface_var, t_start, times, tol_v, tw_after, twin, var_given, warnings) = \
+     seg_before, segs, spindle_range, surface_var, t_start, times, tol_v, tw_after, twin, var_given, warnings,
+     worn) = \
         run.take("after allowed before broken ce_after ce_before contour_after contour_before f0 f_try feed_range "
                  "fin_var force_limits generations given history keep kept learned limit_notes loads_after "
                  "loads_before lowered_for new opts out own prob program rates rough round_ s_try search_seconds "
                  "seg_after seg_before segs spindle_range surface_var t_start times tol_v tw_after twin var_given "
-                 "warnings")
+                 "warnings worn")
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
     fig_after = _figures(after, new, segs, prob, rates, seg_after, loads_after.load)
@@ -880,8 +888,9 @@ def _result(run: _Run) -> OptimizeResult | None:
         n0 = prob.n0_spin[prob.var_spin]
         off_range = (n0 < spindle_range[0] - 0.5) | (n0 > spindle_range[1] + 0.5)
     required = (f_try < f0 * (1 - 1e-9)) & (broken | off_range) & ~keep
-    slower_because = _slower_because(prob, segs, program, required, own, allowed, var_given, off_range,
-                                     spindle_range)
+    own_load = _ratios(loads_before, segs, prob, seg_before, machine=False)
+    slower_because = _slower_because(prob, segs, program, required, own_load, var_given, off_range, spindle_range,
+                                     learned and worn)
     if not fixes_chatter and _worse(opts.objective, fig_before, fig_after) and opts.objective in ("time", "cost"):
         figs = (f"{fig_before.cycle_time:.2f} -> {fig_after.cycle_time:.2f} s" if opts.objective == "time" else
                 f"cost {fig_before.cost:.3f} -> {fig_after.cost:.3f}")
@@ -1184,27 +1193,31 @@ def _limit_notes(prob, levels: dict, given_for, opts, m) -> list:
     return out
 
 
-def _slower_because(prob, segs, program, required, own, allowed, var_given, off_range, spindle_range) -> list:
+def _slower_because(prob, segs, program, required, own_load, var_given, off_range, spindle_range,
+                    worn_held: bool) -> list:
     """The segments written below the program's own feed and the limit the program breaks
     there, as data and as a phrase: what makes an answer slower than the program allowed."""
     out = []
     lines = segs.seg_lines(program)
     for v in np.flatnonzero(required):
         ss = np.flatnonzero(prob.seg_var == v)
-        s = ss[np.argmax(prob.seg_force[ss])] if len(ss) else None
-        if s is None:
+        if not len(ss):
             continue
-        ratio = float(own[v] / 1.001)
+        s = ss[np.argmax(prob.seg_force[ss])]
+        ratio = float(own_load[v] / 1.001) if own_load[v] > 1.001 else float(own_load[v])
         if var_given[v] and ratio > 1.0:
             what, text = "load", f"the load limit {prob.seg_force[s]:.1f} N of T{prob.seg_tool[s]} by {100 * (ratio - 1):.0f} %"
         elif off_range[v]:
             n0 = float(prob.n0_spin[prob.var_spin[v]])
             what, text = "spindle range", (f"the --spindle-range {spindle_range[0]:g}-{spindle_range[1]:g} rpm with its "
                                            f"S{n0:g} (the feed per tooth is kept at the new speed)")
+        elif worn_held:
+            what, text = "worn tool", (f"the load of a new tool ({prob.seg_force[s]:.1f} N, T{prob.seg_tool[s]}), which "
+                                       f"a tool that starts worn is held to")
         else:
             what, text = "machine", "the spindle's power or torque, or the chatter margin"
         out.append({"limit": what, "tool": int(prob.seg_tool[s]), "lines": [lines[s][0], lines[s][-1]],
-                    "limit_value": float(prob.seg_force[s]) if what == "load" else None,
+                    "limit_value": float(prob.seg_force[s]) if what in ("load", "worn tool") else None,
                     "program_ratio": ratio, "text": f"{text} (lines {lines[s][0]}-{lines[s][-1]})"})
     return out
 
@@ -1284,10 +1297,12 @@ class _Loads:
         return cls(np.hypot(trace.signal("fx"), trace.signal("fy")), _sample_ratio(trace, limits))
 
 
-def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray) -> np.ndarray:
+def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray, machine: bool = True) -> np.ndarray:
     """Per variable, the largest ratio of load, spindle power or torque to its limit on a
-    simulated trace (``seg_of``: the segment of every sample)."""
-    ratio = np.maximum(loads.load / prob.seg_force[np.maximum(seg_of, 0)], loads.machine)
+    simulated trace (``seg_of``: the segment of every sample); ``machine=False``: the load's alone."""
+    ratio = loads.load / prob.seg_force[np.maximum(seg_of, 0)]
+    if machine:
+        ratio = np.maximum(ratio, loads.machine)
     inside = seg_of >= 0
     out = np.zeros(prob.nvar)
     _max_into(out, prob.seg_var[seg_of[inside]], ratio[inside])

@@ -32,7 +32,7 @@ def _thin(t, *ys):
     """At most MAX_POINTS points of each curve over the times ``t``, every peak kept: each of
     MAX_POINTS / 2 buckets of samples gives its first time with the bucket's minimum and its
     middle time with the maximum (a thinned curve that skipped samples dropped the peaks the
-    tables report).  NaN gaps stay gaps."""
+    tables report).  A bucket with no number stays a gap; a shorter gap inside one is bridged."""
     n = len(t)
     if n <= MAX_POINTS:
         return (t, *ys)
