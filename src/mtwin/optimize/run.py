@@ -512,12 +512,8 @@ def _limits(run: _Run) -> OptimizeResult | None:
 def _search(run: _Run) -> OptimizeResult | None:
     """Feeds (and speeds) by bisection or the genetic algorithm on the fast model; the floors; air cuts to the
     top of the range; what the objective leaves alone."""
-    feed_range, learned, max_feed, opts, prob, progress, spindle_range, stage, target = run.take("feed_range "
-                                                                                                 "learned max_feed "
-                                                                                                 "opts prob "
-                                                                                                 "progress "
-                                                                                                 "spindle_range "
-                                                                                                 "stage target")
+    feed_range, learned, max_feed, opts, prob, progress, spindle_range, stage, target = \
+        run.take("feed_range learned max_feed opts prob progress spindle_range stage target")
     # ---- search
     stage("searching")
     generations, history = 0, None
@@ -823,33 +819,30 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                 stuck = (acc_bad | cblame_bad) & ~load_bad
                 cap = np.where(stuck, np.minimum(cap, f0), cap)
         cur = _approach_feeds(prob, segs, new_f, program, keep)
-    run.put(after=after, allowed=allowed, broken=broken, ce_after=ce_after, ce_before=ce_before,
+    run.put(after=after, broken=broken, ce_after=ce_after, ce_before=ce_before,
             contour_after=contour_after, contour_before=contour_before, f0=f0, f_try=f_try, keep=keep, kept=kept,
-            loads_after=loads_after, loads_before=loads_before, lowered_for=lowered_for, new=new, out=out, own=own,
-            round_=round_, s_try=s_try, seg_after=seg_after, seg_before=seg_before, tw_after=tw_after,
+            loads_after=loads_after, loads_before=loads_before, lowered_for=lowered_for, new=new, out=out,
+            prev=prev, round_=round_, s_try=s_try, seg_after=seg_after, seg_before=seg_before, tw_after=tw_after,
             var_given=var_given)
 
 
 def _result(run: _Run) -> OptimizeResult | None:
     """The promise checked from outside the rounds (not slower for nothing, nothing lowered without a broken
     limit, the contour held), the labels, and the result."""
-    (after, allowed, before, broken, ce_after, ce_before, contour_after, contour_before, f0, f_try, feed_range,
-     fin_var, force_limits, generations, given, history, keep, kept, learned, limit_notes, loads_after, loads_before,
-     lowered_for, new, opts, out, own, prob, program, rates, rough, round_, s_try, search_seconds, seg_after,
-     seg_before, segs, spindle_range, surface_var, t_start, times, tol_v, tw_after, twin, var_given, warnings,
-     worn) = \
-        run.take("after allowed before broken ce_after ce_before contour_after contour_before f0 f_try feed_range "
-                 "fin_var force_limits generations given history keep kept learned limit_notes loads_after "
-                 "loads_before lowered_for new opts out own prob program rates rough round_ s_try search_seconds "
-                 "seg_after seg_before segs spindle_range surface_var t_start times tol_v tw_after twin var_given "
-                 "warnings worn")
+    (after, before, broken, ce_after, ce_before, contour_after, contour_before, f0, f_try, feed_range, fin_var,
+     force_limits, generations, given, history, keep, kept, learned, limit_notes, loads_after, loads_before,
+     lowered_for, new, opts, out, prev, prob, program, rates, rough, round_, s_try, search_seconds, seg_after,
+     seg_before, segs, spindle_range, surface_var, t_start, times, tol_v, tw_after, twin, var_given, warnings, worn) = \
+        run.take("after before broken ce_after ce_before contour_after contour_before f0 f_try feed_range fin_var "
+                 "force_limits generations given history keep kept learned limit_notes loads_after loads_before "
+                 "lowered_for new opts out prev prob program rates rough round_ s_try search_seconds seg_after "
+                 "seg_before segs spindle_range surface_var t_start times tol_v tw_after twin var_given warnings worn")
     est = prob.evaluate(f_try[None, :], s_try[None, :])
     fig_before = _figures(before, program, segs, prob, rates, seg_before, loads_before.load)
     fig_after = _figures(after, new, segs, prob, rates, seg_after, loads_after.load)
     # (a segment is held to its tolerance where it, or the segment run before it, was raised:
     # elsewhere its contour error is the program's own)
     raised_v = (f_try > f0 * (1 + 1e-9)) & ~keep
-    prev = _previous_var(segs, prob)
     touched = raised_v | ((prev >= 0) & raised_v[np.maximum(prev, 0)])
     contour_held = (contour_after <= contour_before + tol_v + 1e-9) | ~touched
     contour = {"before": float(np.max(ce_before[seg_before >= 0], initial=0.0)),
@@ -1223,16 +1216,23 @@ def _slower_because(prob, segs, program, required, own_load, var_given, off_rang
 
 
 def _keep_reasons(program, segs, prob, keep: np.ndarray, kept: dict) -> np.ndarray:
-    """Per variable: why it kept its feeds ('' where it did not), from the ``kept`` notes."""
+    """Per variable: why it kept its feeds ('' where it did not) — the first of the ``kept``
+    notes that names one of its lines.  (By line, once: a loop over the kept variables, each
+    scanning every piece, took seconds on a 100,000-move program.)"""
     out = np.full(prob.nvar, "", dtype=object)
-    for v in np.flatnonzero(keep):
-        lines = set(_var_lines(program, segs, prob, np.arange(prob.nvar) == v))
-        for why, where in kept.items():
-            if lines & set(where):
-                out[v] = why
-                break
-        else:
-            out[v] = "not this objective's"
+    if not keep.any():
+        return out
+    reasons = list(kept)
+    piece_line = program.records["line"][segs.piece_rec]
+    first = np.full(int(piece_line.max(initial=0)) + 1, len(reasons), np.int64)  # per line: its first note
+    for k in range(len(reasons) - 1, -1, -1):
+        where = np.asarray(kept[reasons[k]], np.int64)
+        where = where[(where >= 0) & (where < len(first))]
+        first[where] = k
+    per_var = np.full(prob.nvar, len(reasons), np.int64)
+    np.minimum.at(per_var, prob.seg_var[segs.piece_seg], first[piece_line])
+    names = np.array(reasons + ["not this objective's"], dtype=object)
+    out[keep] = names[per_var[keep]]
     return out
 
 
