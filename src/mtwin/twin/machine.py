@@ -71,8 +71,8 @@ class Servo:
     # a control of today runs its position loop with velocity feed-forward (Fanuc's "feed-forward
     # coefficient", Siemens DSC/FFW, Heidenhain's velocity feedforward); without it the lag
     # v/Kv (0.17 mm at 400 mm/min, Kv 40) would cut every corner (docs/motion.md, "accuracy")
-    feedforward: float = P(0.9, "", "velocity feed-forward ratio alpha, 0..1 [S: 0.9-1.0 on contouring controls, "
-                           "Koren & Lo 1992; Erkorkmaz & Altintas 2001; example 0.9]", "unit_interval")
+    feedforward: float = P(0.9, "", "velocity feed-forward ratio alpha, 0..1 [E: feed-forward as on contouring "
+                           "controls, Koren & Lo 1992, Erkorkmaz & Altintas 2001; 0.9 chosen, not a cited value]", "unit_interval")
     s_pp: float = P(1.0, "", "scale factor on the position gain (reference S_pp)")
     s_vp: float = P(1.0, "", "scale factor on the velocity proportional gain (S_vp)")
     s_vi: float = P(1.0, "", "scale factor on the velocity integral gain (S_vi)", "nonneg")
