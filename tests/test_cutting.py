@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from mtwin.cutting.library import MATERIALS, cutting_from_dict
+from mtwin.cutting.library import BUILTIN_MATERIALS as MATERIALS, cutting_from_dict
 from mtwin.errors import MtwinError
 from mtwin.twin import Twin
 from mtwin.twin.machine import Machine

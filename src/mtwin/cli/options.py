@@ -69,6 +69,10 @@ EFFECT_FILE = (Optional[list[str]], typer.Option(None, "--effect-file", metavar=
                                                       "mtwin.effects.Effect)."))
 STOCK = (Optional[str], typer.Option(None, "--stock", help="Stock box xmin,ymin,zmin,xmax,ymax,zmax in mm (work "
                                                             "coordinates)."))
+MATERIAL = (Optional[str], typer.Option(None, "--material", metavar="NAME",
+                                        help="The work material: a catalogue name (4140, 304, AL6061, mdf, acrylic, "
+                                             "…; mtwin materials lists them) over the twin file's and the "
+                                             "program's; optimize then takes its limits from physics."))
 PLANNER = (Optional[str], typer.Option(None, "--planner", help="Override the twin file's planner style: fanuc | "
                                                                 "linuxcnc | grbl."))
 TOOL = (Optional[list[str]], typer.Option(None, "--tool", metavar="N=TYPE:DIAMETER[:FLUTES]",
@@ -87,10 +91,10 @@ TOOL_ID = (Optional[list[str]], typer.Option(None, "--tool-id", metavar="T3=ID",
 def twin_options(effects: bool = False, stock: bool = False, planner: bool = False, tools: bool = False,
                  ledger: bool = False) -> Group:
     """The twin options a command takes: always the twin file and the interpreter switches;
-    the effects (``--effect``, ``--effect-file``), ``--stock``, ``--planner`` and ``--tool``
+    the effects (``--effect``, ``--effect-file``), ``--stock`` (with ``--material``), ``--planner`` and ``--tool``
     where it uses them.  The object is a TwinSetup."""
     from_flags = {"planner": (planner, PLANNER), "tools": (tools, TOOL), "effects": (effects, EFFECT),
-                  "effect_files": (effects, EFFECT_FILE), "stock": (stock, STOCK), "ledger": (ledger, LEDGER),
+                  "effect_files": (effects, EFFECT_FILE), "stock": (stock, STOCK), "material": (stock, MATERIAL), "ledger": (ledger, LEDGER),
                   "tool_ids": (ledger, TOOL_ID)}
     options = {k: v for k, (on, v) in from_flags.items() if on}
     options.update(twin=TWIN, dialect=DIALECT, lenient=LENIENT, block_delete=BLOCK_DELETE)

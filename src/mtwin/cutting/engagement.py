@@ -150,9 +150,12 @@ def stock_box(plan, program, cutting: Cutting, tools, box=None) -> tuple[tuple[f
     source = "--stock"
     if box is None:
         found = stock_from_program(program)
+        read = _stock_comment(program, plan) if not found else None
         if found:
             box, line = found
             source = f"(MTWIN STOCK) comment, line {line}"
+        elif read is not None:
+            box, source = read
         elif cutting.stock is not None:
             box, source = cutting.stock, "twin file cutting.stock"
         else:
@@ -171,6 +174,23 @@ def stock_box(plan, program, cutting: Cutting, tools, box=None) -> tuple[tuple[f
         raise ConfigError(f"stock {box[3] - box[0]:g} x {box[4] - box[1]:g} mm at {res:g} mm needs {nx * ny / 1e6:.0f} "
                           f"million cells (limit {MAX_CELLS / 1e6:.0f}); set cutting.resolution to {res_new:.3f} mm or more")
     return tuple(box), res, source
+
+
+def _stock_comment(program, plan):
+    """(box, source) of a stock the program's comments give in a CAM system's form
+    (``cutting.workpiece``), or None."""
+    from .workpiece import place_size, read_workpiece
+
+    f = read_workpiece(program).stock
+    if f is None:
+        return None
+    box = f.value
+    if len(box) == 3:  # a size (Vectric): placed where it holds the toolpath
+        fb = getattr(plan, "feed_box", None)
+        box = place_size(box, fb) if fb is not None else None
+        if box is None:
+            return None
+    return tuple(box), f"{f.form} comment, line {f.line}"
 
 
 def new_stock(box, res, source) -> Stock:

@@ -44,7 +44,12 @@ class Tool:
                                "chamfer 90)", "positive")
     tip_diameter: float = P(0.0, "mm", "flat tip of a vee tool (engraving bits: 0.1-0.5 mm)", "nonneg")
     flute_length: float = P(15.0, "mm", "length of cut; deeper engagement is an error")
-    stickout: float = P(25.0, "mm", "length out of the holder [E]")
+    stickout: float = P(0.0, "mm", "length out of the holder: the cantilever of the breakage and deflection limits "
+                                   "(0: 4 x diameter [E], docs/catalogue.md)", "nonneg")
+    force_limit: float = P(0.0, "N", "the side load this tool may take in optimize (0: none given; --force-limit "
+                                     "stands over it)", "nonneg")
+    material: str = P("carbide", "str", "tool material: carbide | hss (its stiffness, strength and chip-load share, "
+                                        "docs/catalogue.md)", "choice", ("carbide", "hss"))
     price: float = P(30.0, "", "price per tool or edge, currency units [E: 30-150 $ carbide end mill]", "nonneg")
     taylor_n: float = P(0.35, "", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4]")
     taylor_c: float = P(1300.0, "", "Taylor constant C, m/min for T in min [E: aluminium 1100-1500]")
@@ -94,18 +99,32 @@ class Material:
     source: str = P("", "str", "where the values come from", "any")
 
 
-# PHYSICS.md section 1 table
-MATERIALS = {
+# PHYSICS.md section 1 table: the materials whose mechanistic coefficients were identified
+# (the catalogue's other materials are fitted to their Kienzle constants: catalogue.py)
+BUILTIN_MATERIALS = {
     "al6061": Material(1230.0, 615.0, 0.0, 0.0, 0.0, 0.0,
                        "[S] reference identification, 6 mm 2-flute carbide: Kt = 1.23e9 N/m^2, Ke = 0.50 "
                        "(Krc = Ke*Kt); axial and edge terms not identified (0)"),
     "al7075": Material(767.0, 168.8, 222.0, 27.7, 26.6, 0.7, "[S] Al 7075-T6 dry, CJME review 2021, Table 5"),
     "al6082": Material(631.0, 99.0, 273.0, 13.0, 10.0, 2.8, "[S] Al 6082-T6, CJME review 2021"),
-    "steel1045": Material(2150.0, 800.0, 450.0, 30.0, 30.0, 10.0,
-                          "[E] mild steel 1018/1045: middle of the PHYSICS.md ranges"),
-    "ti6al4v": Material(2000.0, 700.0, 300.0, 35.0, 25.0, 12.0, "[E] Ti-6Al-4V, PHYSICS.md"),
 }
-MATERIAL_ALIASES = {"mild_steel": "steel1045", "steel": "steel1045", "ti64": "ti6al4v", "a6061": "al6061"}
+
+
+def catalogue_materials() -> dict:
+    """Every catalogue material's coefficients by key (docs/catalogue.md)."""
+    from .catalogue import catalogue, material_coefficients
+
+    return {k: material_coefficients(k) for k in catalogue().materials}
+
+
+def material_key(name: str, custom=()) -> str | None:
+    """A twin file's or a user's material name as the key of ``custom`` ([materials.*]) or of
+    the catalogue (any of its names: ``AL6061``, ``mild steel``, ``42CrMo4``), or None."""
+    if name in custom:
+        return name
+    from .catalogue import find
+
+    return find(name)
 
 
 @dataclass(frozen=True)
@@ -114,7 +133,7 @@ class Cutting:
 
     tools: dict[int, Tool] = field(default_factory=dict)  # empty: every tool is the default
     material_name: str = "al6061"
-    material: Material = MATERIALS["al6061"]
+    material: Material = BUILTIN_MATERIALS["al6061"]
     stock: tuple[float, ...] | None = None
     resolution: float = 0.0  # 0: automatic (smallest tool diameter / 120, within 0.02..0.1 mm)
     step: float = 0.0  # 0: automatic (twice the resolution)
@@ -128,6 +147,9 @@ class Cutting:
     declared: dict[int, Tool] = field(default_factory=dict)
     # where each program tool's description was read: number -> (comment line, form); see for_program
     program_tool_lines: dict[int, tuple] = field(default_factory=dict)
+    # where the material was named: "" (nobody did: the default al6061), "twin file",
+    # "--material" or "program line N (FORM)" — a known material gives physics limits
+    material_from: str = ""
 
     def tool(self, number: int, where: str = "") -> Tool:
         if number in self.declared:
@@ -259,7 +281,7 @@ def _mode_key(cutting: Cutting, name: str):
 def _cutting_target(cutting: Cutting, name: str):
     parts = name.split(".")
     if len(parts) == 3 and parts[0] == "cutting":
-        mat = MATERIAL_ALIASES.get(parts[1], parts[1])
+        mat = parts[1] if parts[1] == cutting.material_name else material_key(parts[1])
         if mat != cutting.material_name:
             raise ConfigError(f"{name}: the twin cuts {cutting.material_name} (cutting.{cutting.material_name}.<coefficient>)")
         if parts[2] not in {f.name for f in fields(Material)} - {"source"}:
@@ -288,7 +310,14 @@ def for_program(cutting: Cutting, program) -> Cutting:
     """The cutting part for one program: a twin file's tool table stands; without one, the
     tools the program's comments declare (CAM post-processors write them: Fusion 360's
     ``(T1 D=6 CR=0 - flat end mill)``, Mastercam's tool table, …) replace the default tool,
-    and ``defaults_used`` says for each tool the program uses where its description came from."""
+    and ``defaults_used`` says for each tool the program uses where its description came from.
+    A material the program's comments name (``cutting.workpiece``) stands over the twin
+    file's catalogue name (not over ``--material``, nor over a twin file's own
+    [materials.*]), and a single-tool program's title comment describes its tool."""
+    from .workpiece import read_workpiece
+
+    wp = read_workpiece(program)
+    cutting = _program_material(cutting, wp)
     if cutting.tools:
         if cutting.declared:
             used = sorted(set(int(t) for t in program.records["tool"]))
@@ -315,6 +344,13 @@ def for_program(cutting: Cutting, program) -> Cutting:
             continue
         d = found.tools.get(t) if only is None else only
         lib = to_library_tool(d) if d is not None else None
+        if d is None and wp.tool is not None and len(used) == 1:
+            lib = wp.tool.value
+            tools[t] = lib
+            lines[t] = (wp.tool.line, wp.tool.form)
+            notes.append(f"tool T{t}: {lib.diameter:g} mm {lib.type} end mill, {lib.flutes} flutes, {lib.material}, "
+                         f"from the program's title comment line {wp.tool.line} ({wp.tool.text})")
+            continue
         if lib is not None:
             tools[t] = lib
             lines[t] = (d.line, d.form)
@@ -333,6 +369,22 @@ def for_program(cutting: Cutting, program) -> Cutting:
                          f"two-flute carbide flat end mill")
     rest = [d for d in cutting.defaults_used if not d.startswith("tool:")]
     return replace(cutting, program_tools=tools, defaults_used=tuple(notes + rest), program_tool_lines=lines)
+
+
+def _program_material(cutting: Cutting, wp) -> Cutting:
+    """The material the program's comments name, over a twin file's catalogue name."""
+    f = wp.material
+    if f is None or cutting.material_from == "--material" or (
+            cutting.material_from == "twin file" and material_key(cutting.material_name) != cutting.material_name):
+        return cutting
+    from .catalogue import catalogue
+
+    where = f"program line {f.line} ({f.form})"
+    note = (f"material: {f.value} ({catalogue().materials[f.value].title}) from the program's comment line {f.line} "
+            f"({f.text})")
+    rest = tuple(d for d in cutting.defaults_used if not d.startswith("material:"))
+    return replace(cutting, material_name=f.value, material=_catalogue_material(f.value), material_from=where,
+                   defaults_used=rest + (note,))
 
 
 def tools_used(cutting: Cutting, program) -> list[dict]:
@@ -392,7 +444,7 @@ def _parse(cls, table, prefix, where):
 def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
     """Tools, materials and [cutting] of a parsed twin file."""
     defaults = []
-    materials = dict(MATERIALS)
+    materials = {}
     for name, body in raw.get("materials", {}).items():
         values = _parse(Material, body, f"materials.{name}", where)
         if "ktc" not in values:
@@ -430,13 +482,19 @@ def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
     for key in cut:
         if key not in known:
             raise ConfigError(f"{where}: unknown key cutting.{key} (known: {', '.join(sorted(known))})")
-    name = cut.get("material", "al6061")
+    given = cut.get("material", "al6061")
     if "material" not in cut:
-        defaults.append("material: al6061 with the reference's Kt = 1230 N/mm^2, Ke = 0.50")
-    name = MATERIAL_ALIASES.get(name, name)
-    if name not in materials:
-        raise ConfigError(f"{where}: cutting.material: no coefficients for {cut.get('material')!r} "
-                          f"(built in: {', '.join(MATERIALS)}; or define [materials.{cut.get('material')}])")
+        defaults.append("material: al6061 with the reference's Kt = 1230 N/mm^2, Ke = 0.50 (no material named: "
+                        "optimize learns its limits from the program)")
+    if not isinstance(given, str):
+        raise ConfigError(f"{where}: cutting.material must be a name (a string), got {given!r}")
+    name = material_key(given, materials)
+    if name is None:
+        from .catalogue import known_list
+
+        raise ConfigError(f"{where}: cutting.material: no coefficients for {given!r} "
+                          f"(the catalogue knows: {known_list()}; or define [materials.{given}])")
+    mat = materials[name] if name in materials else _catalogue_material(name)
     stock = None
     if "stock" in cut:
         stock = parse_box(cut["stock"], f"{where}: cutting.stock")
@@ -450,7 +508,22 @@ def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
         if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v)):
             raise ConfigError(f"{where}: cutting.spindle_loss: expected [a, b, c] for a + b*n + c*n^2 W (n in rpm)")
         loss = tuple(float(x) for x in v)
-    return Cutting(tools, name, materials[name], stock, res, step, loss, tuple(defaults))
+    return Cutting(tools, name, mat, stock, res, step, loss, tuple(defaults),
+                   material_from="twin file" if "material" in cut else "")
+
+
+def _catalogue_material(key: str) -> Material:
+    from .catalogue import material_coefficients
+
+    return material_coefficients(key)
+
+
+def with_material(cutting: Cutting, name: str, where: str) -> Cutting:
+    """The cutting part cutting ``name`` (a catalogue name), said to come from ``where``."""
+    from .catalogue import resolve
+
+    key = resolve(name, where if where == "--material" else f"{where}: material")
+    return replace(cutting, material_name=key, material=_catalogue_material(key), material_from=where)
 
 
 def parse_box(value, key: str) -> tuple[float, ...]:

@@ -399,6 +399,17 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
             defaults=list(cutting_part.defaults_used), tools=tools_used(cutting_part, program),
             spindle_stopped_line=int(cstats[RK.CS_SPINDLE_STOPPED_LINE]))
+    if eng is not None:
+        from ..cutting.catalogue import shank_checks
+
+        summary.cutting.shank = shank_checks(cutting_part, program, force, record)
+        for c in summary.cutting.shank:
+            if c["over"]:
+                warnings.append(warning_text(
+                    program.path, c["line"], f"T{c['tool']}'s shank is overloaded: its peak side load {c['peak_load']:.0f} N bends the "
+                    f"shank to {c['stress']:.0f} N/mm², over the allowed {c['allowed_stress']:.0f} N/mm² "
+                    f"({c['tool_material']}, stick-out {c['stickout']:.3g} mm: {c['breaking_force']:.0f} N at most, "
+                    f"docs/catalogue.md) — take less feed, depth or width of cut"))
     kt = np.array([ax.torque_constant for ax in machine.axes])
     trace = Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
                   force if eng is not None else None, cut if eng is not None else None, eng, record)

@@ -45,6 +45,9 @@ class CuttingSummary:
     # with tools whose dynamics the twin knows: each cutting line's chatter stability margin
     # (motion.simulate.chatter_table; docs/chatter.md)
     chatter: dict = field(default_factory=dict)
+    # per described tool: the shank's bending stress at its peak load against its allowed
+    # stress, and the tip's deflection there (cutting.catalogue.shank_checks; docs/catalogue.md)
+    shank: list = field(default_factory=list)
 
 
 @dataclass

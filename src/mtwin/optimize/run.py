@@ -70,6 +70,12 @@ class OptimizeOptions:
     rough_tolerance: float | None = None  # None: ROUGH_TOLERANCE, or ``tolerance`` where that is larger
     ramp_feed: str = "keep"  # keep: ramps and helical entries keep their feed like plunges; optimize
     chip_limit: str = "learned"  # learned: a tool's chip thickness held to the program's own level; none
+    # where the limits come from: auto (physics for the tools the twin describes once the
+    # material is named — --material, cutting.material, the program's comments — else learned
+    # from the program), learned (always the program's own levels), physics (the material must
+    # be named); limit_scale: the physics limits' share (a cautious shop takes 0.8)
+    limits: str = "auto"
+    limit_scale: float = 1.0
     finish_feed: str = "keep"  # keep: finishing passes keep their feed per tooth; optimize: treated as any cut
     segmentation: str = "cluster"
     min_segment: float = 5.0  # mm, the reference's C
@@ -110,6 +116,10 @@ class OptimizeOptions:
              lambda: f"--rough-tolerance must be a contour error of 0 mm or more, got {o.rough_tolerance:g}"),
             (o.ramp_feed in ("keep", "optimize"), lambda: f"--ramp-feed must be keep or optimize, got {o.ramp_feed!r}"),
             (o.chip_limit in ("learned", "none"), lambda: f"--chip-limit must be learned or none, got {o.chip_limit!r}"),
+            (o.limits in ("auto", "learned", "physics"),
+             lambda: f"--limits must be auto, learned or physics, got {o.limits!r}"),
+            (0.1 <= o.limit_scale <= 1.5 and math.isfinite(o.limit_scale),
+             lambda: f"--limit-scale must be between 0.1 and 1.5 (a share of the physics limits), got {o.limit_scale:g}"),
             (o.min_segment >= 0, lambda: f"--min-segment must be >= 0, got {o.min_segment:g}"),
             (o.ga.population >= 4 and o.ga.generations >= 1,
              lambda: "--population must be at least 4 and --generations at least 1"),
@@ -398,17 +408,28 @@ def _limits(run: _Run) -> OptimizeResult | None:
                  "spindle_range stage times twin warnings")
     # ---- the limits: given (for every tool, or per tool), or learned per tool from the
     # program as written
-    given = opts.force_limit
-    learned = given is None  # every tool's load limit learned
-
-    def given_for(tool: int):
-        return given.get(tool) if isinstance(given, dict) else given
-
-    if isinstance(given, dict):
-        unused = sorted(set(given) - set(int(t) for t in np.unique(rec["tool"][candidates])))
+    user = opts.force_limit
+    if isinstance(user, dict):
+        unused = sorted(set(user) - set(int(t) for t in np.unique(rec["tool"][candidates])))
         if unused:
             warnings.append(f"{program.path}: warning: --force-limit names "
                             f"{', '.join(f'T{t}' for t in unused)}, which no feed move of the program uses")
+    used_tools = sorted(set(int(t) for t in np.unique(rec["tool"][ok])))
+    # a twin file's [tools.N] force_limit, under --force-limit
+    table = {t: cut.tool(t).force_limit for t in used_tools
+             if (t in cut.tools or t in cut.declared) and cut.tool(t).force_limit > 0}
+    # limits from physics: the material named, for the tools the twin describes
+    phys = _physics(opts, cut, used_tools, program)
+
+    def given_for(tool: int):
+        g = user.get(tool) if isinstance(user, dict) else user
+        g = table.get(tool) if g is None else g
+        if tool in phys:
+            g = phys[tool].breaking_force if g is None else min(g, phys[tool].breaking_force)
+        return g
+
+    given = user if not (table or phys) else {t: given_for(t) for t in used_tools if given_for(t) is not None}
+    learned = not given  # every tool's load limit learned
     # the load the program as written puts on a new tool is the load it may have: a tool that
     # starts worn (a ledger's) is held to it, so its feeds come down (docs/wear.md)
     new_tool = model
@@ -434,14 +455,39 @@ def _limits(run: _Run) -> OptimizeResult | None:
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
     seg_given = np.array([given_for(int(t)) is not None for t in prob.seg_tool], bool)
-    if opts.chip_limit == "learned" or learned:
+    if phys:
+        # the chip ceiling of the catalogue for described tools (the others keep their learned
+        # one) caps a raise: a segment already above it keeps its own chip as its ceiling, and
+        # one lowered for a broken limit goes down only as far as that limit needs
+        fz_own = prob._mechanics(prob.f0_var[None, :], fixed_spins(prob)[None, :])[2]
+        own_h = prob.chip(fz_own)[0] / (1.0 - opts.margin)
+        cat_h = np.array([phys[int(t)].chip if int(t) in phys else np.nan for t in prob.seg_tool])
+        other = np.array([levels[int(t)][1] if int(t) in levels and opts.chip_limit == "learned" else np.inf
+                          for t in prob.seg_tool])
+        prob = replace(prob, seg_hlim=np.where(np.isnan(cat_h), other, np.maximum(np.nan_to_num(cat_h), own_h)))
+    elif opts.chip_limit == "learned" or learned:
         prob = replace(prob, seg_hlim=np.array([levels[int(t)][1] if int(t) in levels else np.inf
                                                 for t in prob.seg_tool]))
+    tool_force = prob.seg_force.copy()  # (each tool's own limit, before the deflection cap on surfaces)
+    if phys:
+        # on a final surface the shank may bend at most the tolerance: a cap on a raise (a
+        # segment already over it at its own feed keeps its own load as the limit)
+        surface_seg = _finishing_segments(program, model, segs, prob) | _surface_segments(program, model, segs, before)
+        ev0 = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
+        own = ev0["load"][0] / (1.0 - opts.margin)
+        defl = np.array([phys[int(t)].stiffness * opts.tolerance if int(t) in phys else np.inf
+                         for t in prob.seg_tool])
+        cap = np.where(surface_seg & np.isfinite(defl), np.maximum(defl, own), np.inf)
+        capped = cap < prob.seg_force
+        prob = replace(prob, seg_force=np.minimum(prob.seg_force, cap))
+        # a capped segment's limit is its own load or the deflection, neither of which may
+        # lower it: it counts as given only where the program breaks the tool's own limit
+        seg_given &= ~capped | (own * (1.0 - opts.margin) > tool_force)
     if rates.slide_life:
         prob = replace(prob, seg_arc=_segment_arcs(model, segs, prob))
-    force_limits = {int(t): float(f) for t, f, g in zip(prob.seg_tool, prob.seg_force, seg_given)
+    force_limits = {int(t): float(f) for t, f, g in zip(prob.seg_tool, tool_force, seg_given)
                     if g or int(t) in levels}
-    limit_notes = _limit_notes(prob, levels, given_for, opts, m)
+    limit_notes = _limit_notes(prob, levels, given_for, opts, m, phys, cut, user, table)
     if spindle_range is not None:
         prob = replace(prob, runups=_runups(prob, program, plan, segs, m))
     if opts.chatter_margin is not None and opts.objective != "air":
@@ -493,6 +539,10 @@ def _limits(run: _Run) -> OptimizeResult | None:
                               + (" — the tool starts worn (its ledger's history): the land's edge force alone is "
                                  "over the load the program puts on a new tool, which it is held to; change the tool, "
                                  "or give a --force-limit; nothing was written" if learned else
+                                 " — the tool's shank would break there (its limit from physics, docs/catalogue.md): "
+                                 "take a smaller depth or width of cut, a shorter stick-out (tools.N.stickout) or a "
+                                 "stronger tool; nothing was written"
+                                 if any(int(r["tool"]) in phys and r["limit"] == "load" for r in reasons) else
                                  " — take a smaller depth or width of cut there, or a larger --force-limit "
                                  "(or leave it out: the limits are then learned from the program); nothing was written"),
                               reasons=reasons)
@@ -506,7 +556,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
             raise MtwinError(f"{program.path}: nothing is cut: no power curve to smooth")
         target = float(np.percentile(mp, opts.target_percentile))
     run.put(broken=broken, force_limits=force_limits, given=given, learned=learned, limit_notes=limit_notes,
-            limits=limits, prob=prob, rates=rates, seg_given=seg_given, target=target, worn=worn)
+            limits=limits, phys=phys, prob=prob, rates=rates, seg_given=seg_given, target=target, worn=worn)
 
 
 def _search(run: _Run) -> OptimizeResult | None:
@@ -1166,12 +1216,50 @@ def _surface_segments(program, model, segs, before) -> np.ndarray:
     return out
 
 
-def _limit_notes(prob, levels: dict, given_for, opts, m) -> list:
+def _physics(opts, cut, used_tools, program) -> dict:
+    """The physics limits per described tool, when the options and the material allow them."""
+    from .physics import tool_physics
+
+    if opts.limits == "learned" or opts.objective == "air":
+        return {}
+    known = cut.material_from != "" and cut.material_name in _catalogue_keys()
+    if opts.limits == "physics" and not known:
+        raise MtwinError(f"{program.path}: --limits physics needs the work material: give --material NAME (mtwin "
+                         f"materials lists them), cutting.material in the twin file, or a (MATERIAL: NAME) comment")
+    if not known:
+        return {}
+    phys = tool_physics(cut, used_tools, opts.limit_scale)
+    if opts.limits == "physics" and not phys:
+        raise MtwinError(f"{program.path}: --limits physics: no tool of the program is described (--tool, the twin "
+                         f"file's [tools.*] or the program's comments)")
+    return phys
+
+
+def _catalogue_keys():
+    from ..cutting.catalogue import catalogue
+
+    return catalogue().materials
+
+
+def _limit_notes(prob, levels: dict, given_for, opts, m, phys=None, cut=None, user=None, table=None) -> list:
     """Per tool: the load (and chip) limit used and where it came from."""
     out = []
+    phys = phys or {}
     for t in sorted(set(int(x) for x in prob.seg_tool)):
         g = given_for(t)
         h = levels[t][1] if t in levels and opts.chip_limit == "learned" else None
+        if t in phys:
+            d = phys[t].as_dict(cut.material_name)
+            d["material_from"] = cut.material_from
+            u = user.get(t) if isinstance(user, dict) else user
+            u = (table or {}).get(t) if u is None else u
+            if u is not None and u < d["load"]:
+                d.update(load=float(u), load_source="--force-limit" if (isinstance(user, dict) and t in user) or
+                         isinstance(user, (int, float)) else "twin file tools.N.force_limit")
+            d["deflection_tolerance"] = opts.tolerance
+            d["deflection_load"] = d["stiffness"] * opts.tolerance
+            out.append(d)
+            continue
         if g is not None:
             out.append({"tool": t, "load": float(g), "chip_thickness": h, "source": "--force-limit"
                         + ("; chip thickness learned from the program (--chip-limit none lifts it)" if h else "")})

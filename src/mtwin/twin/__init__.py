@@ -110,6 +110,14 @@ class Twin:
             parsed[int(n)] = parse_tool_option(f"{int(n)}={t}")[1] if isinstance(t, str) else t
         return self.replace(cutting=replace(self.cutting, declared={**self.cutting.declared, **parsed}))
 
+    def with_material(self, name: str) -> "Twin":
+        """A copy cutting catalogue material ``name`` (``"4140"``, ``"AL6061"``, ``"mdf"``:
+        any name of ``mtwin materials``) — what ``--material`` does; a known material gives
+        ``optimize`` its limits from physics (docs/catalogue.md)."""
+        from ..cutting.library import with_material
+
+        return self.replace(cutting=with_material(self.cutting, name, "--material"))
+
     def load(self, source, *, path: str | None = None):
         """Read and interpret a program with this twin's interpreter settings."""
         from ..gcode.interpreter import load_program

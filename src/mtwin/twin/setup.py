@@ -59,6 +59,7 @@ class TwinSetup:
     planner: Optional[str] = None  # fanuc | linuxcnc | grbl
     tools: tuple = ()  # "N=TYPE:DIAMETER[:FLUTES…]"
     stock: Optional[str] = None  # "xmin,ymin,zmin,xmax,ymax,zmax" (mm, work coordinates)
+    material: Optional[str] = None  # a catalogue name, over the twin file's and the program's
     ledger: Optional[str] = None  # a tool ledger: the mapped tools start in their recorded state
     tool_ids: tuple = ()  # "T3=ID": which physical tool of the ledger each tool number is
 
@@ -78,6 +79,8 @@ class TwinSetup:
             tools = dict(parse_tool_option(t) for t in self.tools)
             tw = tw.with_tools(tools)
             declared = tuple(sorted(int(n) for n in tools))
+        if self.material is not None:
+            tw = tw.with_material(self.material)
         if self.effects:
             tw = tw.with_effects(*self.effects)
         if self.tool_ids and not self.ledger:
@@ -134,6 +137,11 @@ def load_part(twin, program, messages: Optional[Messages] = None, need_motion: b
                                    f"{', '.join(f'T{int(t)}' for t in np.unique(prog.records['tool']))})"))
     if not prog.data.strip():
         raise GCodeError("the program is empty", SourceLocation(prog.path, 1, 1))
+    # what the comments say about the material, stock and tool, where a form is malformed
+    from ..cutting.workpiece import read_workpiece
+
+    for line, col, text in read_workpiece(prog).warnings:
+        messages.warn(warning_text(prog.path, line, text, col))
     if prog.records.size == 0:
         msg = "the program has no motion (no G0/G1/G2/G3, cycle or dwell is run)"
         if need_motion:
