@@ -153,10 +153,10 @@ def test_arc_heavy_contour_holds_its_accuracy_on_the_rewritten_program():
     tw = mtwin.Twin()
     prog = tw.load(str(SAMPLES / "contour.nc"))
     # by default its helical ramp (lines 24-26) keeps its feed, as a plunge does (issue 31)
-    default = optimize(tw, prog, OptimizeOptions())
+    default = optimize(tw, prog, OptimizeOptions(limits="learned"))
     assert [x for x in default.output.split(b"\n")[23:26]] == bytes(prog.data).split(b"\n")[23:26]
     # set like any cut, with the roughing allowance held as tight as a finish
-    r = optimize(tw, prog, OptimizeOptions(ramp_feed="optimize", rough_tolerance=0.02))
+    r = optimize(tw, prog, OptimizeOptions(ramp_feed="optimize", rough_tolerance=0.02, limits="learned"))
     assert r.after.cycle_time < r.before.cycle_time
     for s in r.segments:
         assert s["contour_error_after"] <= s["contour_error_before"] + 0.02 + 1e-9, s
@@ -172,8 +172,10 @@ def test_arc_heavy_contour_holds_its_accuracy_on_the_rewritten_program():
     # the faster they run): opened up, the same program runs faster and less accurately
     lag = mtwin.Twin().with_params({f"axes.{a}.servo.feedforward": 0.0 for a in "xyz"})
     prog = lag.load(str(SAMPLES / "contour.nc"))
-    strict = optimize(lag, prog, OptimizeOptions(ramp_feed="optimize", rough_tolerance=0.02))
-    loose = optimize(lag, prog, OptimizeOptions(tolerance=5.0, rough_tolerance=5.0, ramp_feed="optimize"))
+    # (the learned limits: the sample names its material, whose deflection limit would bind first)
+    strict = optimize(lag, prog, OptimizeOptions(ramp_feed="optimize", rough_tolerance=0.02, limits="learned"))
+    loose = optimize(lag, prog, OptimizeOptions(tolerance=5.0, rough_tolerance=5.0, ramp_feed="optimize",
+                                                limits="learned"))
     assert loose.after.cycle_time < strict.after.cycle_time
     assert any(s["limited_by"] == "accuracy (contour error)" for s in strict.segments)
 
@@ -191,7 +193,7 @@ def test_learned_limit_is_a_weighted_percentile_and_never_lowers_a_feed():
     assert weighted_percentile(x, np.array([10.0, 10.0, 79.0, 1.0]), 95) == 3.0  # 1 % at 100: a spike
     tw = mtwin.Twin()
     prog = tw.load(str(SAMPLES / "pocket.nc"))
-    r = optimize(tw, prog, OptimizeOptions())
+    r = optimize(tw, prog, OptimizeOptions(limits="learned"))
     assert r.after.cycle_time < r.before.cycle_time  # the README's promise: faster, not slower
     pairs = _feeds_along_path(prog, tw.load(r.output, path="o.nc"))
     assert pairs and all(b >= a - 1e-9 for a, b in pairs)  # no move slower than written
@@ -247,10 +249,10 @@ def test_refusal_with_json_names_the_limit_segment_lines_and_excess(tmp_path):
 
 
 def test_cli_summary_says_faster_and_which_limits(tmp_path):
-    p = run_cli("optimize", str(SAMPLES / "pocket.nc"), "-o", str(tmp_path / "o.nc"))
+    p = run_cli("optimize", str(SAMPLES / "pocket.nc"), "-o", str(tmp_path / "o.nc"), "--limits", "learned")
     assert p.returncode == 0, p.stderr
     assert re.search(r"result: [\d.]+ % faster", p.stderr)
-    doc = json.loads(run_cli("optimize", str(SAMPLES / "pocket.nc"), "-o", str(tmp_path / "o2.nc"), "--json").stdout)
+    doc = json.loads(run_cli("optimize", str(SAMPLES / "pocket.nc"), "-o", str(tmp_path / "o2.nc"), "--json", "--limits", "learned").stdout)
     assert doc["verdict"] == "faster" and doc["cycle_time_change"] < 0 and doc["tradeoff"] == []
     assert [x["tool"] for x in doc["limits"] if x["tool"] is not None] == [1] and doc["force_limit"]
     assert re.search(r"limits T1: load [\d.]+ N, chip thickness [\d.]+ µm \(learned", p.stderr)
@@ -383,10 +385,10 @@ def test_spindle_range_with_learned_limits_keeps_the_feed_per_tooth():
     # feed per tooth, not its feed, so the load stays the program's
     tw = mtwin.Twin()
     prog = tw.load(str(SAMPLES / "pocket.nc"))
-    r = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 4000.0)))
+    r = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 4000.0), limits="learned"))
     assert r.after.peak_load <= r.before.peak_load * 1.01
     # a range around it: S is never lowered below the program's own
-    r = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
+    r = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0), limits="learned"))
     new = tw.load(r.output, path="o.nc")
     assert new.records["spindle"][new.records["kind"] != 0].min() == 8000.0
 

@@ -176,12 +176,16 @@ def test_simulate_cutting_keys_plot_and_defaults(tmp_path):
     text = svg.read_text()
     assert text.startswith("<?xml") and "spindle power" in text and "program line" in text
     table = mtwin("simulate", str(SAMPLES / "pocket.nc")).stderr.decode()
-    # pocket.nc declares its tool (line 4); the material is the default
-    assert "default used" in table and "al6061" in table and "comment line 4" in table
+    # pocket.nc declares its tool (line 4) and its material (line 3: "Al 6061")
+    assert "al6061" in table and "comment line 4" in table and "comment line 3" in table
     bare = (SAMPLES / "pocket.nc").read_bytes().replace(b"(T1 D=6. CR=0. - FLAT END MILL, 2 FLUTES, CARBIDE)", b"")
     (tmp_path / "bare.nc").write_bytes(bare)
     table = mtwin("simulate", str(tmp_path / "bare.nc")).stderr.decode()
     assert "no description in the program" in table
+    # without its material line the material is the default, said so
+    (tmp_path / "nomat.nc").write_bytes(bare.replace(b", Al 6061", b""))
+    table = mtwin("simulate", str(tmp_path / "nomat.nc")).stderr.decode()
+    assert "default used" in table and "material: al6061 with the reference" in table
 
 
 def test_simulate_stock_option_and_errors(tmp_path):

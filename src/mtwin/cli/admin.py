@@ -159,3 +159,50 @@ def cache_clear():
     if d.is_dir():
         shutil.rmtree(d)
     err.print(f"removed {d}")
+
+
+@app.command("materials")
+@reports_errors
+def materials(name: Optional[str] = typer.Argument(None, help="One material (any of its names): its constants, "
+                                                                   "chip loads and sources."),
+              json_out: bool = JSON):
+    """The cutting-data catalogue: materials and their sources.
+
+    The names --material and cutting.material take (docs/catalogue.md)."""
+    from ..cutting import catalogue as C
+    from .render import table
+
+    cat = C.catalogue()
+    keys = [C.resolve(name, "mtwin materials")] if name is not None else list(cat.materials)
+    rows = []
+    for k in keys:
+        m = cat.materials[k]
+        co = C.material_coefficients(k)
+        rows.append({"name": k, "title": m.title, "iso_group": m.iso, "names": list(m.names), "kc11": m.kc11,
+                     "mc": m.mc, "kc_source": cat.source_text(m.kc_source),
+                     "coefficients": {"ktc": co.ktc, "krc": co.krc, "kac": co.kac, "kte": co.kte, "kre": co.kre,
+                                      "kae": co.kae, "source": co.source},
+                     "chip_load": {f"{d:g}": C.chip_load(k, d) for d in (3.0, 6.0, 10.0, 12.0, 20.0)},
+                     "chip_source": C.chip_source(k)})
+    if json_out:
+        emit_json(rows if name is None else rows[0])
+        return
+    if name is None:
+        t = table("name", "ISO", "material", ("kc1.1", "right"), ("mc", "right"), ("fz Ø3/6/10/20 mm", "right"),
+                  title="materials (mtwin materials NAME for one, with its sources)")
+        for r in rows:
+            fz = "/".join(f"{r['chip_load'][d]:.3g}" for d in ("3", "6", "10", "20"))
+            t.add_row(r["name"], r["iso_group"], r["title"], f"{r['kc11']:g}", f"{r['mc']:g}", fz)
+        err.print(t)
+        return
+    r = rows[0]
+    c = r["coefficients"]
+    lines = [f"{r['name']}: {r['title']} (ISO {r['iso_group']}); also read as {', '.join(r['names'])}",
+             f"Kienzle kc1.1 = {r['kc11']:g} N/mm², mc = {r['mc']:g}: {r['kc_source']}",
+             f"the twin's coefficients: Ktc {c['ktc']:.0f}, Krc {c['krc']:.0f}, Kac {c['kac']:.0f} N/mm²; Kte "
+             f"{c['kte']:.1f}, Kre {c['kre']:.1f}, Kae {c['kae']:.1f} N/mm — {c['source']}",
+             "chip load per tooth (solid carbide): " + ", ".join(f"Ø{d} mm {v:.3g} mm" for d, v in r["chip_load"].items()),
+             f"  {r['chip_source']}"]
+    import sys
+
+    sys.stdout.write("\n".join(lines) + "\n")

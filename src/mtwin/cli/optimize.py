@@ -25,12 +25,13 @@ GA = Group({"seed": (int, typer.Option(0, "--seed", help="GA random seed (same s
             "generations": (int, typer.Option(200, "--generations", help="GA generation limit."))}, _ga_options)
 
 
-def _limit_options(force_limit, chip_limit, tolerance, rough_tolerance, finish_feed, ramp_feed) -> dict:
+def _limit_options(force_limit, chip_limit, tolerance, rough_tolerance, finish_feed, ramp_feed, limits,
+                   limit_scale) -> dict:
     from ..optimize.run import parse_force_limit
 
     return {"force_limit": parse_force_limit(force_limit) if force_limit is not None else None,
             "chip_limit": chip_limit, "tolerance": tolerance, "rough_tolerance": rough_tolerance,
-            "finish_feed": finish_feed, "ramp_feed": ramp_feed}
+            "finish_feed": finish_feed, "ramp_feed": ramp_feed, "limits": limits, "limit_scale": limit_scale}
 
 
 # the command's own options (declared apart, as HTTPie declares its own)
@@ -68,9 +69,15 @@ SEGMENTATION = typer.Option("cluster", "--segmentation",
                             help="cluster (sequential clustering) | changepoint (binary segmentation).")
 MIN_SEGMENT = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of path.")
 # what the answer is held to: the load and chip limits, the accuracy, what keeps its feed
+LIMITS_FROM = typer.Option("auto", "--limits", help="auto (from physics — the catalogue's chip load, the shank's "
+                           "strength and stiffness — once the material is named: --material, cutting.material or "
+                           "the program's comments; else learned from the program) | learned | physics.")
+LIMIT_SCALE = typer.Option(1.0, "--limit-scale", help="Take this share of each physics limit (0.8: a cautious "
+                           "80 % of the catalogue).")
 LIMITS = Group({"force_limit": (Optional[str], FORCE_LIMIT), "chip_limit": (str, CHIP_LIMIT),
                 "tolerance": (float, TOLERANCE), "rough_tolerance": (Optional[float], ROUGH_TOLERANCE),
-                "finish_feed": (str, FINISH_FEED), "ramp_feed": (str, RAMP_FEED)}, _limit_options)
+                "finish_feed": (str, FINISH_FEED), "ramp_feed": (str, RAMP_FEED), "limits": (str, LIMITS_FROM),
+                "limit_scale": (float, LIMIT_SCALE)}, _limit_options)
 REPORT = typer.Option(None, "--report", help="Write a self-contained HTML report (.html).")
 JSON_OUT = typer.Option(False, "--json", help="Result as JSON on stdout.")
 IN_PLACE = typer.Option(False, "--in-place", help="Allow -o to be the input file.")
@@ -232,8 +239,19 @@ def _print_optimize(res, prog) -> None:
             err.print(f"limits T{lim['tool']}: {lim['source']}", highlight=False, soft_wrap=True)
             continue
         chip = f", chip thickness {lim['chip_thickness'] * 1000:.1f} µm" if lim.get("chip_thickness") else ""
-        err.print(f"limits T{lim['tool']}: load {lim['load']:.1f} N{chip} ({lim['source']})", highlight=False,
+        src = lim["source"]
+        if src == "physics":
+            src = (f"physics: {lim['material']} from {lim['material_from']}; shank breakage, catalogue chip load; "
+                   f"{lim['deflection_load']:.1f} N on final surfaces (deflection {lim['deflection_tolerance']:g} mm)"
+                   + (f", x {lim['scale']:g}" if lim["scale"] != 1.0 else ""))
+        err.print(f"limits T{lim['tool']}: load {lim['load']:.1f} N{chip} ({src})", highlight=False,
                   soft_wrap=True)
+    if res.tradeoff_scale:
+        pts = [x for x in res.tradeoff_scale if x["resimulated"] is not None] or res.tradeoff_scale
+        err.print("at a share of the physics limits: " + ", ".join(
+            f"{x['scale']:.0%} {x['resimulated'] if x['resimulated'] is not None else x['estimate']:.2f} s"
+            for x in pts) + (" (re-simulated)" if pts[0]["resimulated"] is not None else " (estimated)"),
+            highlight=False, soft_wrap=True)
     if res.spindle:
         err.print("spindle speed chosen: " + ", ".join(f"T{k}: S{v:.0f}" for k, v in res.spindle.items()),
                   highlight=False)

@@ -147,7 +147,7 @@ def _print_simulation(path: str, s, output, inch: bool = False) -> None:
         from rich.markup import escape
 
         for d in c.defaults:
-            read = d.startswith("tool T") or (d.startswith("material:") and " from " in d)
+            read = d.startswith("tool T") or (d.startswith("material:") and ") from " in d)
             t.add_row(d.split(" ", 1)[0].rstrip(":") if read else "default used", escape(d))
     if s.per_line is not None and s.per_line.worst(1):
         t.add_row("slowest lines", "simulated against nominal time (length/F, rapids at the axes' speed)")

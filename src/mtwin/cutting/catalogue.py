@@ -28,9 +28,10 @@ from importlib import resources
 
 from ..errors import ConfigError
 
-#: the chips (mm) the Kienzle curve is fitted over: from a finishing pass's 0.01 mm to the
-#: 0.2 mm of a large end mill's roughing in aluminium (the catalogue's own chip loads)
-KIENZLE_FIT = (0.01, 0.2)
+#: the Kienzle curve is fitted over the chips the material's tools run at: from half the
+#: smallest chip load of its row (not under KIENZLE_FIT_FROM mm, a finishing pass's chip) to
+#: the largest (0.01-0.12 mm steel, 0.01-0.16 aluminium, 0.048-0.51 MDF)
+KIENZLE_FIT_FROM = 0.01
 #: Krc/Ktc of a Kienzle-derived material: the reference identification's Ke = 0.50 (al6061,
 #: docs/physics.md §1) [E for other materials]; the radial edge force as the tangential one
 RADIAL_SHARE = 0.5
@@ -139,7 +140,13 @@ def known_list() -> str:
     return ", ".join(catalogue().materials)
 
 
-def kienzle_linear(kc11: float, mc: float, fit: tuple = KIENZLE_FIT) -> tuple[float, float]:
+def fit_range(key: str) -> tuple[float, float]:
+    cat = catalogue()
+    fz = cat.chips[cat.materials[key].chip].fz
+    return max(KIENZLE_FIT_FROM, 0.5 * min(fz)), max(fz)
+
+
+def kienzle_linear(kc11: float, mc: float, fit: tuple) -> tuple[float, float]:
     """(Ktc N/mm^2, Kte N/mm): the least-squares line ``Ktc·h + Kte`` through the Kienzle
     force per mm of edge ``kc11·h^(1-mc)`` over chips ``fit`` (mm, 64 log-spaced points:
     small chips count as much as large ones)."""
@@ -162,11 +169,12 @@ def material_coefficients(key: str):
     m = catalogue().materials[key]
     if m.builtin:
         return BUILTIN_MATERIALS[key]
-    ktc, kte = kienzle_linear(m.kc11, m.mc)
+    fit = fit_range(key)
+    ktc, kte = kienzle_linear(m.kc11, m.mc, fit)
     src = catalogue().source_text(m.kc_source)
     return Material(ktc, RADIAL_SHARE * ktc, 0.0, kte, kte, 0.0,
-                    f"fitted to Kienzle kc1.1 = {m.kc11:g} N/mm^2, mc = {m.mc:g} over h = {KIENZLE_FIT[0]:g}-"
-                    f"{KIENZLE_FIT[1]:g} mm (Krc = {RADIAL_SHARE:g} Ktc, Kre = Kte [E]); {src}")
+                    f"fitted to Kienzle kc1.1 = {m.kc11:g} N/mm^2, mc = {m.mc:g} over h = {fit[0]:g}-"
+                    f"{fit[1]:g} mm (Krc = {RADIAL_SHARE:g} Ktc, Kre = Kte [E]); {src}")
 
 
 def chip_load(key: str, diameter: float, tool_material: str = "carbide") -> float:

@@ -522,8 +522,12 @@ def with_material(cutting: Cutting, name: str, where: str) -> Cutting:
     """The cutting part cutting ``name`` (a catalogue name), said to come from ``where``."""
     from .catalogue import resolve
 
+    from .catalogue import catalogue
+
     key = resolve(name, where if where == "--material" else f"{where}: material")
-    return replace(cutting, material_name=key, material=_catalogue_material(key), material_from=where)
+    rest = tuple(d for d in cutting.defaults_used if not d.startswith("material:"))
+    return replace(cutting, material_name=key, material=_catalogue_material(key), material_from=where,
+                   defaults_used=rest + (f"material: {key} ({catalogue().materials[key].title}) from {where}",))
 
 
 def parse_box(value, key: str) -> tuple[float, ...]:

@@ -213,24 +213,25 @@ def _read(data: bytes, inch: bool, first_move: int) -> Workpiece:
 
 def place_size(size: tuple, feed_box) -> tuple | None:
     """A Vectric material size (x, y[, z]) placed where it holds the feed moves' box
-    ``((xmin, ymin, zmin), (xmax, ymax, zmax))``: XY from the origin, else centred on it; Z
-    under Z0 (surface datum), else on it (table datum); None when no placement holds them."""
+    ``((xmin, ymin, zmin), (xmax, ymax, zmax))``: XY from the origin, else centred on it (the
+    placement whose box holds the toolpath's centre; a profile cut runs outside the edge by
+    its tool's radius); Z under Z0 when the toolpath goes below Z0 (surface datum), else on
+    it (table datum).  A through-cut below the bottom (into the spoilboard) takes the bottom
+    down with it: the Z-map has one top surface.  None when no placement holds the toolpath."""
     lo, hi = feed_box
     x, y, z = size
-    tol = 1e-3
+    cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
     xy = None
     for x0, y0 in ((0.0, 0.0), (-x / 2, -y / 2)):
-        if lo[0] >= x0 - tol and hi[0] <= x0 + x + tol and lo[1] >= y0 - tol and hi[1] <= y0 + y + tol:
+        if x0 <= cx <= x0 + x and y0 <= cy <= y0 + y:
             xy = (x0, y0)
             break
     if xy is None:
         return None
     if z is None:  # no thickness: top at Z0, bottom under the deepest move
         zlo, zhi = min(lo[2], 0.0) - 1.0, 0.0
-    elif lo[2] >= -z - tol and lo[2] < 0:
-        zlo, zhi = -z, 0.0
-    elif lo[2] >= -tol and lo[2] <= z + tol:
-        zlo, zhi = 0.0, z
+    elif lo[2] < 0:
+        zlo, zhi = min(-z, lo[2]), 0.0
     else:
-        return None
+        zlo, zhi = 0.0, z
     return (xy[0], xy[1], zlo, xy[0] + x, xy[1] + y, zhi)

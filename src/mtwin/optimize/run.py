@@ -214,6 +214,9 @@ class OptimizeResult:
     # an answer slower than the program: per segment written below its own feed, the limit the
     # program breaks there (empty: the answer is not slower, or only for the chatter margin)
     slower_because: list = field(default_factory=list)
+    # with limits from physics: cycle time against their scale (0.6-1.0 of each), estimated, and
+    # re-simulated at a few scales ({"scale", "estimate", "resimulated" or None})
+    tradeoff_scale: list = field(default_factory=list)
 
     @property
     def tools(self) -> list:
@@ -245,7 +248,7 @@ class OptimizeResult:
                 "spindle": {str(k): v for k, v in self.spindle.items()}, "defaults": self.defaults,
                 "tools": self.tools, "segments": self.segments,
                 "tradeoff": [{"force_limit": f, "cycle_time": t} for f, t in self.tradeoff],
-                "tradeoff_source": self.tradeoff_source,
+                "tradeoff_source": self.tradeoff_source, "tradeoff_scale": self.tradeoff_scale,
                 **({"tool_wear": {str(k): v for k, v in self.tool_wear.items()}} if self.tool_wear else {}),
                 **({"chatter": self.chatter} if self.chatter else {}),
                 "slower_because": self.slower_because,
@@ -986,7 +989,13 @@ def _result(run: _Run) -> OptimizeResult | None:
                          "contour_error_after": float(contour_after[v])})
     # (with learned limits the load limit is not the binding knob — the chip thickness and the
     # program's own feeds are — so a curve over the load limit alone would mislead)
-    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") and isinstance(given, (int, float)) else []
+    tradeoff = _tradeoff(prob, s_try) if opts.objective in ("time", "cost") and isinstance(opts.force_limit, (int, float)) \
+        else []
+    phys = run.phys
+    tradeoff_scale = []
+    if phys and opts.objective in ("time", "cost"):
+        run.stage("the trade-off against the physics limits")
+        tradeoff_scale = _scale_tradeoff(run, est, fig_after)
     changed = _changed_lines(program.data, out)
     spindle_chosen = {}
     if spindle_range is not None:
@@ -1007,7 +1016,8 @@ def _result(run: _Run) -> OptimizeResult | None:
         kept=kept, contour_error=contour, spindle=spindle_chosen,
         tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter,
         chatter_curves={} if prob.chatter is None else {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()},
-        slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because])
+        slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because],
+        tradeoff_scale=tradeoff_scale)
 
 
 STAGES = (_baseline, _limits, _search, _guards, _rounds, _result)
@@ -1696,6 +1706,47 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep, keep_why, low
             out.append("program's feed (its own level)")
         else:
             out.append("objective")
+    return out
+
+
+#: the scales of the physics limits the trade-off curve is drawn at, and those re-simulated
+TRADEOFF_SCALES = (0.6, 0.7, 0.8, 0.9, 1.0)
+TRADEOFF_RESIMULATED = (0.6, 0.8, 1.0)
+#: above this many motion records the curve is estimated only (each re-simulation costs a run)
+TRADEOFF_MAX_RECORDS = 50_000
+
+
+def _scale_tradeoff(run: _Run, est, fig_after) -> list:
+    """Cycle time against a scale of the physics limits: at each scale the answer's feeds, each
+    no higher than the scaled limits allow (the rounds' guards still hold: a lower feed is no
+    less accurate) and no lower than its floor, estimated on the fast model and re-simulated at
+    TRADEOFF_RESIMULATED."""
+    from ..gcode.writer import rewrite
+
+    (f_try, floor, keep, opts, phys, prob, program, s_try, segs, stock, tw_after, twin, new) = \
+        run.take("f_try floor keep opts phys prob program s_try segs stock tw_after twin new")
+    on = np.array([int(t) in phys for t in prob.seg_tool])
+    out = []
+    for scale in TRADEOFF_SCALES:
+        k = scale / opts.limit_scale
+        at = replace(prob, seg_force=np.where(on, prob.seg_force * k, prob.seg_force),
+                     seg_hlim=np.where(on, prob.seg_hlim * k, prob.seg_hlim) if prob.seg_hlim is not None else None)
+        f = at.max_feasible_feed(s_try)
+        f = np.where(np.isnan(f), floor, f)
+        f = np.where(keep, f_try, np.maximum(np.minimum(f, f_try), floor))
+        t_est = float(at.evaluate(f[None, :], s_try[None, :])["time"][0])
+        resim = None
+        if any(abs(scale - r) < 1e-9 for r in TRADEOFF_RESIMULATED) and len(program.records) <= TRADEOFF_MAX_RECORDS:
+            if abs(k - 1.0) < 1e-9:
+                resim = fig_after.cycle_time  # the answer itself
+            else:
+                fr = _round_feeds(f, prob.f0_var, program, segs, prob)
+                feeds_rec, splits, spins_rec = _expand(program, segs, np.where(keep, prob.f0_var, fr), np.round(s_try),
+                                                       prob, False, keep)
+                text = rewrite(program, feeds_rec, spins_rec, splits)
+                resim = float(tw_after.simulate(twin.load(text, path=program.path), stock=stock,
+                                                chatter=False).summary.cycle_time)
+        out.append({"scale": scale, "estimate": t_est, "resimulated": resim})
     return out
 
 

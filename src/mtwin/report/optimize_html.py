@@ -64,7 +64,12 @@ def optimize_html(res, program: str) -> bytes:
             continue
         load = "–" if lim.get("load") is None else f"{lim['load']:.1f} N"
         chip = "–" if not lim.get("chip_thickness") else f"{lim['chip_thickness'] * 1000:.1f} µm"
-        lim_rows.append(f"<tr><td>T{lim['tool']}</td><td>{load}</td><td>{chip}</td><td>{e(lim['source'])}</td></tr>")
+        src = lim["source"]
+        if src == "physics":  # each value with its own source
+            src = (f"physics, {lim['material']} ({lim['material_from']}): load — {lim['load_source']}; chip — "
+                   f"{lim['chip_thickness_source']}; on final surfaces at most {lim['deflection_load']:.1f} N (the "
+                   f"shank bends {lim['deflection_tolerance']:g} mm: {lim['stiffness_source']})")
+        lim_rows.append(f"<tr><td>T{lim['tool']}</td><td>{load}</td><td>{chip}</td><td>{e(src)}</td></tr>")
     if lim_rows:
         parts.append("<h2>Limits</h2><table><tr><th>tool</th><th>load</th><th>chip thickness</th><th>where from</th>"
                      "</tr>" + "".join(lim_rows) + "</table>")
@@ -80,6 +85,11 @@ def optimize_html(res, program: str) -> bytes:
         parts.append("<h2>Cycle time against the load limit</h2><p>From the same segments (fast model): what "
                      "each extra 10 N of permitted load buys.</p>")
         parts.append(_tradeoff(plt, res))
+    if res.tradeoff_scale:
+        parts.append("<h2>Cycle time against the physics limits</h2><p>The answer's feeds held to a share of each "
+                     "limit from physics (chip thickness, shank load): what a cautious shop gives up by taking 60–90 % "
+                     "of the catalogue. Line: the fast model; dots: full re-simulations.</p>")
+        parts.append(_scale_plot(plt, res))
     if res.chatter:
         parts.append(_chatter(res))
     parts.append(_segments_table(res))
@@ -211,6 +221,22 @@ def _tradeoff(plt, res) -> str:
         ax.legend(fontsize=8)
     ax.set_xlabel("load limit [N]")
     ax.set_ylabel("estimated cycle time [s]")
+    ax.grid(True, alpha=0.3)
+    return _svg(fig)
+
+
+def _scale_plot(plt, res) -> str:
+    sc = np.array([x["scale"] for x in res.tradeoff_scale])
+    t = np.array([x["estimate"] for x in res.tradeoff_scale])
+    fig, ax = plt.subplots(figsize=(7, 3.2), dpi=100)
+    ax.plot(sc * 100, t, marker="o", color="#1f5fa8", label="estimate")
+    rs = [(x["scale"] * 100, x["resimulated"]) for x in res.tradeoff_scale if x["resimulated"] is not None]
+    if rs:
+        ax.plot([a for a, _ in rs], [b for _, b in rs], "s", color="#c0392b", label="re-simulated")
+    ax.axhline(res.before.cycle_time, color="k", ls="--", lw=0.8, label="program as written")
+    ax.legend(fontsize=8)
+    ax.set_xlabel("share of the physics limits [%]")
+    ax.set_ylabel("cycle time [s]")
     ax.grid(True, alpha=0.3)
     return _svg(fig)
 
