@@ -250,3 +250,37 @@ def test_limits_options_and_a_twin_files_per_tool_force_limit(tmp_path):
     r = optimize(tw2, tw2.load(plain.encode(), path="p.nc"), OptimizeOptions())
     assert r.force_limit[1] == 30.0
     assert r.after.peak_load <= 30.0 * 1.01
+
+
+CLEAR = """(T1 D=6 CR=0 - flat end mill)
+G21 G90 G17
+T1 M6
+S8000 M3
+G0 X-10 Y0 Z5
+G0 X70 Y0
+G0 X70 Y20
+G0 X-10 Y20
+G1 X70 Y20 Z5 F300
+G0 X70 Y21
+G1 X70 Y40 Z5 F300
+G0 X-10 Y0
+G1 Z0 F100
+G1 X60 F300
+G1 Y10
+G1 X0
+G0 Z5
+M30
+"""
+
+
+def test_air_the_programs_own_rapids_prove_clear_goes_to_the_top_of_the_range():
+    tw = mtwin.Twin()
+    prog = tw.load(CLEAR.encode(), path="clear.nc")
+    r = optimize(tw, prog, OptimizeOptions())
+    out = r.output.decode().splitlines()
+    src = CLEAR.splitlines()
+    # line 9 runs where the program's own G0 at Z5 passed (line 8): raised to the top of the range
+    assert out[8].startswith("G1 X70 Y20 Z5 F") and float(out[8].split("F")[1]) == tw.machine.max_cutting_feed
+    # line 11 runs at Z5 where no rapid passed, the facing pass at Z0 under the rapids: kept
+    assert out[10] == src[10] and out[13:16] == src[13:16]
+    assert r.after.cycle_time < r.before.cycle_time

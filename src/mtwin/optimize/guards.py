@@ -19,6 +19,7 @@
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -293,3 +294,94 @@ def line_ranges(lines: list[int], most: int = 8) -> str:
             runs.append([ln, ln])
     txt = [f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:most]]
     return ", ".join(txt) + (", …" if len(runs) > most else "")
+
+
+#: cell of the clearance map the program's own rapids prove (mm); coarser for a large area
+CLEAR_CELL = 0.5
+CLEAR_MAX_CELLS = 4_000_000
+
+
+def proven_clear(program, cutting) -> np.ndarray:
+    """Per record: a feed move the program itself proves clear of material — its whole sweep
+    lies where the program's own horizontal rapids (G0 with XY motion) passed at or below the
+    move's lowest height.  A rapid at height h over an area says nothing stands above h there
+    (else the machine would crash), whatever the stock's size.
+
+    A clearance map on a grid of CLEAR_CELL: each rapid's centreline at its height, widened by
+    the smallest tool radius (the sweep it cleared); a move's centreline widened by the largest
+    radius must lie in it, everywhere at or below the move's height there (to half a cell: a
+    move along a rapid's own path with the same tool is proven)."""
+    from scipy import ndimage
+
+    rec = program.records
+    n = len(rec)
+    out = np.zeros(n, bool)
+    rapid = (rec["kind"] == R.RAPID) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) > 1e-6)
+    feed = (rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    if not rapid.any() or not feed.any():
+        return out
+    radii = [cutting.tool(int(t)).radius for t in np.unique(rec["tool"])]
+    r_min, r_max = min(radii), max(radii)
+    pts_r, z_r = _xy_samples(rec, rapid, CLEAR_CELL)
+    lo = pts_r.min(axis=0) - r_min - CLEAR_CELL
+    hi = pts_r.max(axis=0) + r_min + CLEAR_CELL
+    cell = max(CLEAR_CELL, math.sqrt(float(np.prod(hi - lo)) / CLEAR_MAX_CELLS))
+    if cell > CLEAR_CELL:
+        pts_r, z_r = _xy_samples(rec, rapid, cell)
+    nx, ny = (int(math.ceil(v)) + 1 for v in (hi - lo) / cell)
+    field = np.full((ny, nx), np.inf)
+    ij = np.floor((pts_r - lo) / cell).astype(np.int64)
+    np.minimum.at(field, (ij[:, 1], ij[:, 0]), z_r)
+
+    def disc(r):
+        k = max(int(math.floor(r / cell)), 0)
+        yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
+        return (xx * xx + yy * yy) * cell * cell <= r * r
+
+    # the lowest rapid over each cell of the cleared sweep, then the highest of those a tool
+    # of the largest radius centred there would cover
+    # (to the cell: a move along a rapid's own path, with the same tool, sweeps what it swept)
+    cleared = ndimage.minimum_filter(field, footprint=disc(r_min + 0.5 * cell), mode="constant", cval=np.inf)
+    need = ndimage.maximum_filter(cleared, footprint=disc(max(r_max - 0.5 * cell, 0.0)), mode="constant",
+                                  cval=np.inf)
+    idx = np.flatnonzero(feed)
+    pts_f, z_f, which = _xy_samples(rec, feed, cell, with_index=True)
+    ij = np.floor((pts_f - lo) / cell).astype(np.int64)
+    inside = (ij[:, 0] >= 0) & (ij[:, 0] < nx) & (ij[:, 1] >= 0) & (ij[:, 1] < ny)
+    h = np.full(len(pts_f), np.inf)
+    h[inside] = need[ij[inside, 1], ij[inside, 0]]
+    bad = np.zeros(n, bool)
+    np.logical_or.at(bad, which, h > z_f + 1e-6)
+    out[idx] = ~bad[idx]
+    # an arc in another plane dips below its end points: not proven
+    arc = (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    out &= ~(arc & (rec["plane"] != R.PLANE_XY))
+    return out
+
+
+def _xy_samples(rec, mask, step: float, with_index: bool = False):
+    """Points every ``step`` mm along the XY path of the records ``mask`` (arcs in XY along
+    their arc), with each point's height (Z along the move) and record index."""
+    idx = np.flatnonzero(mask)
+    r = rec[idx]
+    sx, sy, ex, ey = r["sx"], r["sy"], r["x"], r["y"]
+    arc = ((r["kind"] == R.ARC_CW) | (r["kind"] == R.ARC_CCW)) & (r["plane"] == R.PLANE_XY)
+    rad = np.hypot(sx - r["cx"], sy - r["cy"])
+    a0 = np.arctan2(sy - r["cy"], sx - r["cx"])
+    a1 = np.arctan2(ey - r["cy"], ex - r["cx"])
+    cw = r["kind"] == R.ARC_CW
+    sweep = np.where(cw, (a0 - a1) % (2 * np.pi), (a1 - a0) % (2 * np.pi))
+    sweep = np.where(sweep < 1e-9, 2 * np.pi, sweep)  # (a full circle)
+    length = np.where(arc, rad * sweep, np.hypot(ex - sx, ey - sy))
+    count = np.maximum(np.ceil(length / (0.5 * step)).astype(np.int64), 1) + 1
+    rid = np.repeat(np.arange(len(idx)), count)
+    first = np.repeat(np.cumsum(count) - count, count)
+    u = (np.arange(len(rid)) - first) / np.maximum(count[rid] - 1, 1)
+    ang = a0[rid] + np.where(cw[rid], -1.0, 1.0) * sweep[rid] * u
+    x = np.where(arc[rid], r["cx"][rid] + rad[rid] * np.cos(ang), sx[rid] + (ex[rid] - sx[rid]) * u)
+    y = np.where(arc[rid], r["cy"][rid] + rad[rid] * np.sin(ang), sy[rid] + (ey[rid] - sy[rid]) * u)
+    z = r["sz"][rid] + (r["z"] - r["sz"])[rid] * u
+    pts = np.stack([x, y], axis=1)
+    if with_index:
+        return pts, z, idx[rid]
+    return pts, z

@@ -21,7 +21,7 @@ from .chatter import chatter_tables, var_stable
 from .chatter import report as chatter_report
 from .search import GAOptions, bisect, fixed_spins, genetic
 from .guards import (FINISH_AE, SURFACE_SHARE, contour_error, final_surface_steps, finish_lines, inside_stock,
-                     learned_levels, percentile_by_group, trusted_records)
+                     learned_levels, percentile_by_group, proven_clear, trusted_records)
 from .segment import locate, segment_path
 
 
@@ -651,6 +651,9 @@ def _guards(run: _Run) -> OptimizeResult | None:
         undescribed_cut = candidates & ~trust.ok & np.isin(rec["tool"], list(trust.undescribed))
         first_unknown = int(np.argmax(undescribed_cut)) if undescribed_cut.any() else len(rec)
         known_air = inside & (np.arange(len(rec)) < first_unknown)
+        # where the program's own horizontal rapids passed at or below a move, it is clear of
+        # any stock, guessed or real (guards.proven_clear)
+        known_air |= proven_clear(program, cut)
         # a straight retract (up, no XY motion) stays in the tool's own footprint, which it came
         # down through: it cuts nothing, whatever the stock
         known_air |= (rec["z"] > rec["sz"]) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) < 1e-6) & \
