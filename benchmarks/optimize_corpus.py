@@ -17,6 +17,14 @@ optimiser says about it:
   top changed; no ramp or helical entry (a feed move going down while moving sideways) changed;
 * slower only where the optimiser names the limit the program breaks (``slower_because``).
 
+``--materials benchmarks/corpus_materials.toml`` names each program's material as a user would
+(``--material``; the rules say which and why): the limits then come from physics, and each
+answer is checked against them from outside too — no described tool's shank over its allowed
+stress unless the program already was (and the answer names it), no chip thickness over the
+catalogue's (or the program's own where it already ran above it).  The totals add the
+programs whose cutting tools the twin describes.  ``--forms`` counts, without optimising, the
+programs that declare each form of material, stock and title tool the twin reads.
+
 ``--force-limit-factor 1.5`` runs each program a second time with ``--force-limit`` at 1.5x
 the program's own peak load; ``--twin`` and ``--also FILE`` (e.g. NIST's PLATE-15 on
 ``samples/machines/hurco-vmx24.toml``) add a twin and programs outside the corpus.
@@ -54,8 +62,15 @@ def _alarm(signum, frame):
     raise Timeout()
 
 
+def material_for(path: Path, rules: list) -> tuple[str, str] | None:
+    for r in rules:
+        if r["match"] in str(path):
+            return r["material"], r["why"]
+    return None
+
+
 def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None = None,
-              factor: float | None = None) -> dict:
+              factor: float | None = None, material: str | None = None) -> dict:
     import mtwin
     from mtwin.cutting.library import describes
     from mtwin.errors import MtwinError
@@ -66,8 +81,10 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     from mtwin.cutting.engagement import GUESSED_STOCK
     from mtwin.optimize.run import OptimizeOptions, _feed_samples, optimize
 
-    rec: dict = {"program": str(path), "force_limit_factor": factor}
+    rec: dict = {"program": str(path), "force_limit_factor": factor, "material": material}
     tw = mtwin.Twin.from_toml(twin_file)
+    if material is not None:
+        tw = tw.with_material(material)
     try:
         prog = tw.load(str(path))
     except MtwinError as exc:
@@ -108,7 +125,9 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
         # the program's own simulation is the optimiser's first step (a plain simulate); the
         # output is simulated afresh, on a new twin, unless it is the program byte for byte
         before = res.trace_before
-        after = before if res.output == bytes(prog.data) else mtwin.Twin.from_toml(twin_file).simulate(new)
+        fresh = mtwin.Twin.from_toml(twin_file)
+        fresh = fresh.with_material(material) if material is not None else fresh
+        after = before if res.output == bytes(prog.data) else fresh.simulate(new)
     except MtwinError as exc:
         rec.update(status="re-simulation failed", reason=str(exc)[:300])
         return rec
@@ -190,7 +209,62 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     rec["contour_after"] = float(np.max(ce_a[_feed_samples(after, new)], initial=0.0))
     rec["contour_ok"] = rec["contour_after"] <= rec["contour_before"] + tol + 1e-9 and rec["segments_contour_held"]
     rec["kept"] = {k: len(v) for k, v in res.kept.items()}
+    rec["described"] = bool(c is not None and c.tools and all(t["source"] != "default" for t in c.tools))
+    rec["physics"] = any(x.get("source") == "physics" for x in res.limits)
+    rec["physics_broken"] = _physics_broken(prog, new, before, after, res) if rec["physics"] else []
     return rec
+
+
+def _physics_broken(prog, new, before, after, res) -> list:
+    """The physics limits the re-simulated answer breaks, checked on its trace: a described
+    tool's shank over its allowed stress where the program's was not (or the answer does not
+    say why), a chip thicker than the catalogue's where the program's was not."""
+    out = []
+    a_shank = {c["tool"]: c for c in after.summary.cutting.shank}
+    b_shank = {c["tool"]: c for c in before.summary.cutting.shank}
+    for t, c in a_shank.items():
+        if c["over"] and not (b_shank.get(t, {}).get("over") and res.slower_because):
+            out.append(f"T{t} shank {c['stress']:.0f} > {c['allowed_stress']:.0f} N/mm2")
+    phys = {x["tool"]: x for x in res.limits if x.get("source") == "physics"}
+
+    def hmax(trace, program):
+        rec = trace.record
+        ok = rec >= 0
+        tool = np.where(ok, program.records["tool"][np.maximum(rec, 0)], -1)
+        h = trace.cut[:, 6].astype(float)
+        return {int(t): float(h[tool == t].max(initial=0.0)) for t in np.unique(tool[ok])}
+
+    hb, ha = hmax(before, prog), hmax(after, new)
+    for t, lim in phys.items():
+        allowed = max(lim["chip_thickness"], hb.get(t, 0.0)) * 1.03
+        if ha.get(t, 0.0) > allowed:
+            out.append(f"T{t} chip {ha[t] * 1000:.1f} > {allowed * 1000:.1f} um")
+    return out
+
+
+def count_forms(files: list) -> None:
+    """How many programs declare each form of material, stock and title tool."""
+    from collections import Counter
+
+    import mtwin
+    from mtwin.cutting.workpiece import read_workpiece
+    from mtwin.errors import MtwinError
+
+    tw = mtwin.Twin()
+    forms, n, warned = Counter(), 0, 0
+    for p in files:
+        try:
+            wp = read_workpiece(tw.load(str(p)))
+        except MtwinError:
+            continue
+        n += 1
+        for what, f in (("material", wp.material), ("stock", wp.stock), ("tool", wp.tool)):
+            if f is not None:
+                forms[f"{what}: {f.form}"] += 1
+                print(f"{p.name}: {what} {f.value if what != 'tool' else f.value.diameter} ({f.form}, line {f.line})")
+        warned += bool(wp.warnings)
+    print(f"\n{n} programs read; " + "; ".join(f"{k} {v}" for k, v in sorted(forms.items()))
+          + f"; with a malformed form (warning) {warned}")
 
 
 def main() -> None:
@@ -203,17 +277,28 @@ def main() -> None:
     ap.add_argument("--also", action="append", default=[])
     ap.add_argument("--no-corpus", action="store_true")
     ap.add_argument("--force-limit-factor", type=float, default=None)
+    ap.add_argument("--materials", default=None)
+    ap.add_argument("--forms", action="store_true")
     a = ap.parse_args()
+    rules = []
+    if a.materials:
+        import tomllib
+
+        rules = tomllib.loads(Path(a.materials).read_text(encoding="utf-8"))["rule"]
     corpus = Path(a.corpus)
     if not corpus.is_dir() and not a.no_corpus:
         sys.exit(f"no corpus at {corpus}")
     files = [] if a.no_corpus else [p for p in programs(corpus) if a.only is None or a.only in str(p)]
     files += [Path(x).resolve() for x in a.also]
+    if a.forms:
+        count_forms(files)
+        return
     out = open(a.out, "w") if a.out else None
     recs = []
     runs = [(p, None) for p in files] + ([(p, a.force_limit_factor) for p in files] if a.force_limit_factor else [])
     for p, factor in runs:
-        r = check_one(p, a.timeout, twin_file=a.twin, factor=factor)
+        m = material_for(p, rules) if rules else None
+        r = check_one(p, a.timeout, twin_file=a.twin, factor=factor, material=m[0] if m else None)
         recs.append(r)
         rel = (str(p.relative_to(corpus)) if corpus in p.parents else str(p)) + \
             (f" [--force-limit {r.get('force_limit', 0):.1f}]" if factor else "")
@@ -233,6 +318,10 @@ def main() -> None:
                 flags.append(f"CHANGED ON UNDESCRIBED TOOL {r['changed_on_undescribed_tool'][:5]}")
             if not r["contour_ok"]:
                 flags.append("CONTOUR WORSE")
+            if r.get("physics_broken"):
+                flags.append(f"PHYSICS LIMIT BROKEN {r['physics_broken'][:3]}")
+            if r.get("material"):
+                flags.append(f"[{r['material']}{', physics' if r.get('physics') else ''}]")
             print(f"{rel}: {r['status']} {r['before']:.2f} -> {r['after']:.2f} s ({100 * r['change']:+.1f} %), contour "
                   f"{r['contour_before']:.3f} -> {r['contour_after']:.3f} mm, {r['seconds']:.1f} s "
                   f"{' '.join(flags)}", flush=True)
@@ -262,6 +351,12 @@ def _totals(recs: list, files: list, factor) -> None:
         print(f"kept line changed: {sum(bool(r['kept_changed']) for r in done)}; ramp/helix changed: "
               f"{sum(bool(r['entry_changed']) for r in done)}; facing pass changed: "
               f"{sum(bool(r['face_changed']) for r in done)}")
+        desc = np.array([r["change"] for r in done if r.get("described")]) * 100
+        if len(desc):
+            print(f"programs whose cutting tools the twin describes: {len(desc)}; change %: min {desc.min():+.1f}, "
+                  f"median {np.median(desc):+.1f}, max {desc.max():+.1f}; >= 5 % faster: {int((desc <= -5).sum())}")
+        print(f"physics limits used: {sum(bool(r.get('physics')) for r in done)}; a physics limit broken on the "
+              f"re-simulated answer: {sum(bool(r.get('physics_broken')) for r in done)}")
         print(f"not verified: {sum(not r['verified'] for r in done)}; changed on an undescribed tool: "
               f"{sum(bool(r['changed_on_undescribed_tool']) for r in done)}; contour worse than tolerance: "
               f"{sum(not r['contour_ok'] for r in done)}")

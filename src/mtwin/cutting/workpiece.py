@@ -97,8 +97,9 @@ def _material_in(text: str, allow_numbers: bool) -> str | None:
             joined = "".join(window)
             if not allow_numbers and not re.search(r"[A-Za-z]", joined):
                 continue
-            if not allow_numbers and re.fullmatch(r"\d+(?:\.\d+)?(?:MM|IN)?", joined, re.I):
-                continue
+            if not allow_numbers and (re.fullmatch(r"\d+(?:\.\d+)?(?:MM|IN)?", joined, re.I) or "=" in joined
+                                      or len(re.sub(r"[^A-Za-z0-9]", "", joined)) < 4):
+                continue  # (a size, a D=2 field, a short code such as D2 or O1 only after MATERIAL)
             key = find(joined) or (find(" ".join(window)) if size > 1 else None)
             if key is None:
                 continue
@@ -153,7 +154,7 @@ def _read(data: bytes, inch: bool, first_move: int) -> Workpiece:
                 warnings.append((line, col + m.start("name"),
                                  f"material {name!r} is not in the catalogue (mtwin materials lists the names it "
                                  f"knows): the material stays as the twin file or --material says"))
-        elif header:
+        elif header and not re.match(r"\s*T\d+\b", text, re.I):  # (not a tool's declaration)
             p = _POSTED.search(text)
             key = _material_in(p.group("name") if p else text, allow_numbers=False)
             if key is not None:
