@@ -311,7 +311,12 @@ def test_real_programs_with_default_options(name):
     assert r.after.cycle_time <= r.before.cycle_time * (1 + 1e-6)
     assert r.contour_error["after"] <= r.contour_error["before"] + 0.02 + 1e-9
     if "Cross2" in name:  # one 4 mm end mill through the whole depth at one feed: nothing to even out
-        assert r.output == bytes(prog.data)
+        # but its stock is read (Vectric's MATERIAL SIZE): the edge of the stock is known, and
+        # where the cut leaves it the chip thins below the program's own level, so it speeds up
+        assert "Vectric" in r.trace_before.summary.cutting.stock_source
+        assert all(sg["feed_after"] >= sg["feed_before"] for sg in r.segments)
+        assert all(sg["limited_by"] == "chip thickness" for sg in r.segments
+                   if sg["feed_after"] != sg["feed_before"] and not sg["air"])
 
 
 def test_sample_to_segment_map_kernel_matches_numpy():

@@ -385,3 +385,22 @@ def _xy_samples(rec, mask, step: float, with_index: bool = False):
     if with_index:
         return pts, z, idx[rid]
     return pts, z
+
+
+def feed_height(program) -> float:
+    """The lowest height the program itself descends to fast before it slows down to plunge:
+    a vertical G0 followed by a vertical G1 down at the same XY, or a vertical G1 down followed
+    by a slower one (Fusion 360 for personal use writes every rapid as G1 at the cutting
+    feed: ``G1 Z5 F1000`` then ``Z3.07 F333.3``).  A CAM system slows at its feed height,
+    which it puts above the stock: the program treats every height from there up as clear.
+    ``inf`` when the program never slows down on a descent."""
+    rec = program.records
+    if len(rec) < 2:
+        return math.inf
+    vertical = (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) < 1e-6) & (rec["z"] < rec["sz"] - 1e-6)
+    a, b = rec[:-1], rec[1:]
+    va, vb = vertical[:-1], vertical[1:]
+    g0_then_g1 = (a["kind"] == R.RAPID) & (b["kind"] == R.LINEAR)
+    slows = (a["kind"] == R.LINEAR) & (b["kind"] == R.LINEAR) & (b["feed"] < a["feed"] * 0.999)
+    pair = va & vb & (g0_then_g1 | slows)
+    return float(a["z"][pair].min()) if pair.any() else math.inf

@@ -114,6 +114,8 @@ class Problem:
     # inf: none) — the chip load a program's own cuts run at, when the limits are learned
     seg_chip: np.ndarray | None = None
     seg_hlim: np.ndarray | None = None
+    # (S,) the chip ceilings the re-simulation checks too (physics; inf elsewhere), mm
+    seg_hchecked: np.ndarray | None = None
     # per variable, the lowest feed the answer may have (0: the feed range's; the program's
     # own feed when the limits are learned from it: nothing is slowed)
     f_floor: np.ndarray | None = None

@@ -21,7 +21,7 @@ from .chatter import chatter_tables, var_stable
 from .chatter import report as chatter_report
 from .search import GAOptions, bisect, fixed_spins, genetic
 from .guards import (FINISH_AE, SURFACE_SHARE, contour_error, final_surface_steps, finish_lines, inside_stock,
-                     learned_levels, percentile_by_group, proven_clear, trusted_records)
+                     feed_height, learned_levels, percentile_by_group, proven_clear, trusted_records)
 from .segment import locate, segment_path
 
 
@@ -467,7 +467,8 @@ def _limits(run: _Run) -> OptimizeResult | None:
         cat_h = np.array([phys[int(t)].chip if int(t) in phys else np.nan for t in prob.seg_tool])
         other = np.array([levels[int(t)][1] if int(t) in levels and opts.chip_limit == "learned" else np.inf
                           for t in prob.seg_tool])
-        prob = replace(prob, seg_hlim=np.where(np.isnan(cat_h), other, np.maximum(np.nan_to_num(cat_h), own_h)))
+        hlim = np.where(np.isnan(cat_h), other, np.maximum(np.nan_to_num(cat_h), own_h))
+        prob = replace(prob, seg_hlim=hlim, seg_hchecked=np.where(np.isnan(cat_h), np.inf, hlim))
     elif opts.chip_limit == "learned" or learned:
         prob = replace(prob, seg_hlim=np.array([levels[int(t)][1] if int(t) in levels else np.inf
                                                 for t in prob.seg_tool]))
@@ -640,6 +641,11 @@ def _guards(run: _Run) -> OptimizeResult | None:
     stock_box = before.summary.cutting.stock if before.summary.cutting else None
     stock_guessed = stock is None and before.summary.cutting is not None and \
         before.summary.cutting.stock_source == GUESSED_STOCK
+    # the height from which the program itself descends slowly: above it, it treats the space
+    # as clear (guards.feed_height); only above the stock's top, guessed or given
+    clear_z = feed_height(program)
+    if stock_box is None or not clear_z > float(stock_box[5]):
+        clear_z = math.inf
     if stock_guessed:
         # inside the guessed block, a move is air only because earlier cuts removed the material
         # there, which they also do on the machine, whatever the real stock's size — provided
@@ -654,6 +660,10 @@ def _guards(run: _Run) -> OptimizeResult | None:
         # where the program's own horizontal rapids passed at or below a move, it is clear of
         # any stock, guessed or real (guards.proven_clear)
         known_air |= proven_clear(program, cut)
+        # and above the height it descends to fast before it slows to plunge, the top of its
+        # feed moves (guards.feed_height): there it moves as it rapids
+        if math.isfinite(clear_z):
+            known_air |= np.minimum(rec["z"], rec["sz"]) >= clear_z - 1e-6
         # a straight retract (up, no XY motion) stays in the tool's own footprint, which it came
         # down through: it cuts nothing, whatever the stock
         known_air |= (rec["z"] > rec["sz"]) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) < 1e-6) & \
@@ -680,7 +690,7 @@ def _guards(run: _Run) -> OptimizeResult | None:
             feeds = np.where(fin_var, prob.f0_var * np.round(spins)[vs] / np.maximum(prob.n0_spin[vs], 1e-9), feeds)
             if spindle_range is None:
                 keep |= fin_var
-    feeds = _approach_feeds(prob, segs, feeds, program, keep)
+    feeds = _approach_feeds(prob, segs, feeds, program, keep, clear_z)
 
     # accuracy where it reaches the part: the tolerance on segments that leave a final surface,
     # the roughing allowance on the others
@@ -690,7 +700,8 @@ def _guards(run: _Run) -> OptimizeResult | None:
     np.logical_or.at(surface_var, prob.seg_var, _surface_segments(program, model, segs, before))
     rough = max(ROUGH_TOLERANCE, opts.tolerance) if opts.rough_tolerance is None else opts.rough_tolerance
     tol_v = np.where(surface_var, opts.tolerance, rough)
-    run.put(feeds=feeds, fin_var=fin_var, keep=keep, kept=kept, rough=rough, surface_var=surface_var, tol_v=tol_v)
+    run.put(clear_z=clear_z, feeds=feeds, fin_var=fin_var, keep=keep, kept=kept, rough=rough, surface_var=surface_var,
+            tol_v=tol_v)
 
 
 def _rounds(run: _Run) -> OptimizeResult | None:
@@ -747,6 +758,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
         loads_after = loads_before if after is before else _Loads.of(after, limits)
         over_v = _ratios(loads_after, segs, prob, seg_after)
+        chip_v = _chip_ratios(loads_after, prob, seg_after)
         ce_after = ce_before if after is before else contour_error(after)
         if round_ == 1:
             seg_before, rec_before = _segment_of_samples(before, program, program, segs)
@@ -755,6 +767,8 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             contour_before = _per_var(ce_before, seg_before, prob)
             contour_rec_before = _per_rec(ce_before, seg_before, rec_before, program)
             own = _ratios(loads_before, segs, prob, seg_before) * 1.001
+            # the chip ceilings from physics cap a raise only: a segment may keep its own chip
+            chip_ok = np.maximum(1.0, _chip_ratios(loads_before, prob, seg_before) * 1.001)
             # what the program runs at on a learned level, on a kept segment, or (the air
             # objective) on a cut it leaves alone is its own: it must only not get worse
             # (not a tool that starts worn: it is held to the load of a new tool, docs/wear.md)
@@ -807,10 +821,11 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             if prev[v] >= 0:
                 cblame[prev[v]] = max(cblame[prev[v]], float(c_ratio[v]))
         load_bad = over & ~at_floor
+        chip_bad = (chip_v > chip_ok) & raised & ~load_bad
         blame_bad = (blame > 1.0) & raised
         acc_bad = (c_ratio > 1.0) & raised
         cblame_bad = (cblame > 1.0) & raised
-        bad = load_bad | blame_bad | acc_bad | cblame_bad
+        bad = load_bad | chip_bad | blame_bad | acc_bad | cblame_bad
         if not bad.any():
             break
         if round_ >= opts.max_rounds:
@@ -845,6 +860,10 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             # a limit on the segment itself: as low as it needs, down to its floor
             new_f = np.where(load_bad, np.minimum(new_f, f_try / ratio_l ** power * (1 - opts.margin)), new_f)
             lowered_for = np.where(load_bad, "load", lowered_for)
+            # the chip ceiling (linear in the feed): down to it, at most back to the program's feed
+            f_chip = np.maximum(f0, f_try / np.maximum(chip_v / chip_ok, 1.0) * (1 - opts.margin))
+            new_f = np.where(chip_bad, np.minimum(new_f, f_chip), new_f)
+            lowered_for = np.where(chip_bad, "chip thickness", lowered_for)
             # the entry of the move after it: at most back to the program's own feed
             back_to = np.maximum(f0, 0.0)
             f_blame = np.maximum(back_to, f_try / np.maximum(blame, 1.0) ** power * (1 - opts.margin))
@@ -874,7 +893,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                 # accuracy that slowing has not brought back: the program's own feed
                 stuck = (acc_bad | cblame_bad) & ~load_bad
                 cap = np.where(stuck, np.minimum(cap, f0), cap)
-        cur = _approach_feeds(prob, segs, new_f, program, keep)
+        cur = _approach_feeds(prob, segs, new_f, program, keep, run.clear_z)
     run.put(after=after, broken=broken, ce_after=ce_after, ce_before=ce_before,
             contour_after=contour_after, contour_before=contour_before, f0=f0, f_try=f_try, keep=keep, kept=kept,
             loads_after=loads_after, loads_before=loads_before, lowered_for=lowered_for, new=new, out=out,
@@ -970,7 +989,8 @@ def _result(run: _Run) -> OptimizeResult | None:
                           f"written")
     lines = segs.seg_lines(program)
     keep_why = _keep_reasons(program, segs, prob, keep, kept)
-    approach_cap = _approach_feeds(prob, segs, np.full(prob.nvar, feed_range[1]), program, keep) < feed_range[1] - 1
+    approach_cap = _approach_feeds(prob, segs, np.full(prob.nvar, feed_range[1]), program, keep,
+                                   run.clear_z) < feed_range[1] - 1
     limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep, keep_why, lowered_for, approach_cap)
     fin_seg = fin_var[prob.seg_var]
     ev_before = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
@@ -1392,10 +1412,26 @@ class _Loads:
 
     load: np.ndarray
     machine: np.ndarray
+    chip: np.ndarray  # the largest chip thickness, mm
 
     @classmethod
     def of(cls, trace, limits) -> "_Loads":
-        return cls(np.hypot(trace.signal("fx"), trace.signal("fy")), _sample_ratio(trace, limits))
+        from ..motion._runkernel import C_HMAX
+
+        chip = trace.cut[:, C_HMAX].astype(np.float64) if trace.cut is not None else np.zeros(len(trace.t))
+        return cls(np.hypot(trace.signal("fx"), trace.signal("fy")), _sample_ratio(trace, limits), chip)
+
+
+def _chip_ratios(loads: _Loads, prob, seg_of: np.ndarray) -> np.ndarray:
+    """Per variable, the largest simulated chip thickness over its ceiling from physics (0
+    where there is none)."""
+    out = np.zeros(prob.nvar)
+    if prob.seg_hchecked is None:
+        return out
+    inside = seg_of >= 0
+    h = prob.seg_hchecked[seg_of[inside]]
+    _max_into(out, prob.seg_var[seg_of[inside]], np.where(np.isfinite(h), loads.chip[inside] / h, 0.0))
+    return out
 
 
 def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray, machine: bool = True) -> np.ndarray:
@@ -1410,7 +1446,7 @@ def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray, machine: bool = True)
     return out
 
 
-def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray) -> np.ndarray:
+def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray, clear_z: float = math.inf) -> np.ndarray:
     """An air segment that runs straight into a cut, or into a feed move the optimiser does not
     set (a plunge), is an approach: it runs at most at that move's feed (or its own programmed
     one).  At a higher feed the
@@ -1442,6 +1478,9 @@ def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray) ->
                 r2 += 1
             if r2 >= len(rec) or not is_feed[r2]:
                 continue  # a rapid, a dwell or the end follows: nothing is entered at this feed
+            if rec["sz"][r2] >= clear_z - 1e-6 and rec["z"][r2] < rec["sz"][r2] and \
+                    np.hypot(rec["x"][r2] - rec["sx"][r2], rec["y"][r2] - rec["sy"][r2]) < 1e-6:
+                continue  # a plunge from the height the program treats as clear: it starts in air
             if r2 in piece_of_rec:
                 nxt = segs.piece_seg[piece_of_rec[r2]]
                 if prob.seg_air[nxt]:
