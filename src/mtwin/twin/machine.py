@@ -325,13 +325,17 @@ def machine_toml(m: Machine | None = None, front: dict | None = None) -> str:
     out += ["", "# Cutting: tools, material and stock (docs/cutting.md). Without [tools.*] every tool is a",
             "# 6 mm two-flute carbide flat end mill; without [cutting] material, al6061 (reference Kt, Ke).",
             "# [cutting]",
-            '# material = "al6061"          # al6061 | al7075 | al6082 | steel1045 | ti6al4v | a [materials.*] name',
+            '# material = "al6061"          # a catalogue name (mtwin materials: 4140, 304, mdf, ...) or a',
+            "#                              # [materials.*] name; named, optimize takes its limits from physics",
             "# stock = [0, 0, -20, 60, 50, 0]   # xmin, ymin, zmin, xmax, ymax, zmax, mm (else the program's",
-            "#                                  # (MTWIN STOCK ...) comment, else feed moves' extent, top Z0)",
+            "#                                  # stock comment, else feed moves' extent, top Z0)",
             "# [tools.1]",
-            '# type = "flat"                # flat | ball | bull',
+            '# type = "flat"                # flat | ball | bull | vee',
             "# diameter = 6.0",
-            "# flutes = 2"]
+            "# flutes = 2",
+            '# material = "carbide"         # carbide | hss (docs/catalogue.md)',
+            "# stickout = 24.0              # mm out of the holder (0: 4 x diameter)",
+            "# force_limit = 0.0            # N optimize holds this tool to (0: none given)"]
     return "\n".join(out) + "\n"
 
 
