@@ -192,7 +192,9 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     kept_lines = {ln for lines in res.kept.values() for ln in lines}
     rec["kept_changed"] = sorted(changed & kept_lines)[:20]
     r_ = prog.records
-    entries = feed & (r_["z"] - r_["sz"] < -1e-6)
+    from mtwin.optimize.model import RAMP_DZ
+
+    entries = feed & (r_["z"] - r_["sz"] < -RAMP_DZ)  # (the optimiser's own rule: CAM rounding is no entry)
     rec["entry_changed"] = sorted(changed & set(r_["line"][entries].tolist()))[:20]
     c = before.summary.cutting
     faces = []

@@ -116,14 +116,24 @@ def _wall_program(finish_comment: bool) -> bytes:
 def test_the_finish_wall_sample():
     # samples/finish_wall.nc: the slot is the program's level, the side pass is raised to it,
     # the finishing pass keeps its feed
+    # (with the limits learned from it: the sample names its material, Al 6061, below)
     tw = mtwin.Twin()
     prog = tw.load(str(SAMPLES / "finish_wall.nc"))
-    r = optimize(tw, prog, OptimizeOptions())
+    r = optimize(tw, prog, OptimizeOptions(limits="learned"))
     out = r.output.decode().splitlines()
     after = lambda marker: out[out.index(marker) + 3]  # noqa: E731 — the cut after the approach
     assert after("(ROUGH SLOT)").endswith("F300.") and after("(FINISH WALL PASS)").endswith("F300.")
     side = after("(SIDE PASS)")
     assert not side.endswith("F300.") and r.after.cycle_time < r.before.cycle_time
+    # with the limits from physics (6061 named in the comments): the slot goes to the catalogue's
+    # 0.04 mm chip at Ø6 (F640 at S8000, two flutes, less the margin), and the 0.2 mm finishing
+    # pass, whose largest chip is a third of its feed per tooth (radial chip thinning), higher
+    r = optimize(tw, prog, OptimizeOptions())
+    out = r.output.decode().splitlines()
+    feed = lambda marker: float(out[out.index(marker) + 3].split("F")[1])  # noqa: E731
+    assert 600 <= feed("(ROUGH SLOT)") <= 640
+    assert feed("(FINISH WALL PASS)") > 2 * feed("(ROUGH SLOT)")
+    assert any(x.get("source") == "physics" for x in r.limits)
 
 
 @pytest.mark.parametrize("comment", [True, False])

@@ -63,8 +63,9 @@ TOLERANCE = typer.Option(0.02, "--tolerance", help="Contour error, mm, a segment
                          "surface (a finishing pass) may gain over the program's own on the re-simulated twin.")
 POWER_TOLERANCE = typer.Option(0.05, "--power-tolerance",
                                help="smooth: relative tolerance K on the target power.")
-FINISH_FEED = typer.Option("keep", "--finish-feed", help="keep (finishing passes keep their feed per "
-                           "tooth) | optimize (treat them as any cut).")
+FINISH_FEED = typer.Option("auto", "--finish-feed", help="auto (finishing passes keep their feed per tooth, "
+                           "except a tool held to limits from physics: its chip load with radial chip thinning and "
+                           "the deflection allowed on a final surface) | keep | optimize (treat them as any cut).")
 SEGMENTATION = typer.Option("cluster", "--segmentation",
                             help="cluster (sequential clustering) | changepoint (binary segmentation).")
 MIN_SEGMENT = typer.Option(5.0, "--min-segment", help="Shortest segment C, mm of path.")

@@ -383,8 +383,9 @@ def _program_material(cutting: Cutting, wp) -> Cutting:
     note = (f"material: {f.value} ({catalogue().materials[f.value].title}) from the program's comment line {f.line} "
             f"({f.text})")
     rest = tuple(d for d in cutting.defaults_used if not d.startswith("material:"))
-    return replace(cutting, material_name=f.value, material=_catalogue_material(f.value), material_from=where,
-                   defaults_used=rest + (note,))
+    # the same material as the twin's keeps the twin's coefficients (a calibration's)
+    mat = cutting.material if f.value == cutting.material_name else _catalogue_material(f.value)
+    return replace(cutting, material_name=f.value, material=mat, material_from=where, defaults_used=rest + (note,))
 
 
 def tools_used(cutting: Cutting, program) -> list[dict]:
@@ -526,7 +527,8 @@ def with_material(cutting: Cutting, name: str, where: str) -> Cutting:
 
     key = resolve(name, where if where == "--material" else f"{where}: material")
     rest = tuple(d for d in cutting.defaults_used if not d.startswith("material:"))
-    return replace(cutting, material_name=key, material=_catalogue_material(key), material_from=where,
+    mat = cutting.material if key == cutting.material_name else _catalogue_material(key)  # (a calibration's stays)
+    return replace(cutting, material_name=key, material=mat, material_from=where,
                    defaults_used=rest + (f"material: {key} ({catalogue().materials[key].title}) from {where}",))
 
 

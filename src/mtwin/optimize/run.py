@@ -76,7 +76,10 @@ class OptimizeOptions:
     # be named); limit_scale: the physics limits' share (a cautious shop takes 0.8)
     limits: str = "auto"
     limit_scale: float = 1.0
-    finish_feed: str = "keep"  # keep: finishing passes keep their feed per tooth; optimize: treated as any cut
+    # keep: finishing passes keep their feed per tooth; optimize: treated as any cut; auto: keep,
+    # but a tool held to limits from physics takes them there too (its chip ceiling with radial
+    # chip thinning, and the deflection allowed on a final surface)
+    finish_feed: str = "auto"
     segmentation: str = "cluster"
     min_segment: float = 5.0  # mm, the reference's C
     ga: GAOptions = field(default_factory=GAOptions)
@@ -111,7 +114,8 @@ class OptimizeOptions:
             (0 < o.power_tolerance < 1, lambda: f"--power-tolerance must be between 0 and 1, got {o.power_tolerance:g}"),
             (o.tolerance >= 0 and math.isfinite(o.tolerance),
              lambda: f"--tolerance must be a contour error of 0 mm or more, got {o.tolerance:g}"),
-            (o.finish_feed in ("keep", "optimize"), lambda: f"--finish-feed must be keep or optimize, got {o.finish_feed!r}"),
+            (o.finish_feed in ("keep", "optimize", "auto"),
+             lambda: f"--finish-feed must be auto, keep or optimize, got {o.finish_feed!r}"),
             (o.rough_tolerance is None or (o.rough_tolerance >= 0 and math.isfinite(o.rough_tolerance)),
              lambda: f"--rough-tolerance must be a contour error of 0 mm or more, got {o.rough_tolerance:g}"),
             (o.ramp_feed in ("keep", "optimize"), lambda: f"--ramp-feed must be keep or optimize, got {o.ramp_feed!r}"),
@@ -680,8 +684,10 @@ def _guards(run: _Run) -> OptimizeResult | None:
                             f"cutting.stock) or declare the tool (--tool) to let them be raised")
     # finishing passes keep their feed per tooth
     fin_var = np.zeros(prob.nvar, bool)
-    if opts.finish_feed == "keep" and opts.objective != "air":
+    if opts.finish_feed in ("keep", "auto") and opts.objective != "air":
         fin_seg = _finishing_segments(program, model, segs, prob)
+        if opts.finish_feed == "auto" and run.phys:
+            fin_seg &= ~np.isin(prob.seg_tool, list(run.phys))
         np.logical_or.at(fin_var, prob.seg_var, fin_seg)
         fin_var &= ~keep
         if fin_var.any():
@@ -1534,6 +1540,8 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
     for b, c in zip(starts[count > 1], count[count > 1]):
         r = int(pr[b])
         idx = order[b:b + c]
+        if keep[var[idx]].any():
+            continue  # a move part of which is kept is kept whole: kept means byte-identical
         fs = f_piece[idx]
         # merge neighbouring pieces whose feeds differ by under 1 % (the lower feed for both):
         # a split is worth its extra line only for a real change
