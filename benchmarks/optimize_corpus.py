@@ -333,11 +333,12 @@ def main() -> None:
             out.write(json.dumps(r) + "\n")
             out.flush()
     for factor in sorted({r["force_limit_factor"] for r in recs}, key=lambda f: f or 0):
-        _totals([r for r in recs if r["force_limit_factor"] == factor], files, factor)
+        _totals([r for r in recs if r["force_limit_factor"] == factor], files, factor, bool(rules))
 
 
-def _totals(recs: list, files: list, factor) -> None:
-    print(f"\n== {'default options' if factor is None else f'--force-limit {factor:g} x the program peak'}")
+def _totals(recs: list, files: list, factor, materials: bool = False) -> None:
+    what = 'default options' if factor is None else f'--force-limit {factor:g} x the program peak'
+    print(f"\n== {what}{' and --material as corpus_materials.toml names it' if materials else ''}")
     done = [r for r in recs if r["status"] in ("optimised", "unchanged")]
     with_feed = [r for r in recs if "feed_moves" in r]
     ch = np.array([r["change"] for r in done]) * 100
