@@ -128,7 +128,8 @@ def optimize(
                            spindle_range=value_range(spindle_range, "--spindle-range"), spindle_per=spindle_per,
                            allow_s_changes=allow_s_changes, target_power=target_power,
                            power_tolerance=power_tolerance, segmentation=segmentation, min_segment=min_segment, ga=ga,
-                           chatter_margin=chatter_margin, chatter_method=chatter_method, **limits)
+                           chatter_margin=chatter_margin, chatter_method=chatter_method,
+                           tradeoff_resimulated=report is not None, **limits)
     tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
     prog = load_part(tw, part, Messages(message))
     try:

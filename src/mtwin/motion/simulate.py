@@ -399,7 +399,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
             defaults=list(cutting_part.defaults_used), tools=tools_used(cutting_part, program),
             spindle_stopped_line=int(cstats[RK.CS_SPINDLE_STOPPED_LINE]))
-    if eng is not None:
+    if eng is not None and chatter:  # (not on an optimiser's intermediate re-simulation, as the margins)
         from ..cutting.catalogue import shank_checks
 
         summary.cutting.shank = shank_checks(cutting_part, program, force, record)

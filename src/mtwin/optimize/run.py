@@ -76,6 +76,9 @@ class OptimizeOptions:
     # be named); limit_scale: the physics limits' share (a cautious shop takes 0.8)
     limits: str = "auto"
     limit_scale: float = 1.0
+    # the trade-off against the physics limits, estimated and re-simulated at the scales
+    # TRADEOFF_SCALES (two more runs of the twin: what a report shows); off: not drawn
+    tradeoff_resimulated: bool = False
     # keep: finishing passes keep their feed per tooth; optimize: treated as any cut; auto: keep,
     # but a tool held to limits from physics takes them there too (its chip ceiling with radial
     # chip thinning, and the deflection allowed on a final surface)
@@ -1022,7 +1025,7 @@ def _result(run: _Run) -> OptimizeResult | None:
         else []
     phys = run.phys
     tradeoff_scale = []
-    if phys and opts.objective in ("time", "cost"):
+    if phys and opts.objective in ("time", "cost") and opts.tradeoff_resimulated:
         run.stage("the trade-off against the physics limits")
         tradeoff_scale = _scale_tradeoff(run, est, fig_after)
     changed = _changed_lines(program.data, out)
@@ -1759,9 +1762,8 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep, keep_why, low
     return out
 
 
-#: the scales of the physics limits the trade-off curve is drawn at, and those re-simulated
-TRADEOFF_SCALES = (0.6, 0.7, 0.8, 0.9, 1.0)
-TRADEOFF_RESIMULATED = (0.6, 0.8, 1.0)
+#: the scales of the physics limits the trade-off curve is drawn at (each re-simulated)
+TRADEOFF_SCALES = (0.6, 0.8, 1.0)
 #: above this many motion records the curve is estimated only (each re-simulation costs a run)
 TRADEOFF_MAX_RECORDS = 50_000
 
@@ -1769,8 +1771,8 @@ TRADEOFF_MAX_RECORDS = 50_000
 def _scale_tradeoff(run: _Run, est, fig_after) -> list:
     """Cycle time against a scale of the physics limits: at each scale the answer's feeds, each
     no higher than the scaled limits allow (the rounds' guards still hold: a lower feed is no
-    less accurate) and no lower than its floor, estimated on the fast model and re-simulated at
-    TRADEOFF_RESIMULATED."""
+    less accurate) and no lower than its floor, estimated on the fast model and re-simulated
+    (programs of up to TRADEOFF_MAX_RECORDS moves)."""
     from ..gcode.writer import rewrite
 
     (f_try, floor, keep, opts, phys, prob, program, s_try, segs, stock, tw_after, twin, new) = \
@@ -1779,6 +1781,9 @@ def _scale_tradeoff(run: _Run, est, fig_after) -> list:
     out = []
     for scale in TRADEOFF_SCALES:
         k = scale / opts.limit_scale
+        if abs(k - 1.0) < 1e-9:  # the answer itself
+            out.append({"scale": scale, "estimate": float(est["time"][0]), "resimulated": fig_after.cycle_time})
+            continue
         at = replace(prob, seg_force=np.where(on, prob.seg_force * k, prob.seg_force),
                      seg_hlim=np.where(on, prob.seg_hlim * k, prob.seg_hlim) if prob.seg_hlim is not None else None)
         f = at.max_feasible_feed(s_try)
@@ -1786,16 +1791,13 @@ def _scale_tradeoff(run: _Run, est, fig_after) -> list:
         f = np.where(keep, f_try, np.maximum(np.minimum(f, f_try), floor))
         t_est = float(at.evaluate(f[None, :], s_try[None, :])["time"][0])
         resim = None
-        if any(abs(scale - r) < 1e-9 for r in TRADEOFF_RESIMULATED) and len(program.records) <= TRADEOFF_MAX_RECORDS:
-            if abs(k - 1.0) < 1e-9:
-                resim = fig_after.cycle_time  # the answer itself
-            else:
-                fr = _round_feeds(f, prob.f0_var, program, segs, prob)
-                feeds_rec, splits, spins_rec = _expand(program, segs, np.where(keep, prob.f0_var, fr), np.round(s_try),
-                                                       prob, False, keep)
-                text = rewrite(program, feeds_rec, spins_rec, splits)
-                resim = float(tw_after.simulate(twin.load(text, path=program.path), stock=stock,
-                                                chatter=False).summary.cycle_time)
+        if len(program.records) <= TRADEOFF_MAX_RECORDS:
+            fr = _round_feeds(f, prob.f0_var, program, segs, prob)
+            feeds_rec, splits, spins_rec = _expand(program, segs, np.where(keep, prob.f0_var, fr), np.round(s_try),
+                                                   prob, False, keep)
+            text = rewrite(program, feeds_rec, spins_rec, splits)
+            resim = float(tw_after.simulate(twin.load(text, path=program.path), stock=stock,
+                                            chatter=False).summary.cycle_time)
         out.append({"scale": scale, "estimate": t_est, "resimulated": resim})
     return out
 

@@ -87,7 +87,7 @@ def optimize_html(res, program: str) -> bytes:
         parts.append(_tradeoff(plt, res))
     if res.tradeoff_scale:
         parts.append("<h2>Cycle time against the physics limits</h2><p>The answer's feeds held to a share of each "
-                     "limit from physics (chip thickness, shank load): what a cautious shop gives up by taking 60–90 % "
+                     "limit from physics (chip thickness, shank load): what a cautious shop gives up by taking 60 or 80 % "
                      "of the catalogue. Line: the fast model; dots: full re-simulations.</p>")
         parts.append(_scale_plot(plt, res))
     if res.chatter:
