@@ -48,7 +48,9 @@ def _vec3(value, key):
 def read_twin_toml(path: str) -> dict:
     """Parse a twin TOML file and check its section names."""
     try:
-        raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        from .io import read_input
+
+        raw = tomllib.loads(read_input(path, "twin").decode("utf-8"))
     except OSError as exc:
         raise ConfigError(f"cannot read twin file {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:

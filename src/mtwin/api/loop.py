@@ -255,7 +255,11 @@ def diagnose(twin=None, program=None, measurement=None, *, signals=None, candida
 
 def _is_spectrum(path) -> bool:
     """A spectrum file (chatter.detect): a CSV whose header has freq and amplitude."""
+    import stat
+
     try:
+        if not stat.S_ISREG(os.stat(str(path)).st_mode):
+            return False  # (the reader says what it is)
         with open(str(path), encoding="utf-8", errors="replace") as fh:
             for ln in fh:
                 if ln.strip() and not ln.lstrip().startswith("#"):

@@ -38,6 +38,9 @@ class Spectrum:
 def read_spectrum(path: str) -> list[Spectrum]:
     import csv
 
+    from ..io import check_input
+
+    check_input(path, "spectrum")
     try:
         fh = open(path, newline="", encoding="utf-8")
     except OSError as exc:

@@ -115,9 +115,12 @@ class FRF:
 def read_frf(path: str | Path, need: tuple[str, ...] = ()) -> FRF:
     """Read a tap test's FRF (CSV or CutPro text, see the module); ``need``: directions that must
     be present.  Errors carry ``file:line:col:`` and are :class:`ConfigError` (exit 2)."""
-    p = Path(path)
+    from ..io import read_input
+
+    if not Path(path).exists():
+        raise ConfigError(f"{path}: cannot read the FRF file: no such file")
     try:
-        text = p.read_text(encoding="utf-8", errors="replace")
+        text = read_input(path, "frf").decode("utf-8", errors="replace")
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read the FRF file: {exc.strerror or exc}") from None
     lines = text.splitlines()

@@ -14,6 +14,7 @@ Heavy modules are imported inside the commands, so that ``mtwin --help`` answers
 """
 from __future__ import annotations
 
+import contextlib
 import sys
 
 # (imported in the order their commands are listed in --help)
@@ -62,6 +63,14 @@ def main() -> None:
     if "--traceback" in sys.argv[1:]:
         state["traceback"] = True
         sys.argv = [a for a in sys.argv if a != "--traceback"]
+    import signal
+
+    def _terminated(signum, frame):
+        # SIGTERM unwinds like Ctrl-C: every output's temporary file is removed on the way out
+        raise KeyboardInterrupt
+
+    with contextlib.suppress(ValueError):  # (not in the main thread: an embedding program's business)
+        signal.signal(signal.SIGTERM, _terminated)
     try:
         app()
     except KeyboardInterrupt:  # pragma: no cover (an interrupt before a command started)

@@ -145,8 +145,11 @@ def reports_errors(command):
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
+        from ..io import command_scope
+
         try:
-            return command(*args, **kwargs)
+            with command_scope():  # (the inputs it reads, so that no output replaces one)
+                return command(*args, **kwargs)
         except typer.Exit:
             raise
         except KeyboardInterrupt:

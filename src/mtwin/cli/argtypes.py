@@ -3,6 +3,7 @@ each checked before the work, with a message that names the option."""
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Optional
 
@@ -46,6 +47,11 @@ def check_outputs(*paths) -> None:
         parent = Path(p).parent if str(Path(p).parent) else Path(".")
         if not parent.is_dir():
             raise MtwinError(f"output directory {parent} does not exist")
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise MtwinError(f"output directory {parent} is not writable")
+        if Path(p).is_symlink():
+            raise MtwinError(f"{p} is a symbolic link: writing the output would replace the link; name the file it "
+                             f"points to ({os.path.realpath(p)})")
 
 
 def check_report(report: Optional[str], *others: Optional[str], stdout_ok: bool = False) -> None:

@@ -49,7 +49,9 @@ def import_mtconnect(
 
     check_outputs(output)
     try:
-        data = Path(program).read_bytes() if program else None
+        from ..io import read_input
+
+        data = read_input(program, "program") if program else None
     except OSError as exc:
         raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
     m = read_mtconnect(log, run, block_is, data, ignore_item or ())

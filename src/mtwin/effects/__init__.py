@@ -94,6 +94,9 @@ def load_file(path: str) -> list[type[Effect]]:
     """Import a Python file and register every Effect subclass defined in it."""
     if not os.path.isfile(path):
         raise ConfigError(f"--effect-file {path}: no such file")
+    from ..io import check_input
+
+    check_input(path, "effects")  # (Python code, run as a plugin is: docs/effects.md)
     modname = f"mtwin_user_effects_{abs(hash(os.path.abspath(path)))}"
     spec = importlib.util.spec_from_file_location(modname, path)
     module = importlib.util.module_from_spec(spec)

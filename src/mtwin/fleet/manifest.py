@@ -90,6 +90,9 @@ def read_manifest(path: str, command: str) -> list[Job]:
     """The jobs of a manifest: CSV with a header row, or TOML with ``[[job]]`` tables."""
     p = Path(path)
     try:
+        from ..io import check_input
+
+        check_input(path, "manifest")
         text = p.read_text(encoding="utf-8-sig")  # (a byte-order mark, as spreadsheets write it)
     except OSError as exc:
         raise ManifestError(f"cannot read the manifest {path}: {exc.strerror or exc}") from None
@@ -317,7 +320,9 @@ def read_recipe(path: str) -> tuple:
     from ..config import tomllib
 
     try:
-        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        from ..io import read_input
+
+        doc = tomllib.loads(read_input(path, "manifest").decode("utf-8"))
     except OSError as exc:
         raise ManifestError(f"cannot read the recipe {path}: {exc.strerror or exc}") from None
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:

@@ -128,10 +128,10 @@ class Program:
 
 def read_source(path: str | os.PathLike) -> bytes:
     """Read a program file, or standard input for ``-``."""
-    if str(path) == "-":
-        return sys.stdin.buffer.read()
+    from ..io import read_input
+
     try:
-        return Path(path).read_bytes()
+        return read_input(path, "program")  # (a regular file or stdin, within the size limit)
     except OSError as exc:
         raise GCodeError(f"cannot read {path}: {exc.strerror or exc}") from None
 

@@ -528,6 +528,9 @@ class _Executor:
                 f = os.path.join(d, name)
                 if os.path.isfile(f) and f not in self.loaded:
                     self.loaded.add(f)
+                    from ..io import check_input
+
+                    check_input(f, "program")
                     with open(f, "rb") as fh:
                         start = len(self.lines)
                         self.lines.extend(self._split(fh.read(), f))

@@ -150,7 +150,9 @@ def read_toml(path: str, what: str) -> dict:
     else:  # pragma: no cover
         import tomli as tomllib
     try:
-        return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        from ..io import read_input
+
+        return tomllib.loads(read_input(path, "cycle").decode("utf-8"))
     except OSError as exc:
         raise ConfigError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:

@@ -294,6 +294,9 @@ def _read_csv(path: str):
 
             text = sys.stdin.read().lstrip("\ufeff")
         else:
+            from ..io import check_input
+
+            check_input(path, "measurement")
             with open(path, encoding="utf-8-sig", newline="") as fh:  # a spreadsheet's BOM too
                 text = fh.read()
     except OSError as exc:
@@ -320,8 +323,9 @@ def _read_parquet(path: str):
         import pyarrow.parquet as pq
     except ImportError:
         raise MtwinError(f"{path}: reading .parquet needs pyarrow (pip install pyarrow)") from None
-    if not os.path.isfile(path):
-        raise MtwinError(f"cannot read {path}: no such file")
+    from ..io import check_input
+
+    check_input(path, "measurement")
     import pyarrow as pa
 
     table = pq.read_table(path)

@@ -90,7 +90,12 @@ _UNUSED = re.compile(
 
 def is_mtconnect(path: str) -> bool:
     """A file that looks like an SHDR log or an MTConnectStreams document."""
+    import os
+    import stat as _stat
+
     try:
+        if not _stat.S_ISREG(os.stat(path).st_mode):
+            return False  # (the reader says what it is)
         with open(path, "rb") as fh:
             head = fh.read(4096).decode("utf-8", "replace")
     except OSError:
@@ -133,7 +138,9 @@ def read_shdr(path: str, ignore=()) -> list:
     an error (``ignore``: names to read past); so is a timestamp before the previous one."""
     ignore = {x.lower() for x in ignore}
     try:
-        text = open(path, "rb").read().decode("utf-8", "replace")
+        from ..io import read_input
+
+        text = read_input(path, "log").decode("utf-8", "replace")
     except OSError as exc:
         raise MeasurementError(f"cannot read {path}: {exc.strerror or exc}", SourceLocation(path, 0, 0)) from None
     out: list = []
@@ -370,6 +377,9 @@ def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", pr
     if block_is not in ("line", "n"):
         raise MeasurementError(f"--block-is must be line or n, got {block_is!r}", SourceLocation(path, 0, 0))
     try:
+        from ..io import check_input
+
+        check_input(path, "log")
         with open(path, "rb") as fh:
             head = fh.read(4096)
     except OSError as exc:
