@@ -471,7 +471,10 @@ def _limits(run: _Run) -> OptimizeResult | None:
         # one lowered for a broken limit goes down only as far as that limit needs
         fz_own = prob._mechanics(prob.f0_var[None, :], fixed_spins(prob)[None, :])[2]
         own_h = prob.chip(fz_own)[0] / (1.0 - opts.margin)
-        cat_h = np.array([phys[int(t)].chip if int(t) in phys else np.nan for t in prob.seg_tool])
+        # (and the level the program proves for the tool — its 95th percentile chip — where that
+        # is above the chart's: a shop's proven chip is not cut back by a chart, on any of its cuts)
+        cat_h = np.array([max(phys[int(t)].chip, levels[int(t)][1] if int(t) in levels else 0.0) if int(t) in phys
+                          else np.nan for t in prob.seg_tool])
         other = np.array([levels[int(t)][1] if int(t) in levels and opts.chip_limit == "learned" else np.inf
                           for t in prob.seg_tool])
         hlim = np.where(np.isnan(cat_h), other, np.maximum(np.nan_to_num(cat_h), own_h))
@@ -1298,6 +1301,12 @@ def _limit_notes(prob, levels: dict, given_for, opts, m, phys=None, cut=None, us
             if u is not None and u < d["load"]:
                 d.update(load=float(u), load_source="--force-limit" if (isinstance(user, dict) and t in user) or
                          isinstance(user, (int, float)) else "twin file tools.N.force_limit")
+            if t in levels and levels[t][1] > d["chip_thickness"]:
+                d["chip_thickness_catalogue"] = d["chip_thickness"]
+                d["chip_thickness"] = float(levels[t][1])
+                d["chip_thickness_source"] = ("the program's own level, its 95th percentile (by length) — over the "
+                                              "catalogue's " + f"{1000 * d['chip_thickness_catalogue']:.1f} µm ("
+                                              + d["chip_thickness_source"] + "): a proven chip stands")
             d["deflection_tolerance"] = opts.tolerance
             d["deflection_load"] = d["stiffness"] * opts.tolerance
             out.append(d)
