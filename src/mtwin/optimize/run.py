@@ -1549,11 +1549,13 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
     r1, f1 = pr[one], f_piece[order[one]]
     moved = f1 != rec["feed"][r1]
     out[r1[moved]] = f1[moved]
+    whole = []
     for b, c in zip(starts[count > 1], count[count > 1]):
         r = int(pr[b])
         idx = order[b:b + c]
         if keep[var[idx]].any():
-            continue  # a move part of which is kept is kept whole: kept means byte-identical
+            whole.append(r)  # a move part of which is kept is kept whole: kept means byte-identical
+            continue
         fs = f_piece[idx]
         # merge neighbouring pieces whose feeds differ by under 1 % (the lower feed for both):
         # a split is worth its extra line only for a real change
@@ -1568,6 +1570,13 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
             splits[r] = Split(ts, [float(x) for x in fl])
         elif fl[0] != rec["feed"][r]:
             out[r] = fl[0]
+    if whole:
+        # a line the program runs more than once (a loop, a subprogram) has one F word: kept
+        # whole on one run, it is kept on every run
+        lines = np.isin(rec["line"], rec["line"][whole])
+        out[lines] = np.nan
+        for r in np.flatnonzero(lines):
+            splits.pop(int(r), None)
     spindles = np.full(n, np.nan)
     if spin_changes and segs.count:
         # every record of a tool, from its first move, runs at the speed of the segment it is
