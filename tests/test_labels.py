@@ -53,3 +53,17 @@ def test_labels_name_what_bound_each_segment():
     from mtwin.motion._runkernel import C_HMAX
 
     assert float(r.trace_after.cut[:, C_HMAX].max()) <= 0.04 * 1.001
+
+
+def test_an_air_piece_entering_the_stock_takes_the_cut_s_feed_and_says_so():
+    # a slot that starts outside the stock: its move's first piece is air and runs into the cut
+    text = (b"G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\n(MTWIN STOCK 0,-10,-10,80,30,0)\nT1 M6\nS8000 M3\n"
+            b"G0 X-10 Y0 Z5\nG0 Z-1\nG1 X40 F300\nG0 Z5\nM30\n")
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="entry.nc")
+    r = optimize(tw, prog, OptimizeOptions(force_limit=100.0, chip_limit="none", limits="learned"))
+    air = [s for s in r.segments if s["lines"][0] == 8 and s["air"]][0]
+    cut = [s for s in r.segments if s["lines"][0] == 8 and not s["air"]][0]
+    assert 300.0 < cut["feed_after"] < tw.machine.max_cutting_feed and cut["limited_by"] == "load"
+    assert air["limited_by"] == "approach (the feed of the cut it enters)"
+    assert air["feed_after"] == cut["feed_after"]

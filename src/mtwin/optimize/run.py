@@ -1751,12 +1751,12 @@ def _limited_by(prob, feeds, spins, feed_range, times, segs, keep, keep_why, low
         if prob.seg_air[s]:
             if top:
                 out.append("feed range (air cut)")
-            elif approach_cap[v] and f > f0 + 1e-9:
-                out.append("approach (the feed of the cut it enters)")
             elif f <= f0 + 1e-9:
                 out.append("program's feed (the feed of the cut it enters)" if approach_cap[v] else "program's feed")
             else:
-                out.append("rounding")
+                # raised, but not to the top: only the cut it runs into holds an air cut there
+                # (the next move, or the rest of its own move when the move enters the stock)
+                out.append("approach (the feed of the cut it enters)")
             continue
         r = {name: float(e[0][s]) + 1.0 for name, e in excess.items()}  # value / (limit x margin)
         if v_chat is not None:
