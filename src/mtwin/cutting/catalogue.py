@@ -70,7 +70,8 @@ class ToolMaterial:
     strength: float  # N/mm^2
     allowed_share: float
     chip_factor: float
-    source: str
+    youngs_modulus_source: str  # a [sources] key
+    strength_source: str
 
     @property
     def allowed_stress(self) -> float:
@@ -131,7 +132,8 @@ def catalogue() -> Catalogue:
                                  m["kc_source"], m["chip"], m.get("coefficients") == "builtin")
     chips = {k: ChipRow(k, tuple(c["diameter"]), tuple(c["fz"]), c["source"]) for k, c in raw["chip"].items()}
     tms = {k: ToolMaterial(k, float(t["youngs_modulus"]), float(t["strength"]), float(t["allowed_share"]),
-                           float(t["chip_factor"]), t["source"]) for k, t in raw["tool_materials"].items()}
+                           float(t["chip_factor"]), t["youngs_modulus_source"], t["strength_source"])
+           for k, t in raw["tool_materials"].items()}
     return Catalogue(mats, chips, tms, dict(raw["sources"]))
 
 

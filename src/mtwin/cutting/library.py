@@ -110,13 +110,6 @@ BUILTIN_MATERIALS = {
 }
 
 
-def catalogue_materials() -> dict:
-    """Every catalogue material's coefficients by key (docs/catalogue.md)."""
-    from .catalogue import catalogue, material_coefficients
-
-    return {k: material_coefficients(k) for k in catalogue().materials}
-
-
 def material_key(name: str, custom=()) -> str | None:
     """A twin file's or a user's material name as the key of ``custom`` ([materials.*]) or of
     the catalogue (any of its names: ``AL6061``, ``mild steel``, ``42CrMo4``), or None."""
@@ -377,15 +370,8 @@ def _program_material(cutting: Cutting, wp) -> Cutting:
     if f is None or cutting.material_from == "--material" or (
             cutting.material_from == "twin file" and material_key(cutting.material_name) != cutting.material_name):
         return cutting
-    from .catalogue import catalogue
-
-    where = f"program line {f.line} ({f.form})"
-    note = (f"material: {f.value} ({catalogue().materials[f.value].title}) from the program's comment line {f.line} "
-            f"({f.text})")
-    rest = tuple(d for d in cutting.defaults_used if not d.startswith("material:"))
-    # the same material as the twin's keeps the twin's coefficients (a calibration's)
-    mat = cutting.material if f.value == cutting.material_name else _catalogue_material(f.value)
-    return replace(cutting, material_name=f.value, material=mat, material_from=where, defaults_used=rest + (note,))
+    return _named_material(cutting, f.value, f"program line {f.line} ({f.form})",
+                           f"the program's comment line {f.line} ({f.text})")
 
 
 def tools_used(cutting: Cutting, program) -> list[dict]:
@@ -523,13 +509,20 @@ def with_material(cutting: Cutting, name: str, where: str) -> Cutting:
     """The cutting part cutting ``name`` (a catalogue name), said to come from ``where``."""
     from .catalogue import resolve
 
+    key = resolve(name, where if where == "--material" else f"{where}: material")
+    return _named_material(cutting, key, where, where)
+
+
+def _named_material(cutting: Cutting, key: str, where: str, said: str) -> Cutting:
+    """The cutting part cutting catalogue material ``key``, named at ``where`` (its
+    ``material_from``), with a note that it was read from ``said``.  The same material as the
+    twin's keeps the twin's coefficients (a calibration's)."""
     from .catalogue import catalogue
 
-    key = resolve(name, where if where == "--material" else f"{where}: material")
     rest = tuple(d for d in cutting.defaults_used if not d.startswith("material:"))
-    mat = cutting.material if key == cutting.material_name else _catalogue_material(key)  # (a calibration's stays)
-    return replace(cutting, material_name=key, material=mat, material_from=where,
-                   defaults_used=rest + (f"material: {key} ({catalogue().materials[key].title}) from {where}",))
+    mat = cutting.material if key == cutting.material_name else _catalogue_material(key)
+    note = f"material: {key} ({catalogue().materials[key].title}) from {said}"
+    return replace(cutting, material_name=key, material=mat, material_from=where, defaults_used=rest + (note,))
 
 
 def parse_box(value, key: str) -> tuple[float, ...]:

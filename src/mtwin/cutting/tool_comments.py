@@ -573,25 +573,37 @@ def _decode(data: bytes | str) -> str:
         return data.decode("latin-1")
 
 
-def _split(line: str) -> tuple[str, list[str]]:
-    """Code and comments of one line: (...) comments and a ';' comment to the end."""
-    if "(" not in line and ";" not in line:  # most lines of a long program: no comment
-        return line, []
-    code, comments, i, n = [], [], 0, len(line)
+def comment_spans(line: str) -> list[tuple[int, int, str]]:
+    """The comments of one line as (start, end, text): ``line[start:end]`` is the comment with
+    its delimiters — a (...) comment (to the end of the line if it is not closed) and a ';'
+    comment to the end — and ``text`` what is inside."""
+    out, i, n = [], 0, len(line)
     while i < n:
         c = line[i]
         if c == "(":
             j = line.find(")", i + 1)
             j = n if j < 0 else j
-            comments.append(line[i + 1:j])
+            out.append((i, j + 1, line[i + 1:j]))
             i = j + 1
         elif c == ";":
-            comments.append(line[i + 1:])
+            out.append((i, n, line[i + 1:]))
             break
         else:
-            code.append(c)
             i += 1
-    return "".join(code), comments
+    return out
+
+
+def _split(line: str) -> tuple[str, list[str]]:
+    """Code and comments of one line: (...) comments and a ';' comment to the end."""
+    if "(" not in line and ";" not in line:  # most lines of a long program: no comment
+        return line, []
+    spans = comment_spans(line)
+    code, at = [], 0
+    for a, b, _ in spans:
+        code.append(line[at:a])
+        at = b
+    code.append(line[at:])
+    return "".join(code), [t for _, _, t in spans]
 
 
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+)|#\s*\{\d+\}|#\s*\d+|\[)")

@@ -27,11 +27,9 @@ from __future__ import annotations
 import functools
 import re
 from dataclasses import dataclass, field
-from fractions import Fraction
 
 from .catalogue import find
-
-MM_PER_INCH = 25.4
+from .tool_comments import MM_PER_INCH, _number, _to_mm, _unit, comment_spans
 
 
 @dataclass(frozen=True)
@@ -67,23 +65,11 @@ _TITLE_TOOL = re.compile(r"(?P<d>" + _FRACTION + r"|\d*\.?\d+)\s*(?P<u>MM|IN(?:C
 
 
 def _comments(lines: list[str]):
-    """(line, col, text) of every (...) and ; comment."""
+    """(line, col, text) of every (...) and ; comment; col is the text's first (1-based)."""
     for i, raw in enumerate(lines, 1):
-        if "(" not in raw and ";" not in raw:
-            continue
-        j, n = 0, len(raw)
-        while j < n:
-            c = raw[j]
-            if c == "(":
-                k = raw.find(")", j + 1)
-                k = n if k < 0 else k
-                yield i, j + 2, raw[j + 1:k]
-                j = k + 1
-            elif c == ";":
-                yield i, j + 2, raw[j + 1:]
-                break
-            else:
-                j += 1
+        if "(" in raw or ";" in raw:
+            for a, _, text in comment_spans(raw):
+                yield i, a + 2, text
 
 
 def _material_in(text: str, allow_numbers: bool) -> str | None:
@@ -112,20 +98,9 @@ def _material_in(text: str, allow_numbers: bool) -> str | None:
     return None if best is None else best[0]
 
 
-def _to_mm(value: float, unit: str | None, inch: bool) -> float:
-    u = (unit or "").upper()
-    if u == "MM":
-        return value
-    if u.startswith("IN") or u == '"':
-        return value * MM_PER_INCH
-    return value * MM_PER_INCH if inch else value
-
-
-def _size(text: str) -> float:
-    if "/" in text:
-        whole, _, frac = text.rpartition("-") if "-" in text else ("0", "", text)
-        return float(int(whole or 0) + Fraction(frac))
-    return float(text)
+def _mm(value: float, unit: str | None, inch: bool) -> float:
+    """A size with its written unit (MM, IN, INCH, ") or bare, in the program's units."""
+    return _to_mm(value, _unit(unit), inch)
 
 
 def read_workpiece(program) -> Workpiece:
@@ -176,9 +151,9 @@ def _read(data: bytes, inch: bool, first_move: int) -> Workpiece:
             elif vectric_at is not None and line <= vectric_at[0] + 1:
                 z = _SIZE.match(text)
                 if z:
-                    size = (_to_mm(float(z.group("x")), z.group("ux"), inch),
-                            _to_mm(float(z.group("y")), z.group("uy"), inch),
-                            None if z.group("z") is None else _to_mm(float(z.group("z")), z.group("uz"), inch))
+                    size = (_mm(float(z.group("x")), z.group("ux"), inch),
+                            _mm(float(z.group("y")), z.group("uy"), inch),
+                            None if z.group("z") is None else _mm(float(z.group("z")), z.group("uz"), inch))
                     stock = Found(size, line, col, "Vectric MATERIAL SIZE", text.strip())
                 else:
                     warnings.append((line, col, "a MATERIAL SIZE comment not followed by ( X=…, Y=…[, Z=…] ): no "
@@ -201,7 +176,7 @@ def _read(data: bytes, inch: bool, first_move: int) -> Workpiece:
         from .library import Tool
 
         t, line, col, text = tool_hits[0]
-        d = _to_mm(_size(t.group("d")), t.group("u"), inch)
+        d = _mm(_number(t.group("d")), t.group("u"), inch)
         flutes = int(t.group("f"))
         up = text.upper()
         kind = "ball" if re.search(r"\bBALL", up) else "flat"

@@ -317,7 +317,7 @@ def proven_clear(program, cutting) -> np.ndarray:
     n = len(rec)
     out = np.zeros(n, bool)
     rapid = (rec["kind"] == R.RAPID) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) > 1e-6)
-    feed = (rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+    feed = R.is_feed_kind(rec["kind"])
     if not rapid.any() or not feed.any():
         return out
     radii = [cutting.tool(int(t)).radius for t in np.unique(rec["tool"])]

@@ -38,11 +38,12 @@ class ToolPhysics:
             "load": self.breaking_force,
             "load_source": (f"shank breakage: bending stress 32·F·L/(π·d³) at {self.allowed_stress:.0f} N/mm² "
                             f"({tm.allowed_share:g} of {tm.strength:g} N/mm², {self.tool_material}; "
-                            f"{cat.source_text(tm.source.split(',')[-1].strip())}) x {self.scale:g}, "
+                            f"{cat.source_text(tm.strength_source)}) x {self.scale:g}, "
                             f"d = {C.SHANK_SHARE:g}·D = {C.SHANK_SHARE * self.diameter:.3g} mm, "
                             f"L = {self.stickout:.3g} mm"),
             "stiffness": self.stiffness,
-            "stiffness_source": f"3·E·I/L³, E = {tm.youngs_modulus:g} N/mm² ({self.tool_material})",
+            "stiffness_source": (f"3·E·I/L³, E = {tm.youngs_modulus:g} N/mm² ({self.tool_material}; "
+                                 f"{cat.source_text(tm.youngs_modulus_source)})"),
         }
 
 

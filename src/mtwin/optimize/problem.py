@@ -198,7 +198,7 @@ class Problem:
         if self.chatter is not None:
             r = self.chatter.at(n)
             v_chatter = np.where(cut, np.maximum(r / self.chatter.margin - 1.0, 0.0), 0.0)
-        return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque,
+        return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque, "fz": fz,
                 "mean_power": mean_power, "seg_time": ts,
                 "violation": v_load + v_power + v_torque + v_chip + v_chatter, "v_chatter": v_chatter,
                 "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "v_chip": v_chip, "tool_lives": wear}

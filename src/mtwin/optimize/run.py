@@ -431,9 +431,15 @@ def _limits(run: _Run) -> OptimizeResult | None:
     # limits from physics: the material named, for the tools the twin describes
     phys = _physics(opts, cut, used_tools, program)
 
-    def given_for(tool: int):
+    def user_for(tool: int) -> tuple:
+        """(the load a user gave this tool, where): --force-limit over the twin file's table."""
         g = user.get(tool) if isinstance(user, dict) else user
-        g = table.get(tool) if g is None else g
+        if g is not None:
+            return g, "--force-limit"
+        return table.get(tool), "twin file tools.N.force_limit"
+
+    def given_for(tool: int):
+        g = user_for(tool)[0]
         if tool in phys:
             g = phys[tool].breaking_force if g is None else min(g, phys[tool].breaking_force)
         return g
@@ -465,11 +471,17 @@ def _limits(run: _Run) -> OptimizeResult | None:
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
     seg_given = np.array([given_for(int(t)) is not None for t in prob.seg_tool], bool)
+    # finishing passes, and the last pass over a floor or a wall read off the stock the
+    # program leaves: the segments that leave a final surface (the guards' and the deflection's)
+    fin_seg = _finishing_segments(program, model, segs, prob)
+    surface_seg = fin_seg | _surface_segments(program, model, segs, before)
     if phys:
+        # the program's own feed per tooth and load per segment (its F and S)
+        ev0 = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
+        fz_own, load_own = ev0["fz"], ev0["load"]
         # the chip ceiling of the catalogue for described tools (the others keep their learned
         # one) caps a raise: a segment already above it keeps its own chip as its ceiling, and
         # one lowered for a broken limit goes down only as far as that limit needs
-        fz_own = prob._mechanics(prob.f0_var[None, :], fixed_spins(prob)[None, :])[2]
         own_h = prob.chip(fz_own)[0] / (1.0 - opts.margin)
         # (and the level the program proves for the tool — its 95th percentile chip — where that
         # is above the chart's: a shop's proven chip is not cut back by a chart, on any of its cuts)
@@ -486,9 +498,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
     if phys:
         # on a final surface the shank may bend at most the tolerance: a cap on a raise (a
         # segment already over it at its own feed keeps its own load as the limit)
-        surface_seg = _finishing_segments(program, model, segs, prob) | _surface_segments(program, model, segs, before)
-        ev0 = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
-        own = ev0["load"][0] / (1.0 - opts.margin)
+        own = load_own[0] / (1.0 - opts.margin)
         defl = np.array([phys[int(t)].stiffness * opts.tolerance if int(t) in phys else np.inf
                          for t in prob.seg_tool])
         cap = np.where(surface_seg & np.isfinite(defl), np.maximum(defl, own), np.inf)
@@ -501,7 +511,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
         prob = replace(prob, seg_arc=_segment_arcs(model, segs, prob))
     force_limits = {int(t): float(f) for t, f, g in zip(prob.seg_tool, tool_force, seg_given)
                     if g or int(t) in levels}
-    limit_notes = _limit_notes(prob, levels, given_for, opts, m, phys, cut, user, table)
+    limit_notes = _limit_notes(prob, levels, given_for, opts, m, phys, cut, user_for)
     if spindle_range is not None:
         prob = replace(prob, runups=_runups(prob, program, plan, segs, m))
     if opts.chatter_margin is not None and opts.objective != "air":
@@ -569,8 +579,9 @@ def _limits(run: _Run) -> OptimizeResult | None:
         if not len(mp):
             raise MtwinError(f"{program.path}: nothing is cut: no power curve to smooth")
         target = float(np.percentile(mp, opts.target_percentile))
-    run.put(broken=broken, force_limits=force_limits, given=given, learned=learned, limit_notes=limit_notes,
-            limits=limits, phys=phys, prob=prob, rates=rates, seg_given=seg_given, target=target, worn=worn)
+    run.put(broken=broken, fin_seg=fin_seg, force_limits=force_limits, given=given, learned=learned,
+            limit_notes=limit_notes, limits=limits, phys=phys, prob=prob, rates=rates, seg_given=seg_given,
+            surface_seg=surface_seg, target=target, worn=worn)
 
 
 def _search(run: _Run) -> OptimizeResult | None:
@@ -642,9 +653,9 @@ def _search(run: _Run) -> OptimizeResult | None:
 def _guards(run: _Run) -> OptimizeResult | None:
     """What keeps its feed: air under a guessed stock, finishing passes, approaches into a cut; the contour
     tolerance of each segment (final surface or roughing)."""
-    (air_var, before, candidates, cut, cut_var, feeds, keep, kept, model, opts, prob, program, rec, segs,
+    (air_var, before, candidates, cut, cut_var, feeds, keep, kept, opts, prob, program, rec, segs,
      spindle_range, spins, stock, trust, warnings) = \
-        run.take("air_var before candidates cut cut_var feeds keep kept model opts prob program rec segs "
+        run.take("air_var before candidates cut cut_var feeds keep kept opts prob program rec segs "
                  "spindle_range spins stock trust warnings")
     # an air cut under a stock the twin only guessed is raised only where the tool is provably
     # clear of that stock: the guess may hold material the program really cuts
@@ -691,7 +702,7 @@ def _guards(run: _Run) -> OptimizeResult | None:
     # finishing passes keep their feed per tooth
     fin_var = np.zeros(prob.nvar, bool)
     if opts.finish_feed in ("keep", "auto") and opts.objective != "air":
-        fin_seg = _finishing_segments(program, model, segs, prob)
+        fin_seg = run.fin_seg.copy()
         if opts.finish_feed == "auto" and run.phys:
             fin_seg &= ~np.isin(prob.seg_tool, list(run.phys))
         np.logical_or.at(fin_var, prob.seg_var, fin_seg)
@@ -707,9 +718,7 @@ def _guards(run: _Run) -> OptimizeResult | None:
     # accuracy where it reaches the part: the tolerance on segments that leave a final surface,
     # the roughing allowance on the others
     surface_var = np.zeros(prob.nvar, bool)
-    np.logical_or.at(surface_var, prob.seg_var, _finishing_segments(program, model, segs, prob))
-    # and the last pass over a floor or a wall, read off the stock the program leaves
-    np.logical_or.at(surface_var, prob.seg_var, _surface_segments(program, model, segs, before))
+    np.logical_or.at(surface_var, prob.seg_var, run.surface_seg)
     rough = max(ROUGH_TOLERANCE, opts.tolerance) if opts.rough_tolerance is None else opts.rough_tolerance
     tol_v = np.where(surface_var, opts.tolerance, rough)
     run.put(clear_z=clear_z, feeds=feeds, fin_var=fin_var, keep=keep, kept=kept, rough=rough, surface_var=surface_var,
@@ -1267,7 +1276,9 @@ def _physics(opts, cut, used_tools, program) -> dict:
 
     if opts.limits == "learned" or opts.objective == "air":
         return {}
-    known = cut.material_from != "" and cut.material_name in _catalogue_keys()
+    from ..cutting.catalogue import catalogue
+
+    known = cut.material_from != "" and cut.material_name in catalogue().materials
     if opts.limits == "physics" and not known:
         raise MtwinError(f"{program.path}: --limits physics needs the work material: give --material NAME (mtwin "
                          f"materials lists them), cutting.material in the twin file, or a (MATERIAL: NAME) comment")
@@ -1280,13 +1291,7 @@ def _physics(opts, cut, used_tools, program) -> dict:
     return phys
 
 
-def _catalogue_keys():
-    from ..cutting.catalogue import catalogue
-
-    return catalogue().materials
-
-
-def _limit_notes(prob, levels: dict, given_for, opts, m, phys=None, cut=None, user=None, table=None) -> list:
+def _limit_notes(prob, levels: dict, given_for, opts, m, phys=None, cut=None, user_for=None) -> list:
     """Per tool: the load (and chip) limit used and where it came from."""
     out = []
     phys = phys or {}
@@ -1296,11 +1301,9 @@ def _limit_notes(prob, levels: dict, given_for, opts, m, phys=None, cut=None, us
         if t in phys:
             d = phys[t].as_dict(cut.material_name)
             d["material_from"] = cut.material_from
-            u = user.get(t) if isinstance(user, dict) else user
-            u = (table or {}).get(t) if u is None else u
+            u, where = user_for(t)
             if u is not None and u < d["load"]:
-                d.update(load=float(u), load_source="--force-limit" if (isinstance(user, dict) and t in user) or
-                         isinstance(user, (int, float)) else "twin file tools.N.force_limit")
+                d.update(load=float(u), load_source=where)
             if t in levels and levels[t][1] > d["chip_thickness"]:
                 d["chip_thickness_catalogue"] = d["chip_thickness"]
                 d["chip_thickness"] = float(levels[t][1])
