@@ -360,8 +360,11 @@ def test_lowercase_block_delete_comments_and_percent():
 def test_runaway_subprograms_end_with_an_error():
     with pytest.raises(GCodeError, match="nesting"):
         run("O1\nM98 P1\n")
-    with pytest.raises(GCodeError, match="does not terminate"):
+    # a repeat count beyond Fanuc's own range (L1-L9999) stops at once, at its word (issue 33)
+    with pytest.raises(GCodeError, match=r"1:10: a repeat count L99999999 over 9999"):
         run("M98 P100 L99999999\nM30\nO100\nG4 P1\nM99\n")
+    with pytest.raises(GCodeError, match=r"a repeat count L10000 over 9999"):
+        run("G21 G91\nG81 X1 Z-1 R1 L10000 F100\nM30\n")
 
 
 def test_g92_offsets_program_coordinates():

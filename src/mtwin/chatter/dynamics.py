@@ -26,6 +26,7 @@ from .margin import step_arcs
 
 SUB_STEPS = 64  # per tooth pitch
 SPECTRUM_CAP = 4_000_000  # sub-steps kept for the lines' spectra
+DIVERGED_MM = 1.0  # a regenerative vibration beyond this has diverged (chip loads are tenths of a millimetre)
 
 
 @dataclass
@@ -152,8 +153,15 @@ def _line_verdicts(trace, active, regen, rpm, flutes, sub_x, sub_y, sub_first, t
         if len(at) < 4:
             continue
         k = max(len(at) // 5, 1)
-        start = float(np.mean(regen[at[:k]]))
-        end = float(np.mean(regen[at[-k:]]))
+        seg = regen[at]
+        finite = np.isfinite(seg)
+        # a vibration that leaves the numbers (overflow, NaN) or grows past a millimetre has
+        # diverged: the cut is unstable far beyond its limit (a very soft mode), which is chatter
+        # — never "no chatter" because a comparison with NaN came out false
+        diverged = bool(not finite.all() or np.abs(seg).max() > DIVERGED_MM)
+        seg = np.where(finite, seg, np.nan)
+        start = float(np.nanmean(seg[:k])) if finite[:k].any() else 0.0
+        end = float(np.nanmean(seg[-k:])) if finite[-k:].any() else float(np.nanmax(np.abs(seg), initial=0.0))
         n = float(np.median(rpm[at]))
         tp = flutes * n / 60.0
         entry = {"line": int(ln), "tool": tool, "speed": n, "tooth_passing": tp,
@@ -161,7 +169,9 @@ def _line_verdicts(trace, active, regen, rpm, flutes, sub_x, sub_y, sub_first, t
                  "growth": end / start if start > 0 else (math.inf if end > 0 else 1.0)}
         a, b = int(sub_first[at[0]]), int(sub_first[at[-1]])
         peak = None
-        if a >= 0 and b > a + 256:
+        if diverged:
+            entry["diverged"] = True
+        elif a >= 0 and b > a + 256:
             x = sub_x[a:b]
             y = sub_y[a:b]
             x = x[-32768:]
@@ -180,7 +190,7 @@ def _line_verdicts(trace, active, regen, rpm, flutes, sub_x, sub_y, sub_first, t
         # harmonics that dominates the spectrum (grown and saturated: the tooth leaving the cut)
         grows = end > 3.0 * start and end > 1e-4
         holds = entry.get("off_harmonic_share", 0.0) > 0.5 and end > 5e-4
-        entry["chatter"] = bool(grows or holds)
+        entry["chatter"] = bool(grows or holds or diverged)
         # (a stable line's leakage near a harmonic is no chatter frequency)
         entry["chatter_frequency"] = peak if entry["chatter"] else None
         out.append(entry)

@@ -54,6 +54,10 @@ MODE_KEYS = {"direction": "x | y (machine axis)", "fn": "natural frequency, Hz",
              "m": "modal mass, kg (or k)"}
 
 
+K_RANGE = (1e2, 1e12)  # N/m
+FN_MAX = 1e5  # Hz
+
+
 def parse_modes(raw, where: str) -> tuple[Mode, ...]:
     """``[[tools.N.modes]]`` entries -> modes; every error names the entry."""
     if not isinstance(raw, list):
@@ -90,6 +94,13 @@ def parse_modes(raw, where: str) -> tuple[Mode, ...]:
         k = vals["k"] if "k" in vals else vals["m"] * (2.0 * math.pi * vals["fn"]) ** 2
         if k <= 0:
             raise ConfigError(f"{at}: the stiffness (or mass) must be > 0, got {vals.get('k', vals.get('m')):g}")
+        # the stiffness of a real tool tip: from some 1e3 N/m (a 1 mm tool at 30 mm stick-out) to
+        # 1e10 N/m (a spindle nose); beyond the range a value is a typo and overflows the run
+        if not K_RANGE[0] <= k <= K_RANGE[1]:
+            raise ConfigError(f"{at}: a stiffness of {k:g} N/m is outside what a tool tip has ({K_RANGE[0]:g} to "
+                              f"{K_RANGE[1]:g} N/m): a typo or a unit mistake?")
+        if vals["fn"] > FN_MAX:
+            raise ConfigError(f"{at}.fn: {vals['fn']:g} Hz is above any tool-tip mode ({FN_MAX:g} Hz at most)")
         out.append(Mode(d, vals["fn"], vals["zeta"], k))
     return tuple(out)
 

@@ -191,7 +191,10 @@ def _print_chatter(run) -> None:
                                                if over else "every cut is stable"), highlight=False)
     if run.dynamics is not None:
         for x in run.dynamics.lines:
-            if x["chatter"]:
+            if x.get("diverged"):
+                err.print(f"  line {x['line']}: chatters in the time domain (the regenerative vibration grows without "
+                          f"bound: far beyond its stability limit)", highlight=False)
+            elif x["chatter"]:
                 f = x.get("chatter_frequency")
                 err.print(f"  line {x['line']}: chatters in the time domain (regenerative vibration "
                           f"{x['regen_start_um']:.3g} → {x['regen_end_um']:.3g} µm" + (f", {f:.0f} Hz)" if f else ")"),

@@ -37,7 +37,7 @@ class Tool:
     type: str = P("flat", "str", "flat | ball | bull (corner radius) | vee (V-bit, engraving or chamfer cone: "
                                  "angle, tip_diameter)", "choice", TOOL_TYPES)
     diameter: float = P(6.0, "mm", "cutting diameter [S: reference 6 mm end mill]")
-    flutes: int = P(2, "int", "number of flutes [S: reference two-flute]")
+    flutes: int = P(2, "int", "number of flutes [S: reference two-flute]", hi=64)
     helix: float = P(30.0, "", "helix angle, degrees [E: 30 deg typical for aluminium end mills]", "nonneg")
     corner_radius: float = P(0.0, "mm", "corner radius (bull-nose); a ball's is diameter/2", "nonneg")
     angle: float = P(90.0, "", "included angle of a vee tool's cone, degrees (V-bit 60-90, engraving 10-30, "

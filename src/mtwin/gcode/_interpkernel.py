@@ -37,6 +37,7 @@ SPLINE_MAX_PIECES = 10000
 PECK_CLEAR_MM = 0.254
 PECK_CLEAR_INCH_MM = 0.010 * MM_PER_INCH
 MAX_SUB_DEPTH = 16
+MAX_REPEATS = 9999  # an L repeat count (canned cycle, M98): Fanuc's own range L1-L9999
 
 # ---- error codes (messages in interpreter.py) ----
 E_OK = 0
@@ -86,6 +87,7 @@ E_NO_SAVED_STATE = 44
 E_RESTORE_OFFSETS = 45
 E_POLAR16 = 46
 E_MIRROR = 47
+E_REPEATS = 48
 MAX_SAVED = 32  # call levels with a saved modal state (M70/M73)
 
 # ---- warning codes ----
@@ -1641,6 +1643,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if has[_L]:
                     if val[_L] < 0 or val[_L] != math.floor(val[_L]):
                         return n, E_BAD_VALUE, widx[_L], li, err_vals, nwarn
+                    if val[_L] > MAX_REPEATS:
+                        return n, E_REPEATS, widx[_L], li, err_vals, nwarn
                     reps = int(val[_L])
                 if math.isnan(canned_init):
                     canned_init = pos[an]  # the first block of a series
@@ -1757,6 +1761,10 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             pnum = int(val[_P])
             reps = 1
             if has[_L]:
+                if val[_L] < 0 or val[_L] != math.floor(val[_L]):
+                    return n, E_BAD_VALUE, widx[_L], li, err_vals, nwarn
+                if val[_L] > MAX_REPEATS:
+                    return n, E_REPEATS, widx[_L], li, err_vals, nwarn
                 reps = int(val[_L])
             target = -1
             for q in range(sub_num.size):
@@ -1770,6 +1778,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 reps = pnum // 10000
             if target < 0:
                 return n, E_SUB_NOT_FOUND, widx[_P], li, err_vals, nwarn
+            if reps > MAX_REPEATS:
+                return n, E_REPEATS, widx[_P], li, err_vals, nwarn
             if depth >= MAX_SUB_DEPTH:
                 return n, E_SUB_DEPTH, widx[_P], li, err_vals, nwarn
             if reps > 0:

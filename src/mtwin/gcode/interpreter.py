@@ -472,7 +472,10 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals, lenient: bool 
         K.E_CANNED_Q: "peck cycle needs a positive Q (peck depth)",
         K.E_CANNED_R_BELOW_Z: f"canned cycle R level {vals[0]:.4f} mm is below the bottom {vals[1]:.4f} mm",
         K.E_SUB_NOT_FOUND: f"M98 subprogram {w} not found in this file",
-        K.E_SUB_DEPTH: f"subprogram nesting deeper than {K.MAX_SUB_DEPTH}",
+        K.E_SUB_DEPTH: f"subprogram nesting deeper than {K.MAX_SUB_DEPTH} (a program that calls itself without end?), "
+                       f"the limit of the interpreter",
+        K.E_REPEATS: f"a repeat count {w} over {K.MAX_REPEATS} (Fanuc's own range L1-L9999), the limit of the "
+                     f"interpreter",
         K.E_LOOP: "program does not terminate (subprogram loop)",
         K.E_GEOMETRY_G: (f"{w} is not supported: it changes the toolpath geometry (cutter compensation, "
                          "rotation, scaling, polar or lathe modes), which mtwin does not model yet"),

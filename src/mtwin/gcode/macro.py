@@ -28,7 +28,12 @@ import numpy as np
 
 from ..errors import GCodeError, SourceLocation
 
-MAX_EXECUTED_LINES = 2_000_000
+# Bounds on what a program may make the interpreter do (docs/conventions.md): each is met in
+# seconds, with the line where it was reached.
+MAX_EXECUTED_LINES = 2_000_000  # lines executed in all
+MAX_IDLE_LINES = 200_000  # lines executed in a row with nothing to run (no move, no code word)
+MAX_REPEATS = 9999  # an M98/G65 L repeat count: Fanuc's own range (L1-L9999)
+MAX_CALL_DEPTH = 16  # nested subprogram and macro calls (as the plain interpreter, MAX_SUB_DEPTH)
 
 # G65 argument letters -> local parameter numbers (Fanuc argument specification I)
 _G65_ARGS = {"A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F": 9, "H": 11, "M": 13,
@@ -132,6 +137,7 @@ class _Frame:
     site: int = 0  # line of the program (not of a subroutine file) the call chain started from
     autorestore: bool = False  # an M73 ran in this call: its modal state comes back at the return
     loops: int | None = None  # O-word call: the caller's loop-stack depth (a return leaves the sub's loops)
+    repeat: bool = False  # a second or later run of an M98 L repeat (not a deeper call)
 
 
 class _Expr:
@@ -308,6 +314,7 @@ class _Executor:
         # #<_value_returned>: 1 if it returned a value; both 0 before any call (LinuxCNC)
         self.globals_: dict[str, float] = {"_value": 0.0, "_value_returned": 0.0}
         self.frames: list[_Frame] = [_Frame(-1)]
+        self.idle = 0  # lines executed since the last one that gave the interpreter code to run
         self.lines = self._split(data)
         self.current: _Line | None = None
         self.out: list[str] = []
@@ -458,6 +465,14 @@ class _Executor:
         v = e.bracket()
         return v, e.p
 
+    def push(self, frame: _Frame, what: str):
+        """Enter a call, within MAX_CALL_DEPTH (a program that calls itself without end stops
+        here, at once, rather than at the line guard)."""
+        if not frame.repeat and sum(not f.repeat for f in self.frames) > MAX_CALL_DEPTH:
+            raise _Err(f"{what}: calls nested deeper than {MAX_CALL_DEPTH} (a program that calls itself without "
+                       f"end?), the limit of the interpreter")
+        self.frames.append(frame)
+
     def emit(self, words: str, no: int):
         if "G9" in words or "G38" in words:
             self._track_probe(words)
@@ -477,6 +492,7 @@ class _Executor:
             self.profile_pos = p
         # moves of a subroutine from another file belong to the line that called it
         ln_src = self.current.src if self.current is not None else None
+        self.idle = 0
         self.out.append(words)
         self.out_line.append(self.frames[-1].site if ln_src is not None else no)
         self.out_sub.append(len(self.frames) > 1)
@@ -618,8 +634,13 @@ class _Executor:
         seen_percent = False
         while 0 <= k < len(lines):
             executed += 1
+            self.idle += 1
             if executed > MAX_EXECUTED_LINES:
-                raise GCodeError(f"more than {MAX_EXECUTED_LINES:,} lines executed (endless loop?)",
+                raise GCodeError(f"more than {MAX_EXECUTED_LINES:,} lines executed (endless loop?), the limit "
+                                 f"of the macro interpreter", SourceLocation(self.path, lines[k].no, 1))
+            if self.idle > MAX_IDLE_LINES:
+                raise GCodeError(f"{MAX_IDLE_LINES:,} lines executed in a row without a move or any code to run "
+                                 f"(endless loop?), the limit of the macro interpreter",
                                  SourceLocation(self.path, lines[k].no, 1))
             ln = lines[k]
             self.current = ln
@@ -930,7 +951,7 @@ class _Executor:
             self.missing_program("G65", prog, self.current.no)
             return k + 1
         site = self.frames[-1].site if self.current.src is not None else self.current.no
-        self.frames.append(_Frame(k + 1, args, {}, f"O{prog}", site))
+        self.push(_Frame(k + 1, args, {}, f"O{prog}", site), f"G65 P{prog}")
         return self.fanuc_progs[prog] + 1
 
     def m98(self, codes, words, k, no):
@@ -940,10 +961,15 @@ class _Executor:
             if c == "P":
                 prog = int(float(v))
             if c == "L":
+                if float(v) != int(float(v)) or float(v) < 0:
+                    raise _Err(f"M98 L{v}: a repeat count is a whole number >= 0")
                 reps = int(float(v))
         if prog is not None and prog not in self.fanuc_progs and prog > 9999:
             # packed form P<repeats><4-digit program>
             reps, prog = prog // 10000, prog % 10000
+        if reps > MAX_REPEATS:
+            raise _Err(f"M98 L{reps}: a repeat count over {MAX_REPEATS} (Fanuc's own range L1-L9999), the limit of the "
+                       f"interpreter")
         if prog is not None and prog not in self.fanuc_progs:
             self.load_fanuc_program(prog)
         if prog is None:
@@ -961,7 +987,8 @@ class _Executor:
         # run the subprogram `reps` times: stack one frame per repetition
         site = self.frames[-1].site if self.current.src is not None else no
         for _ in range(max(1, reps)):
-            self.frames.append(_Frame(k + 1 if _ == 0 else self.fanuc_progs[prog] + 1, {}, {}, f"O{prog}", site))
+            self.push(_Frame(k + 1 if _ == 0 else self.fanuc_progs[prog] + 1, {}, {}, f"O{prog}", site,
+                             repeat=_ > 0), f"M98 P{prog}")
         # frames are popped by M99 in order; the last pushed runs first
         return self.fanuc_progs[prog] + 1
 
@@ -1006,7 +1033,7 @@ class _Executor:
                 args[idx] = v
                 idx += 1
             site = self.frames[-1].site if self.current.src is not None else self.current.no
-            self.frames.append(_Frame(k + 1, args, {}, label, site, loops=len(loops)))
+            self.push(_Frame(k + 1, args, {}, label, site, loops=len(loops)), f"o{label} call")
             return self.subs[label] + 1
         if kw in ("IF", "ELSEIF"):
             if kw == "ELSEIF":

@@ -30,7 +30,7 @@ from .records import (
     FL_PROBE,
     FL_ROTARY,
     FL_SYNC,
-    ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
+    ARC_CCW, ARC_CW, DWELL, FEED_INVERSE_TIME, FEED_PER_MIN, FEED_PER_REV, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE,
     FL_F_INCH, FL_INCH, FL_INCREMENTAL, FL_R_ARC, FL_SUB, LINEAR, PLANE_AXES, RAPID, move_lengths, arc_sweep,
 )
 from .verify import compare
@@ -368,7 +368,9 @@ def rewrite(prog: Program, feeds=None, spindles=None, splits: dict | None = None
                     del targets[li]
     _move_s_to_own_line(w, s_target, line0, locked_lines, locked_words)
     unknown = {li for li, letter in locked_words if letter == "F"} | locked_lines
-    _apply_modal(w, prog, "F", f_target, split_lines, splits, unknown)
+    restored = _restore_after_changed(w, prog, f_target, changed_f, line0, is_feed, locked_words) \
+        if prog.is_macro else {}
+    _apply_modal(w, prog, "F", f_target, split_lines, splits, unknown, restored)
     _apply_modal(w, prog, "S", s_target, {}, {},
                  {li for li, letter in locked_words if letter == "S"} | locked_lines)
     for li, i in split_lines.items():
@@ -407,10 +409,57 @@ def _move_s_to_own_line(w: _Writer, s_target: dict, line0: np.ndarray, locked_li
         s_target[p] = s_target.pop(li)
 
 
+def _restore_after_changed(w: _Writer, prog: Program, f_target: dict, changed_f, line0, is_feed,
+                           locked_words) -> dict:
+    """In a macro program only some lines get an F target, so a changed modal F could carry
+    past a changed line into a line that runs at several feeds (a loop's first line on its
+    next pass, a subprogram called again after other F words): such a line cannot take a word
+    of its own.  Where the next feed move after a changed line (in the order the program ran)
+    is on a line that sets no F, the feed the changed line had is written back on a line of
+    its own (``F10``) inserted right after it: that line runs exactly when the changed one does
+    (it is no jump target) and leaves the modal F as the program had it.  A changed line runs
+    at one feed in every execution (``_feed_targets``), so that feed is known.  Returns
+    {line: modal feed value after it} for ``_apply_modal``.  The self-check proves the result."""
+    lx = w.lx
+    rec = prog.records
+    has_f = set(lx.w_line[lx.w_letter == ord("F")].tolist()) | {li for li, c in locked_words if c == "F"}
+    feed_idx = np.flatnonzero(is_feed)
+    if not len(feed_idx):
+        return {}
+    fl = line0[feed_idx]
+    # per feed record: the position of the next feed record on another line
+    nxt = np.full(len(feed_idx), len(feed_idx), np.int64)
+    for k in range(len(feed_idx) - 2, -1, -1):
+        nxt[k] = k + 1 if fl[k + 1] != fl[k] else nxt[k + 1]
+    restored: dict = {}
+    pos = np.searchsorted(feed_idx, changed_f)
+    for i, k in zip(changed_f, pos):
+        li = int(line0[i])
+        if li in restored or li not in f_target or k >= len(feed_idx) or feed_idx[k] != i:
+            continue
+        n = nxt[k]
+        if n >= len(feed_idx):
+            continue
+        nl = int(fl[n])
+        if nl in f_target or nl in has_f:
+            continue
+        r = rec[i]
+        if r["feed_mode"] != FEED_PER_MIN:
+            continue  # per revolution or inverse time: every such move carries its own F
+        inch = bool(r["flags"] & FL_INCH)
+        text = w.style.feed(_feed_word(r, float(r["feed"]), float(r["spindle"]), 1.0, own_line=False), inch)
+        prefix = "/" if lx.line_flags[li] & LF_BLOCK_DELETE else ""
+        # after the line and after any pieces a split of it adds (order 2 + k)
+        w.edits.insert(int(lx.line_end[li]), w.eol + prefix + w.letter("F") + text, order=10_000)
+        restored[li] = float(text)
+    return restored
+
+
 def _apply_modal(w: _Writer, prog: Program, letter: str, targets: dict, split_lines: dict, splits: dict,
-                 unknown: set = frozenset()):
+                 unknown: set = frozenset(), restored: dict | None = None):
     """Set F (or S) on the lines that need it, tracking the modal value in file order.
-    ``unknown``: lines after which the modal value is not known (macro expressions)."""
+    ``unknown``: lines after which the modal value is not known (macro expressions);
+    ``restored``: lines after which a line of its own sets the value back."""
     if not targets:
         return
     lx = w.lx
@@ -437,6 +486,8 @@ def _apply_modal(w: _Writer, prog: Program, letter: str, targets: dict, split_li
             r = prog.records[i]
             modal = float(w.style.feed(_feed_word(r, splits[i].feeds[-1], r["spindle"], 1.0, own_line=False),
                                        bool(r["flags"] & FL_INCH)))
+        if restored and li in restored:
+            modal = restored[li]
 
 
 def _write_split(w: _Writer, r, li: int, sp: Split, spindle: float, length: float):

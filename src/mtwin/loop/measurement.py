@@ -344,6 +344,9 @@ def _read_parquet(path: str):
     return header, rows, {}, 2
 
 
+MAX_MAGNITUDE = 1e100  # (epoch nanoseconds are 1.7e18: a bound on magnitude only)
+
+
 def _numbers(rows, header, path, first_row, read) -> np.ndarray:
     n, m = len(rows), len(header)
     out = np.full((n, m), np.nan)
@@ -356,16 +359,25 @@ def _numbers(rows, header, path, first_row, read) -> np.ndarray:
             if cell is None or not read[j]:
                 continue
             if isinstance(cell, (int, float)):
-                out[i, j] = float(cell)
-                continue
-            s = cell.strip()
-            if not s or s.lower() == "nan":
-                continue
-            try:
-                out[i, j] = float(s)
-            except ValueError:
-                raise MeasurementError(f"{s!r} in column {header[j]!r} is not a number",
-                                       SourceLocation(path, first_row + i, j + 1)) from None
+                v = float(cell)
+                if math.isnan(v):
+                    continue
+            else:
+                s = cell.strip()
+                if not s or s.lower() == "nan":
+                    continue  # a missing value
+                try:
+                    v = float(s)
+                except ValueError:
+                    raise MeasurementError(f"{s!r} in column {header[j]!r} is not a number",
+                                           SourceLocation(path, first_row + i, j + 1)) from None
+            # an infinite value (or one no instrument gives in any unit) would make every figure
+            # after it inf or NaN: it is an error of the file, not a measurement
+            if not abs(v) <= MAX_MAGNITUDE:
+                raise MeasurementError(f"{cell!s} in column {header[j]!r} is not a finite measured value (at most "
+                                       f"{MAX_MAGNITUDE:g} in magnitude; leave the cell empty for a missing value)",
+                                       SourceLocation(path, first_row + i, j + 1))
+            out[i, j] = v
     keep = ~np.all(np.isnan(out), axis=1) if n else np.zeros(0, bool)
     return out[keep]
 

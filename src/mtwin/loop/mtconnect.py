@@ -33,6 +33,8 @@ Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
 """
 from __future__ import annotations
 
+import math
+
 import re
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -345,9 +347,13 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
         if v in ("", "UNAVAILABLE"):
             return False
         try:
-            b = int(float(v))
+            fb = float(v)
         except ValueError:
             raise MeasurementError(f"Block_Number {v!r} is not a number", SourceLocation(path, e.line, 1)) from None
+        if not (math.isfinite(fb) and fb == int(fb) and 0 <= fb < 1e9):
+            raise MeasurementError(f"Block_Number {v!r} is not a block number (a whole number >= 0)",
+                                   SourceLocation(path, e.line, 1))
+        b = int(fb)
         if n_map is not None:
             lines = n_map.get(b)
             if not lines:
@@ -367,6 +373,11 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
         x = float(v)
     except ValueError:
         raise MeasurementError(f"{e.item} value {v!r} is not a number", SourceLocation(path, e.line, 1)) from None
+    # a feed, speed, tool number or override a control reports is finite, >= 0 and below
+    # these (1,000 m/min in mm/s; 1e6 rpm; 1e6 for a tool number or a percentage)
+    if not (math.isfinite(x) and 0 <= x <= (1e6 / 60.0 * 1e3 if key == "feed" else 1e6)):
+        raise MeasurementError(f"{e.item} value {v!r} is not a value a control reports (finite, >= 0, within "
+                               f"any machine's range)", SourceLocation(path, e.line, 1))
     state[key] = x * 60.0 if key == "feed" else x  # MTConnect path feed: mm/s
     return True
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,6 +45,7 @@ class Trust:
     warnings: list[str]
     undescribed: dict[int, list[int]]  # tool -> lines of its feed moves that keep their feeds
     stopped: list[int]  # lines of feed moves with the spindle stopped
+    blind: list[int] = field(default_factory=list)  # lines under cutter compensation of unknown radius
 
 
 def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
@@ -81,7 +82,21 @@ def trusted_records(program, cutting, candidates: np.ndarray) -> Trust:
                         f"the spindle stopped (no M3/M4, or S0 — a router's hand-switched spindle?): the twin cannot "
                         f"know their cut, so they keep their programmed feeds (lines {line_ranges(stopped)})"))
     ok &= ~stopped_m
-    return Trust(ok, warnings, undescribed, stopped)
+    # under cutter compensation whose radius the twin does not know (taken as 0: a path the CAM
+    # system compensated already), the tool may really run a radius off the simulated path — a
+    # hand-written contour with the full radius in its D register: there the twin's engagement
+    # is another cut's (a finishing pass after a larger tool's roughing looks like air)
+    given = program.settings.comp_radii or {}
+    blind_m = candidates & ok & (rec["comp"] != 0) & (rec["comp_r"] <= 0)
+    blind: list[int] = []
+    if blind_m.any() and not any(float(r) == 0.0 for r in given.values()):
+        blind = sorted(set(rec["line"][blind_m].tolist()))
+        warnings.append(warning_text(program.path, blind[0], f"{int(blind_m.sum())} feed move(s) run under cutter "
+                        f"compensation (G41/G42) whose radius the twin does not know: the tool may run a radius off "
+                        f"the simulated path, so they keep their programmed feeds (lines {line_ranges(blind)}); give "
+                        f"the D registers in the twin file ([cutter_comp], 0 for a path the CAM system compensated)"))
+        ok &= ~blind_m
+    return Trust(ok, warnings, undescribed, stopped, blind)
 
 
 def inside_stock(program, cutting, box) -> np.ndarray:

@@ -384,6 +384,8 @@ def _baseline(run: _Run) -> OptimizeResult | None:
     kept.update(never_set)
     if trust.stopped:
         kept["spindle stopped"] = trust.stopped
+    if trust.blind:
+        kept["cutter compensation of unknown radius"] = trust.blind
     if not ok.any():
         return _unchanged(program, before, opts, warnings, kept, t_start,
                           "no feed move the twin knows the cut of: the program is written unchanged")
@@ -699,6 +701,14 @@ def _guards(run: _Run) -> OptimizeResult | None:
                             f"{int(unclear.sum())} air-cut segment(s) outside or above it, or after a cut by an "
                             f"undescribed tool, keep their feeds; give the stock (--stock, (MTWIN STOCK …) or "
                             f"cutting.stock) or declare the tool (--tool) to let them be raised")
+    # a line that runs at several programmed feeds (a subprogram called after different F
+    # words, a loop whose feed its body changes) takes its feed from its caller: one F word on
+    # it cannot give each run its own, and a word added to it would change every run
+    inherited = _caller_fed(program, segs, prob) & ~keep
+    if inherited.any():
+        keep |= inherited
+        kept["runs at its caller's feeds (a subprogram or loop entered at several feeds)"] = \
+            _var_lines(program, segs, prob, inherited)
     # finishing passes keep their feed per tooth
     fin_var = np.zeros(prob.nvar, bool)
     if opts.finish_feed in ("keep", "auto") and opts.objective != "air":
@@ -1231,6 +1241,20 @@ def _previous_var(segs, prob) -> np.ndarray:
             pv = prob.seg_var[segs.piece_seg[k - 1]]
             if pv != v:
                 out[v] = pv
+    return out
+
+
+def _caller_fed(program, segs, prob) -> np.ndarray:
+    """Per variable: it holds a line whose moves run at more than one programmed feed."""
+    rec = program.records
+    line, feed = rec["line"][segs.piece_rec], rec["feed"][segs.piece_rec]
+    order = np.lexsort((feed, line))
+    ls, fs = line[order], feed[order]
+    differ = (ls[1:] == ls[:-1]) & (fs[1:] > fs[:-1] * (1 + 1e-9))
+    lines = np.unique(ls[1:][differ])
+    out = np.zeros(prob.nvar, bool)
+    if len(lines):
+        np.logical_or.at(out, prob.seg_var[segs.piece_seg], np.isin(line, lines))
     return out
 
 

@@ -31,7 +31,7 @@ AXES = ("x", "y", "z")
 @dataclass(frozen=True)
 class Controller:
     style: str = P("fanuc", "str", "planner style: fanuc | linuxcnc | grbl", "choice", STYLES)
-    servo_period: float = P(0.001, "s", "interpolation and servo period [S: 1 ms, LinuxCNC; Fanuc ~1 ms]")
+    servo_period: float = P(0.001, "s", "interpolation and servo period [S: 1 ms, LinuxCNC; Fanuc ~1 ms]", lo=1e-6)
     lookahead: int = P(40, "int", "look-ahead window in blocks [S: Fanuc AI contour up to 40]")
     min_block_time: float = P(0.001, "s", "shortest time a block may take (block processing rate) [E]", "nonneg")
     max_path_velocity: float = P(0.0, "mm/min", "path (vector) velocity limit for all moves, 0 = axis limits only", "nonneg")
@@ -73,9 +73,9 @@ class Servo:
     # v/Kv (0.17 mm at 400 mm/min, Kv 40) would cut every corner (docs/motion.md, "accuracy")
     feedforward: float = P(0.9, "", "velocity feed-forward ratio alpha, 0..1 [E: feed-forward as on contouring "
                            "controls, Koren & Lo 1992, Erkorkmaz & Altintas 2001; 0.9 chosen, not a cited value]", "unit_interval")
-    s_pp: float = P(1.0, "", "scale factor on the position gain (reference S_pp)")
-    s_vp: float = P(1.0, "", "scale factor on the velocity proportional gain (S_vp)")
-    s_vi: float = P(1.0, "", "scale factor on the velocity integral gain (S_vi)", "nonneg")
+    s_pp: float = P(1.0, "", "scale factor on the position gain (reference S_pp)", hi=100.0)
+    s_vp: float = P(1.0, "", "scale factor on the velocity proportional gain (S_vp)", hi=100.0)
+    s_vi: float = P(1.0, "", "scale factor on the velocity integral gain (S_vi)", "nonneg", hi=100.0)
 
 
 @dataclass(frozen=True)
