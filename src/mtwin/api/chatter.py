@@ -23,6 +23,9 @@ def _feed_angle(text: str) -> float:
     return math.radians(finite_number(t, "--feed-direction", "x, y, -x, -y or an angle in degrees from +X"))
 
 
+MIN_POINTS, MAX_POINTS = 10, 20_000
+
+
 def stability_lobes(twin=None, *, tool: int = 1, immersion: Optional[float] = None, ae: Optional[float] = None,
                     milling: str = "down", feed_direction: str = "x",
                     speed_range: Optional[tuple[float, float]] = None, method: str = "auto", points: int = 0,
@@ -60,6 +63,9 @@ def stability_lobes(twin=None, *, tool: int = 1, immersion: Optional[float] = No
     lo, hi = speed_range if speed_range is not None else (0.1 * top, top)
     if steps < 4 or steps > 400:
         raise ConfigError(f"--steps must be 4..400, got {steps}")
+    if points and not MIN_POINTS <= points <= MAX_POINTS:
+        # (each point is a root search over the chatter frequency: 100,000 points take minutes)
+        raise ConfigError(f"--points must be {MIN_POINTS}..{MAX_POINTS:,} speeds, got {points:,}")
     grid = speed_grid(lo, hi, points if points else (500 if method == "zoa" else 200))
     mat = cut.material
     res = lobes(dyn, c, tl.flutes, mat.ktc, mat.krc, grid, method, steps=steps)

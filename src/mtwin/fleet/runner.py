@@ -86,6 +86,34 @@ def warmed_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
     return run_job(job, inputs, common, run)
 
 
+SCHEDULER_TIMEOUT = 30.0  # s: a scheduler that does not complete the handshake by then is given up
+
+
+def _client_within(make, seconds: float):
+    """``make()`` (a Dask client), or TimeoutError after ``seconds``: Dask's own connect timeout
+    covers the TCP connection, not a peer that accepts it and never answers (the handshake then
+    waits for ever).  The attempt runs in a daemon thread, left behind if it hangs."""
+    import threading
+
+    box: dict = {}
+
+    def attempt():
+        try:
+            box["client"] = make()
+        except BaseException as exc:  # noqa: BLE001 (handed to the caller)
+            box["error"] = exc
+
+    th = threading.Thread(target=attempt, daemon=True, name="mtwin-dask-connect")
+    th.start()
+    th.join(seconds)
+    if th.is_alive():
+        raise TimeoutError(f"no answer within {seconds:g} s (an address that accepts connections but is no Dask "
+                           f"scheduler?)")
+    if "error" in box:
+        raise box["error"]
+    return box["client"]
+
+
 class Cluster:
     """A Dask client on a local cluster (``workers`` processes) or on a scheduler's address /
     scheduler file; refuses, before any job runs, a scheduler it cannot reach."""
@@ -103,14 +131,16 @@ class Cluster:
                          "distributed.worker.daemon": False})
         try:
             if scheduler or scheduler_file:
-                self.client = Client(scheduler, scheduler_file=scheduler_file, timeout=f"{timeout}s")
+                self.client = _client_within(lambda: Client(scheduler, scheduler_file=scheduler_file,
+                                                            timeout=f"{timeout}s"), SCHEDULER_TIMEOUT)
             else:
                 n = workers or cores()
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                             dashboard_address=None, silence_logs=logging.ERROR,
                                             env={**WORKER_ENV, **(env or {})})
                 self.client = Client(self.cluster)
-        except (OSError, TimeoutError, ValueError) as exc:  # (ValueError: an address Dask cannot read)
+        except (OSError, TimeoutError, ValueError, MemoryError) as exc:  # (ValueError: an address Dask cannot
+            # read; MemoryError: a peer that answers junk, read as a frame length of exabytes)
             where = scheduler or f"the scheduler file {scheduler_file}"
             raise MtwinError(f"cannot reach the Dask scheduler at {where}: {exc}") from None
         self.retries = retries
