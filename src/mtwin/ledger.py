@@ -92,27 +92,86 @@ def _law(values: dict) -> dict:
     return FlankWear(**values).resolved()
 
 
+_TABLES = {"meta", "tools", "runs", "calibrations"}
+
+
+def _create(path: str) -> None:
+    """A new, empty ledger at ``path``, made whole beside it and linked into place: a process
+    that opens the path at the same moment finds either no file or a whole ledger (of two
+    creating it at once, the first link wins and the other opens that one)."""
+    import tempfile
+
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".mtwin-ledger-", suffix=".db", dir=folder)
+    os.close(fd)
+    try:
+        db = sqlite3.connect(tmp, isolation_level=None)
+        try:
+            for stmt in filter(None, (s.strip() for s in _SCHEMA.split(";"))):
+                db.execute(stmt)
+            db.execute("INSERT INTO meta VALUES ('format', ?)", (FORMAT,))
+        finally:
+            db.close()
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            pass
+        except OSError:  # a file system without hard links: a rename (the race is then open)
+            if not os.path.exists(path):
+                os.replace(tmp, path)
+                return
+    except sqlite3.DatabaseError as exc:
+        raise MtwinError(f"{path}: cannot create the tool ledger ({exc})") from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _check_schema(db, path: str) -> None:
+    """The ledger's tables and format, or an error that leaves the file alone."""
+    have = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")} - {"sqlite_sequence"}
+    if have != _TABLES:
+        missing, extra = sorted(_TABLES - have), sorted(have - _TABLES)
+        why = "; ".join(x for x in (f"no table {', '.join(missing)}" if missing else "",
+                                    f"tables a ledger has not: {', '.join(extra)}" if extra else "") if x)
+        raise MtwinError(f"{path}: an SQLite file, but not an mtwin tool ledger ({why}); it is left as it is")
+    row = db.execute("SELECT value FROM meta WHERE key='format'").fetchone()
+    if row is None:
+        raise MtwinError(f"{path}: an SQLite file with a ledger's tables but no format stamp: not written by mtwin; "
+                         f"it is left as it is")
+    if row[0] != FORMAT:
+        raise MtwinError(f"{path}: a tool ledger of format {row[0]!r}; this mtwin reads {FORMAT!r}")
+
+
 class Ledger:
     """A tool ledger file (created on the first write)."""
 
     def __init__(self, path: str, *, create: bool = True):
+        """Open the ledger at ``path``.  Only a file whose tables are the ledger's (and whose
+        format it names) is accepted: any other file — a foreign SQLite database, one with a
+        table dropped, an empty file — is refused and left byte for byte as it was.  A new
+        ledger is created only where no file exists and ``create`` is set (a command that
+        records); a reading command never writes."""
         self.path = str(path)
-        if not os.path.exists(self.path) and not create:
-            raise MtwinError(f"{self.path}: no such tool ledger (one is created by simulate/optimize --record)")
+        if not os.path.exists(self.path):
+            if not create:
+                raise MtwinError(f"{self.path}: no such tool ledger (one is created by simulate/optimize --record)")
+            _create(self.path)
+        exists = True
+        if exists and os.path.getsize(self.path) == 0:
+            raise MtwinError(f"{self.path}: an empty file, not an mtwin tool ledger; it is left as it is — give a "
+                             f"new --ledger path (a ledger is created where no file exists)")
         try:
+            if exists:
+                # read-only first: a file that is not a ledger is never written
+                from pathlib import Path
+
+                ro = sqlite3.connect(f"{Path(self.path).resolve().as_uri()}?mode=ro", uri=True, timeout=_TIMEOUT)
+                try:
+                    _check_schema(ro, self.path)
+                finally:
+                    ro.close()
             self._db = sqlite3.connect(self.path, timeout=_TIMEOUT, isolation_level=None)
-            with self._write():
-                have = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-                if have and "meta" not in have:
-                    raise MtwinError(f"{self.path}: an SQLite file, but not an mtwin tool ledger (tables: "
-                                     f"{', '.join(sorted(have))}); it is left as it is")
-                for stmt in filter(None, (s.strip() for s in _SCHEMA.split(";"))):
-                    self._db.execute(stmt)
-                row = self._db.execute("SELECT value FROM meta WHERE key='format'").fetchone()
-                if row is None:
-                    self._db.execute("INSERT INTO meta VALUES ('format', ?)", (FORMAT,))
-                elif row[0] != FORMAT:
-                    raise MtwinError(f"{self.path}: a tool ledger of format {row[0]!r}; this mtwin reads {FORMAT!r}")
         except sqlite3.DatabaseError as exc:
             raise MtwinError(f"{self.path}: not a readable tool ledger ({exc}); it is left as it is — restore it "
                              f"from a backup or give another --ledger file") from None
@@ -182,11 +241,17 @@ class Ledger:
                vb_start: float | None = None, vb_end: float | None = None, source: str = "simulate") -> None:
         """Add one run of a program to the tool's history."""
         with self._write():
-            self._ensure(ident)
-            self._db.execute("INSERT INTO runs (tool, at, program, tool_number, material, length, sliding, time, "
-                             "volume, vb_start, vb_end, source) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
-                             (ident, _now(), program, int(tool_number), material, use.length, use.sliding, use.time,
-                              use.volume, vb_start, vb_end, source))
+            self._insert_run(ident, program=program, tool_number=tool_number, material=material, use=use,
+                             vb_start=vb_start, vb_end=vb_end, source=source)
+
+    def _insert_run(self, ident: str, *, program: str, tool_number: int, material: str, use: ToolHistory,
+                    vb_start, vb_end, source: str) -> None:
+        # (inside a transaction of the caller's)
+        self._ensure(ident)
+        self._db.execute("INSERT INTO runs (tool, at, program, tool_number, material, length, sliding, time, "
+                         "volume, vb_start, vb_end, source) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+                         (ident, _now(), program, int(tool_number), material, use.length, use.sliding, use.time,
+                          use.volume, vb_start, vb_end, source))
 
     def set_law(self, ident: str, law: dict, *, measurement: str, rms_before: dict, rms_after: dict) -> None:
         """The tool's wear law from a calibration, with its journal entry."""
@@ -222,20 +287,33 @@ def apply(twin, ledger_path: str, tool_ids: dict[int, str]):
     return twin
 
 
-def record_trace(ledger_path: str, tool_ids: dict[int, str], trace, *, program: str, material: str | None = None,
-                 source: str = "simulate") -> list[str]:
-    """Record what a simulated run cut with each mapped tool; returns the ids recorded."""
+def run_use(tool_ids: dict[int, str], trace) -> list[tuple]:
+    """What one simulated run cut with each mapped tool: (id, tool number, use, VB start, VB end)."""
     use = trace.tool_use or {}
     c = trace.summary.cutting
     wear = c.tool_wear if c is not None else {}
-    material = material if material is not None else (c.material if c is not None else "")
-    done = []
+    return [(ident, number, use[number], wear.get(number, {}).get("vb_start"), wear.get(number, {}).get("vb_end"))
+            for number, ident in tool_ids.items() if number in use]
+
+
+def record_traces(ledger_path: str, runs: list, *, program: str, material: str,
+                  source: str = "simulate") -> list[str]:
+    """Record several runs (``run_use`` of each) in one transaction: all of them or none."""
+    done: list[str] = []
     with Ledger(ledger_path) as lg:
-        for number, ident in tool_ids.items():
-            if number not in use:
-                continue
-            w = wear.get(number, {})
-            lg.record(ident, program=program, tool_number=number, material=material, use=use[number],
-                      vb_start=w.get("vb_start"), vb_end=w.get("vb_end"), source=source)
-            done.append(ident)
+        with lg._write():
+            for per_run in runs:
+                for ident, number, use, vb0, vb1 in per_run:
+                    lg._insert_run(ident, program=program, tool_number=number, material=material, use=use,
+                                   vb_start=vb0, vb_end=vb1, source=source)
+                    if ident not in done:
+                        done.append(ident)
     return done
+
+
+def record_trace(ledger_path: str, tool_ids: dict[int, str], trace, *, program: str, material: str | None = None,
+                 source: str = "simulate") -> list[str]:
+    """Record what a simulated run cut with each mapped tool; returns the ids recorded."""
+    c = trace.summary.cutting
+    material = material if material is not None else (c.material if c is not None else "")
+    return record_traces(ledger_path, [run_use(tool_ids, trace)], program=program, material=material, source=source)

@@ -122,6 +122,9 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
     return Simulation(prog, trace, msgs.items, every, tw, dynamics=dyn)
 
 
+MAX_RUNS = 10_000  # runs in one command: a year of one part on one machine
+
+
 def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, stock=None, cutting: bool = True,
                   on_message=None) -> Simulation:
     """``runs`` runs of a program one after another on the same tools, each starting where the
@@ -130,10 +133,13 @@ def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, s
     ``setup``: a TwinSetup (its ``ledger`` and ``tool_ids`` start the mapped tools in their
     recorded state); ``record``: add each run to the ledger as it finishes.  Returns the last
     run's Simulation with ``runs``: per run its cycle time, loads and each tool's land."""
-    from ..ledger import record_trace
+    from ..ledger import record_traces, run_use
 
     if runs < 1:
         raise MtwinError(f"--runs must be at least 1, got {runs}")
+    if runs > MAX_RUNS:
+        raise MtwinError(f"--runs {runs:,} is over {MAX_RUNS:,} runs in one command (split the batch: each run "
+                         f"starts where the ledger left the tools)")
     ledger = getattr(setup, "ledger", None)
     if record and not ledger:
         raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
@@ -142,18 +148,20 @@ def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, s
     msgs = Messages(on_message)
     tw = open_twin(setup)
     prog = load_part(tw, program, msgs)
-    table, recorded = [], []
+    table, uses = [], []
 
-    def each(k, trace):  # (recorded as each run finishes: a later run's failure keeps the earlier)
-        nonlocal recorded
+    def each(k, trace):
         c = trace.summary.cutting
         if record:
-            recorded = record_trace(ledger, setup.tool_map, trace, program=prog.path)
+            uses.append(run_use(setup.tool_map, trace))  # (a few numbers per run: recorded at the end)
         table.append({"run": k, "cycle_time": trace.summary.cycle_time,
                       "peak_load": c.peak_load if c else None, "mean_load": c.mean_load if c else None,
                       "tool_wear": {str(t): w for t, w in (c.tool_wear if c else {}).items()}})
 
-    trace = tw.simulate_batch(prog, runs, stock=stock, cutting=cutting, on_run=each)[-1]
+    trace = tw.simulate_batch(prog, runs, stock=stock, cutting=cutting, on_run=each, keep_all=False)[-1]
+    # all runs or none: an interrupted or failed batch records nothing (one transaction)
+    material = trace.summary.cutting.material if trace.summary.cutting is not None else ""
+    recorded = record_traces(ledger, uses, program=prog.path, material=material) if record else []
     for w in trace.summary.warnings:
         msgs.warn(w)
     return Simulation(prog, trace, msgs.items, 1, tw, runs=table if runs > 1 else [], recorded=recorded)

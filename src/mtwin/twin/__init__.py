@@ -78,10 +78,11 @@ class Twin:
         return self.replace(tool_state={**self.tool_state, **{int(k): v for k, v in state.items()}})
 
     def simulate_batch(self, program, runs: int, *, stock=None, cutting: bool = True,
-                       tooth_resolution: bool = False, on_run=None) -> "RunTraces":
+                       tooth_resolution: bool = False, on_run=None, keep_all: bool = True) -> "RunTraces":
         """``runs`` runs of a program on the same tools, each starting with the tools' histories
         after the runs before (the wear carried from part to part); planned once (the tools'
-        state does not change the plan).  ``on_run(k, trace)`` is called as run k finishes."""
+        state does not change the plan).  ``on_run(k, trace)`` is called as run k finishes;
+        ``keep_all=False`` keeps only the last trace (memory stays that of one run)."""
         from ..effects import ToolHistory
         from ..motion.simulate import simulate_plan
 
@@ -90,6 +91,8 @@ class Twin:
         tw = self
         for k in range(1, int(runs) + 1):
             tr = simulate_plan(tw, program, plan, cutting=cutting, stock=stock, tooth=tooth_resolution)
+            if not keep_all and out:
+                out.clear()
             out.append(tr)
             if on_run is not None:
                 on_run(k, tr)
