@@ -176,6 +176,17 @@ def test_tap_test_fit_recovers_two_modes_through_noise(tmp_path):
         assert g["fn"] == pytest.approx(m.fn, rel=0.02)
         assert g["zeta"] == pytest.approx(m.zeta, rel=0.10)
         assert g["k"] == pytest.approx(m.k, rel=0.10)
+    # the same FRF in the other sign convention (the imaginary part negated) is refused: fitted
+    # as it was, it gave k = 1.7e14 N/m for a true 8e6 (issue 33)
+    flipped = tmp_path / "flipped.csv"
+    rows = path.read_text().splitlines()
+    out = [rows[0]]
+    for row in rows[1:]:
+        v = row.split(",")
+        out.append(",".join([v[0], v[1], repr(-float(v[2])), v[3], repr(-float(v[4]))]))
+    flipped.write_text("\n".join(out) + "\n")
+    r = mtwin("calibrate-frf", flipped)
+    assert r.returncode == 2 and "imaginary part is positive at its resonance" in r.stderr, r.stderr
     # the printed tables read back as a twin file's modes
     toml = mtwin("calibrate-frf", path, "--tool", "3").stdout
     twin = tmp_path / "t.toml"

@@ -88,7 +88,8 @@ def test_no_reader_follows_a_device_or_a_fifo(files, kind):
             t = d / "frf.toml"
             t.write_text(f'[tools.1]\ntype = "flat"\ndiameter = 6.0\nflutes = 2\nfrf = "{src}"\n')
             args = ["lobes", "--twin", t, "--tool", "1"]
-        code, err, secs = run(*args, timeout=60)
+        # (a path outside the twin file's folder needs the user's leave: given, the device is refused)
+        code, err, secs = run(*args, timeout=60, env={"MTWIN_TRUST_TWIN_PATHS": "1"} if kind == "frf" else None)
         assert code == 2 and ("a device" in err or "a FIFO" in err) and "Traceback" not in err, (src, err)
         assert secs < 30
 
@@ -99,3 +100,20 @@ def test_a_size_limit_per_kind(files):
     assert code == 2 and "MTWIN_MAX_PROGRAM_MB" in err
     code, err, _ = run("parse", prog, env={"MTWIN_MAX_PROGRAM_MB": "1"})
     assert code == 0, err
+
+
+def test_a_twin_files_frf_outside_its_folder_needs_the_users_leave(tmp_path):
+    (tmp_path / "secret").mkdir()
+    secret = tmp_path / "secret" / "secret.env"
+    secret.write_text("API_KEY=hunter2\n")
+    d = tmp_path / "twins"
+    d.mkdir()
+    for ref in ("../secret/secret.env", str(secret)):
+        t = d / "t.toml"
+        t.write_text(f'[tools.1]\ntype = "flat"\ndiameter = 6.0\nflutes = 2\nfrf = "{ref}"\n')
+        code, err, _ = run("lobes", "--twin", t, "--tool", "1")
+        assert code == 2 and "outside the twin file's folder" in err and "MTWIN_TRUST_TWIN_PATHS" in err, err
+        assert "hunter2" not in err
+        code, err, _ = run("lobes", "--twin", t, "--tool", "1", env={"MTWIN_TRUST_TWIN_PATHS": "1"})
+        assert code == 2 and "outside the twin file's folder" not in err  # (read, and refused as no FRF)
+        assert "hunter2" not in err, err

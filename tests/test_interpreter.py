@@ -607,3 +607,16 @@ def test_fanuc_g10_offset_memory_c():
     assert r["comp_r"][2] == pytest.approx(2.99)
     with pytest.raises(GCodeError, match="Fanuc's L10/L11/L12/L13"):
         load_program(b"G21\nG10 L12 P7\n", InterpreterSettings(dialect="fanuc"), path="g10.nc")
+
+
+def test_an_f_word_on_the_line_that_switches_units_is_read_before_the_switch_and_warned():
+    # G20 F6 on one line: 6 mm/min (the feed is set before the units change, as LinuxCNC does),
+    # where a programmer from the inch world expects 6 in/min — warned once, at the F word
+    prog = load_program(b"G21 G90\nG0 X0 Y0 Z1\nG20 F6\nG1 X1\nM30\n", path="u.nc")
+    assert prog.records["feed"][-1] == pytest.approx(6.0)
+    msgs = [str(w) for w in prog.warnings]
+    assert any(m.startswith("u.nc:3:5: warning: F6 on the line that switches units") for m in msgs), msgs
+    # the F word on a line after the switch, or on a line that switches nothing: no warning
+    for text in (b"G20\nG0 X0 Y0 Z1\nF6\nG1 X1\nM30\n", b"G20\nG0 X0 Y0 Z1\nG20 F6\nG1 X1\nM30\n"):
+        prog = load_program(text, path="u.nc")
+        assert not any("switches units" in str(w) for w in prog.warnings)

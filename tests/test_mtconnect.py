@@ -86,6 +86,17 @@ def test_agent_xml_stream(tmp_path):
     assert list(m.line) == [-1, 7]
     np.testing.assert_allclose(m.signals["feed"], [750.0, 750.0])
     assert m.end_time == pytest.approx(4.0)
+    # imported, the sample before the first line report has an empty line cell (it was "-1",
+    # which compare then refused as no line number: issue 33), and it reads back as it was
+    out = tmp_path / "s.csv"
+    r = subprocess.run([sys.executable, "-m", "mtwin", "import", "mtconnect", str(p), "-o", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert out.read_text().splitlines()[-2:] == ["0.500000000,,750,nan", "1.000000000,7,750,nan"]
+    from mtwin.loop.measurement import read_measurement
+
+    back = read_measurement(str(out))
+    assert list(back.line) == [-1, 7]
 
 
 def test_import_refuses_bad_input_with_exit_2_and_writes_nothing(tmp_path):

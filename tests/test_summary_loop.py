@@ -86,7 +86,7 @@ def test_calibrate_recovers_the_rate_and_validates_on_another_cutter(cutters, tm
     ("first_line,last_line,fx_rmsx\n12,12,3.0\n", ":1:3:", "not a statistic"),
     ("first_line,last_line,fx_rms\n12,12,\n", ":2:3:", "no value"),
 ])
-@pytest.mark.parametrize("command", ["diagnose", "calibrate"])
+@pytest.mark.parametrize("command", ["diagnose", "calibrate", "compare"])
 def test_malformed_rows_are_refused_with_their_place(tmp_path, body, where, what, command):
     f = tmp_path / "bad.csv"
     f.write_text(body)

@@ -71,6 +71,15 @@ def fit_frf(frf: FRF, modes_per_direction: int = 2) -> TapFit:
         if not np.any(h):
             continue
         f = frf.freq
+        # a direct compliance X/F (e^{iwt}) lags the force by 90 deg at resonance: its imaginary
+        # part is negative at the peak.  A positive one is the other sign convention (e^{-iwt},
+        # or a force sensor wired the other way): fitted as it is, it gives a stiffness off by
+        # orders of magnitude (k = 1.7e14 N/m for a true 8e6)
+        at = int(np.argmax(np.abs(h)))
+        if h[at].imag > 0:
+            raise ConfigError(f"{frf.source}: the {d.upper()} FRF's imaginary part is positive at its resonance "
+                              f"({f[at]:.0f} Hz, im = {h[at].imag:.3g} m/N): the other sign convention (e^(-iwt), "
+                              f"or the force taken the other way); negate the im_{d}{d} column")
         start = _peaks(f, h, modes_per_direction)
         if not start:
             raise ConfigError(f"{frf.source}: no resonance peak in the {d.upper()} FRF to fit a mode to")

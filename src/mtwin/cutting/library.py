@@ -20,6 +20,8 @@ mill, and the material is ``al6061`` with the reference's identified Kt and Ke.
 """
 from __future__ import annotations
 
+import os
+
 import functools
 import math
 import re
@@ -455,8 +457,14 @@ def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
 
             from ..chatter.modes import read_frf
 
-            base = Path(where).parent if where not in ("twin file", "") else Path(".")
-            path = str((base / t.frf).resolve()) if not Path(t.frf).is_absolute() else t.frf
+            base = (Path(where).parent if where not in ("twin file", "") else Path(".")).resolve()
+            path = str((base / t.frf).resolve())
+            # a twin file names files beside it: one that reaches elsewhere (../../secret.env, an
+            # absolute path) could put another file's content into a batch's report; the user
+            # running the command allows it, not the file (docs/conventions.md)
+            if not Path(path).is_relative_to(base) and os.environ.get("MTWIN_TRUST_TWIN_PATHS") != "1":
+                raise ConfigError(f"{where}: tools.{key}.frf = {t.frf!r} is outside the twin file's folder ({base}); "
+                                  f"put the FRF beside the twin file, or set MTWIN_TRUST_TWIN_PATHS=1 to allow it")
             read_frf(path)  # (a bad file is an error of the twin file, now)
             t = replace(t, frf=path)
         tools[int(key)] = t

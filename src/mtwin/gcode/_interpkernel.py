@@ -100,6 +100,7 @@ W_ARC_SPIRAL = 6
 W_NO_FEED = 7
 W_CONTROL_BYTE = 8
 W_PROBE = 9
+W_F_BEFORE_UNITS = 10
 
 # letters
 _A, _B, _C, _D, _E, _F, _G, _H, _I, _J, _K, _L, _M = range(13)
@@ -1008,6 +1009,13 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if val[_F] < 0:
                 return n, E_BAD_VALUE, widx[_F], li, err_vals, nwarn
             st[SF_FEED] = val[_F] if si[SI_FEED_MODE] == 2 else val[_F] * scale
+            if g_units >= 0 and (g_units == 1) != inch and si[SI_FEED_MODE] != 2:
+                # G20 F6 on one line: F is read in the units before the switch (as LinuxCNC
+                # does), which a programmer from the other system does not expect
+                if nwarn < warn_code.size:
+                    warn_code[nwarn] = W_F_BEFORE_UNITS
+                    warn_word[nwarn] = widx[_F]
+                nwarn += 1
         # 3. S
         if has[_S]:
             if val[_S] < 0:

@@ -405,6 +405,9 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
     elif code == K.W_NO_FEED:
         msg = ("feed move with no F word in effect, kept with feed 0 (--lenient): the program can be read, "
                "scaled and verified, but not simulated")
+    elif code == K.W_F_BEFORE_UNITS:
+        msg = (f"{w} on the line that switches units (G20/G21) is read in the units in force before the "
+               f"switch, as LinuxCNC reads it: put the F word after the G20/G21 line if it is meant in the new units")
     elif code == K.W_PROBE:
         msg = ("probe move taken to its programmed end (--lenient; G38.2/G38.4 trip there, G38.3/G38.5 do not, "
                "and #5061-#5070 say so): where the probe touches is known only on the machine; the program can be "

@@ -155,8 +155,9 @@ _STAT = {
 def compare_summary(trace, meas, regions: int = 10) -> Comparison:
     """A summary measurement, row by row: each row's statistic of a signal over its line
     range, against the same statistic of the simulated trace over the samples of those lines."""
-    from .measurement import summary_base
+    from .measurement import no_unknown_statistics, summary_base
 
+    no_unknown_statistics(meas)
     batch = trace if isinstance(trace, list) else [trace]
     lines = [np.asarray(tr.line) for tr in batch]
     run_of = meas.run_of_rows()

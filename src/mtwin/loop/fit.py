@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import MtwinError, SourceLocation
 from ..fitting import FIT_FACTOR, STRONG_EVIDENCE, default_scale, delta_bic, solve, verdict
 from .compare import _STAT, _has, compare, simulate_measured
-from .measurement import _KNOWN, STATS, MeasurementError, summary_base
+from .measurement import STATS, MeasurementError, no_unknown_statistics, summary_base
 
 MAX_SELECTED = 4  # effects forward selection takes at most, per signal
 TRIAL_EVALUATIONS = 24  # the short fit each candidate of a forward-selection step gets
@@ -138,7 +138,7 @@ def _summary_target(twin, program, meas, signals, stock, base) -> Target:
     the same statistic of the simulation over the row's lines (a row whose lines the
     simulation never runs is left out); the noise per column from the rows, or from the file's
     ``# noise: COLUMN=VALUE; …`` metadata line."""
-    _no_unknown_statistics(meas)
+    no_unknown_statistics(meas)
     available = {c for _, _, st in meas.rows for c in st if _has(base, summary_base(c))}
     missing = [s for s in (signals or ()) if s not in available]
     if missing:
@@ -167,19 +167,6 @@ def _summary_target(twin, program, meas, signals, stock, base) -> Target:
     given = _noise_meta(meas)
     noise = {c: given.get(c) or _row_noise(measured[c] - sim[c], sim[c], measured[c]) for c in use}
     return Target(twin, program, meas, np.zeros(0), measured, noise, "line", base, stock, kept)
-
-
-def _no_unknown_statistics(meas) -> None:
-    """A column of a summary measurement that reads as a statistic of a signal but is not one
-    the format knows (``fx_rmsx``, ``fq_rms``) is an error here: fitted, it would be left out
-    silently (compare lists it as ignored)."""
-    for c in meas.ignored:
-        head, _, tail = c.rpartition("_")
-        if head in _KNOWN or tail in STATS or any(c.startswith(k + "_") for k in _KNOWN):
-            col = meas.header.index(c) + 1 if c in meas.header else 0
-            raise MeasurementError(f"column {c!r} is not a statistic the measurement format knows (SIGNAL_STAT, "
-                                   f"STAT one of {', '.join(STATS)}; signals: docs/measurement-format.md)",
-                                   SourceLocation(meas.path, meas.header_row, col))
 
 
 def _row_noise(r: np.ndarray, sim: np.ndarray, values: np.ndarray) -> float:

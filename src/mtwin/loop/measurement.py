@@ -130,6 +130,19 @@ def summary_base(name: str) -> str | None:
     return None
 
 
+def no_unknown_statistics(meas) -> None:
+    """A column of a summary measurement that reads as a statistic of a signal but is not one
+    the format knows (``fx_rmsx``, ``fq_rms``) is an error here: fitted, it would be left out
+    silently, by a fit and by a comparison alike."""
+    for c in meas.ignored:
+        head, _, tail = c.rpartition("_")
+        if head in _KNOWN or tail in STATS or any(c.startswith(k + "_") for k in _KNOWN):
+            col = meas.header.index(c) + 1 if c in meas.header else 0
+            raise MeasurementError(f"column {c!r} is not a statistic the measurement format knows (SIGNAL_STAT, "
+                                   f"STAT one of {', '.join(STATS)}; signals: docs/measurement-format.md)",
+                                   SourceLocation(meas.path, meas.header_row, col))
+
+
 def check_against_program(meas: Measurement, program, any_program: bool = False) -> None:
     """A measurement recorded on another program is an error: a logged program name that is
     not the program file's (unless ``any_program``: a renamed file), a line beyond its end."""

@@ -267,11 +267,27 @@ def write_columns(path: str | os.PathLike, cols: dict[str, np.ndarray], metadata
             fmts.append("%.9g")
     data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()]) if cols else np.zeros((0, 0))
 
+    names = list(cols)
+    li = names.index("line") if "line" in names else None
+
     def emit(fh):
         for k, v in meta.items():
             fh.write(f"# {k}: {v}\n")
         fh.write(",".join(cols) + "\n")
-        np.savetxt(fh, data, fmt=fmts, delimiter=",")
+        if li is None or not (data[:, li] < 0).any():
+            np.savetxt(fh, data, fmt=fmts, delimiter=",")
+            return
+        # a sample before the control reported any line (a log): its line cell is left empty,
+        # which reads back as no line — "-1" is no line number, and a reader refuses it
+        import io
+
+        buf = io.StringIO()
+        np.savetxt(buf, data, fmt=fmts, delimiter=",")
+        for row in buf.getvalue().splitlines():
+            cells = row.split(",")
+            if cells[li].startswith("-"):
+                cells[li] = ""
+            fh.write(",".join(cells) + "\n")
 
     if path == "-":
         emit(sys.stdout)
