@@ -117,3 +117,73 @@ def test_a_twin_files_frf_outside_its_folder_needs_the_users_leave(tmp_path):
         code, err, _ = run("lobes", "--twin", t, "--tool", "1", env={"MTWIN_TRUST_TWIN_PATHS": "1"})
         assert code == 2 and "outside the twin file's folder" not in err  # (read, and refused as no FRF)
         assert "hunter2" not in err, err
+
+
+def _server(reply: bytes):
+    """A TCP server on a free port that accepts and answers ``reply`` (nothing: never answers)."""
+    import socket
+    import threading
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(4)
+    held = []
+
+    def serve():
+        while True:
+            try:
+                c, _ = srv.accept()
+            except OSError:
+                return
+            held.append(c)
+            if reply:
+                c.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return srv
+
+
+@pytest.mark.parametrize("reply,limit", [(b"", 20.0), (b"\xff" * 64 + bytes(range(256)) * 4, 20.0)])
+def test_a_scheduler_that_never_answers_or_answers_junk_is_given_up(files, reply, limit):
+    pytest.importorskip("distributed")
+    d, prog, _ = files
+    (d / "m.csv").write_text(f"program\n{prog}\n")
+    srv = _server(reply)
+    try:
+        port = srv.getsockname()[1]
+        code, err, secs = run("batch", "simulate", "--manifest", d / "m.csv", "-o", d / "out", "--scheduler",
+                              f"tcp://127.0.0.1:{port}", env={"MTWIN_SCHEDULER_TIMEOUT": "3"}, timeout=120)
+    finally:
+        srv.close()
+    assert code == 2 and "cannot reach the Dask scheduler" in err and "Traceback" not in err, err
+    assert secs < limit
+    assert not (d / "out").exists() or not any((d / "out").iterdir())
+
+
+def test_sigterm_leaves_no_temporary_file(files):
+    import signal
+
+    d, prog, _ = files
+    big = d / "big.nc"
+    lines = ["(T1 D=6 CR=0 - flat end mill)", "G21 G90 G17", "T1 M6", "S8000 M3", "G0 X0 Y0 Z5", "G1 Z-1 F300"]
+    lines += [f"G1 X{(i % 2) * 50} Y{i * 0.05:.2f} F3000" for i in range(400)]  # (a 6.7-min trace)
+    big.write_text("\n".join(lines + ["M30"]) + "\n")
+    out = d / "trace.csv"
+    p = subprocess.Popen([sys.executable, "-m", "mtwin", "simulate", str(big), "-o", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # wait until the output's temporary file (.trace.csv.XXXX.tmp) exists, then terminate
+    t0 = time.monotonic()
+    seen = False
+    while time.monotonic() - t0 < 120 and p.poll() is None:
+        if any(x.name.startswith(".trace.csv.") for x in d.iterdir()):
+            seen = True
+            break
+        time.sleep(0.01)
+    if not seen:
+        p.kill()
+        pytest.skip("the run ended before its output was being written: nothing to interrupt")
+    p.send_signal(signal.SIGTERM)
+    p.communicate(timeout=60)
+    assert p.returncode == 130
+    left = [x.name for x in d.iterdir() if x.name not in {"p.nc", "t.toml", "big.nc"}]
+    assert left == [], left  # (no temporary file, and no half-written trace.csv)

@@ -89,6 +89,17 @@ def warmed_job(job: Job, inputs: dict, common: tuple, run: Callable) -> Outcome:
 SCHEDULER_TIMEOUT = 30.0  # s: a scheduler that does not complete the handshake by then is given up
 
 
+def _scheduler_timeout() -> float:
+    """SCHEDULER_TIMEOUT, or MTWIN_SCHEDULER_TIMEOUT (s) where set: a slow link may need more."""
+    import os
+
+    try:
+        v = float(os.environ.get("MTWIN_SCHEDULER_TIMEOUT", SCHEDULER_TIMEOUT))
+    except ValueError:
+        v = SCHEDULER_TIMEOUT
+    return v if 0 < v < 3600 else SCHEDULER_TIMEOUT
+
+
 def _client_within(make, seconds: float):
     """``make()`` (a Dask client), or TimeoutError after ``seconds``: Dask's own connect timeout
     covers the TCP connection, not a peer that accepts it and never answers (the handshake then
@@ -132,7 +143,7 @@ class Cluster:
         try:
             if scheduler or scheduler_file:
                 self.client = _client_within(lambda: Client(scheduler, scheduler_file=scheduler_file,
-                                                            timeout=f"{timeout}s"), SCHEDULER_TIMEOUT)
+                                                            timeout=f"{timeout}s"), _scheduler_timeout())
             else:
                 n = workers or cores()
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
