@@ -187,3 +187,15 @@ def test_sigterm_leaves_no_temporary_file(files):
     assert p.returncode == 130
     left = [x.name for x in d.iterdir() if x.name not in {"p.nc", "t.toml", "big.nc"}]
     assert left == [], left  # (no temporary file, and no half-written trace.csv)
+
+
+def test_a_batch_refuses_an_output_folder_that_holds_its_inputs(tmp_path):
+    bt = tmp_path / "bt"
+    (bt / "j").mkdir(parents=True)
+    (bt / "j" / "ga.nc").write_bytes(PROG)
+    (bt / "m.csv").write_text("name,program\nj,j/ga.nc\n")
+    before = _snapshot(bt)
+    before_j = _snapshot(bt / "j")
+    code, err, _ = run("batch", "optimize", "--manifest", bt / "m.csv", "-o", bt)
+    assert code == 2 and "the output folder holds an input of the batch" in err, err
+    assert _snapshot(bt) == before and _snapshot(bt / "j") == before_j

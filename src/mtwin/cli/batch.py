@@ -63,7 +63,7 @@ def _command(name: str):
                     for j in jobs]
         if retries < 0:
             raise MtwinError(f"--retries {retries}: give 0 or more")
-        _check_out_dir(output)
+        _check_out_dir(output, jobs, [manifest, recipe])
         import time
 
         jobs = [replace(j, date_epoch=int(time.time())) for j in jobs]
@@ -103,13 +103,24 @@ def _with_recipe(name, jobs, recipe, common):
     return [replace(j, steps=steps) for j in jobs]
 
 
-def _check_out_dir(output: str) -> None:
-    """The output folder: a folder (made) or a name not yet taken, in a folder that exists."""
+def _check_out_dir(output: str, jobs=(), others=()) -> None:
+    """The output folder: a folder (made) or a name not yet taken, in a folder that exists, and
+    none of the batch's inputs inside it — each job's folder there is written whole (a job
+    named ``j`` whose program is ``j/ga.nc`` beside the manifest would be replaced by its
+    optimised self), and the summary files beside them."""
     p = Path(output)
     if p.exists() and not p.is_dir():
         raise MtwinError(f"-o {output}: a file, not a folder")
     if not p.exists() and not p.resolve().parent.is_dir():
         raise MtwinError(f"-o {output}: the folder {p.resolve().parent} does not exist")
+    if not p.exists():
+        return
+    root = p.resolve()
+    inputs = [Path(j.base, f) for j in jobs for f in j.files()] + [Path(x) for x in others if x]
+    for f in inputs:
+        if f.resolve().is_relative_to(root):
+            raise MtwinError(f"-o {output}: the output folder holds an input of the batch ({f}); its job folders "
+                             f"and summary files would be written over it — give another -o folder")
 
 
 def _runner(workers, scheduler, scheduler_file, retries, n_jobs):
