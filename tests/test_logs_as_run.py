@@ -402,3 +402,67 @@ def test_values_calibrated_from_a_log_without_overrides_are_labelled_effective(s
     assert r.returncode == 0, r.stderr
     (entry,) = mtwin.loop.journal.read_journal(str(tmp_path / "t.toml"))
     assert any("not logged" in n and "effective" in n for n in entry["notes"])
+
+
+def _events(text: str) -> list:
+    """The log's lines as (seconds since BASE, rest)."""
+    out = []
+    for ln in text.splitlines():
+        ts, rest = ln.split("|", 1)
+        t = (datetime.strptime(ts[:26], "%Y-%m-%dT%H:%M:%S.%f").replace(tzinfo=timezone.utc) - BASE).total_seconds()
+        out.append((t, rest))
+    return out
+
+
+def _restarted(tw, prog, stop_after: float, wait: float, back_to: int | None = None) -> str:
+    """The log of a run stopped at ``stop_after`` s and, ``wait`` s later, run again: from the
+    start (``back_to`` None: the whole log again, the runtime reset) or from the first time it
+    reached line ``back_to`` (a restart in the middle)."""
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= stop_after and "PROGRAM_COMPLETED" not in r]
+    t_stop = head[-1][0] + 0.01
+    out = head + [(t_stop, "Program_Status|STOPPED"), (t_stop, "Program_Runtime_Seconds|" + f"{t_stop:.0f}")]
+    t_go = t_stop + wait
+    if back_to is None:
+        again = [(t, r) for t, r in ev if t >= 0]
+        shift = t_go - again[0][0]
+        out += [(t_go, "Program_Runtime_Seconds|0")] + [(t + shift, r) for t, r in again]
+    else:
+        k = next(i for i, (t, r) in enumerate(ev) if r.startswith(f"Block_Number|{back_to}"))
+        again = ev[k:]
+        shift = t_go - again[0][0]
+        out += [(t_go, "Program_Status|ACTIVE")] + [(t + shift, r) for t, r in again]
+    return "\n".join(f"{_ts(t)}|{r}" for t, r in out) + "\n"
+
+
+def test_a_restart_from_the_start_is_an_aborted_run_and_a_complete_one(setup, tmp_path):
+    d, tw, prog = setup
+    truth = _truth(tw, prog).summary.cycle_time + WAIT  # (the M01 wait is in the log, and taken out)
+    (d / "restart.txt").write_text(_restarted(tw, prog, stop_after=20.0, wait=963.0))
+    m = read_measurement(str(d / "restart.txt"))
+    assert len(m.runs) == 2 and [r.complete for r in m.runs] == [False, True]
+    aborted = m.runs[0]
+    assert 0 < aborted.reached < 19 and "started again from the program's start" in aborted.ended
+    assert m.meta["run"] == "2" and "run 1:" in m.meta["other_runs"]
+    # the complete run alone: no 963-s wait, no aborted part counted
+    assert m.end_time == pytest.approx(truth, abs=0.5)
+    r = _cli("compare", str(d / "PART.NC"), str(d / "restart.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    c = json.loads(r.stdout)["cycle_time"]
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01
+
+
+def test_a_restart_in_the_middle_counts_no_time_twice(setup, tmp_path):
+    d, tw, prog = setup
+    (d / "middle.txt").write_text(_restarted(tw, prog, stop_after=22.0, wait=400.0, back_to=11))
+    m = read_measurement(str(d / "middle.txt"))
+    assert len(m.runs) == 1 and m.runs[0].complete
+    (t, was, now), = m.runs[0].restarts
+    assert now == 11 and was > 11 and "from line" in m.meta["restarts"]
+    # every line once, in program order: the first pass through 11.. is left out
+    seq = [int(x) for x in m.line[m.line > 0]]
+    assert seq == sorted(seq) or all(b >= a for a, b in zip(seq, seq[1:]))
+    r = _cli("compare", str(d / "PART.NC"), str(d / "middle.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    c = json.loads(r.stdout)["cycle_time"]
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c

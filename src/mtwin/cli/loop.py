@@ -57,9 +57,7 @@ def import_mtconnect(
     m = read_mtconnect(log, run, block_is, data, ignore_item or ())
     m.write(output)
     for k, r in enumerate(m.runs, 1):
-        say(f"run {k}: {r.program or '(unnamed)'}, {'complete' if r.complete else 'incomplete'}"
-            + (f", {len(r.holds)} feed hold(s)" if r.holds else "")
-            + (f", {len(r.stops)} program stop(s) ({', '.join(st for _, _, st in r.stops)})" if r.stops else ""))
+        say(f"run {k}: {r.describe()}")
     say(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s, lines "
         f"{int(m.line[m.line > 0].min()) if (m.line > 0).any() else '-'}–{int(m.line.max())}"
         + (f"; overrides {m.meta['overrides']}" if "overrides" in m.meta else ""))

@@ -20,8 +20,12 @@ Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
 * program names may switch before the start: a run is named by ``Program_Name_Running`` at
   its ``Program_Status`` ACTIVE;
 * several programs (or repeats) in one log are separate runs, from ACTIVE to the next
-  PROGRAM_COMPLETED or READY; ``run`` picks one (the first complete one by default); a run
+  PROGRAM_COMPLETED or READY; ``run`` picks one (the last complete one by default); a run
   the log ends in, or one reset to READY from a stop (aborted), is incomplete;
+* a restart: after a stop, execution resumes with the block number back near the run's first
+  — an aborted run followed by a new one (listed, with how far the aborted one got and
+  when); resumed further back than it stopped but not at the start, lines ran twice — the
+  first pass through them is taken out with the stop (state RESTART), never counted twice;
 * feed holds (``Execution`` FEED_HOLD until ACTIVE again) and program stops (STOPPED,
   OPTIONAL_STOP, PROGRAM_STOPPED, INTERRUPTED until ACTIVE again: M00, M01, an operator's
   stop) are intervals of the run, in the metadata as ``feed_holds_s`` and ``program_stops_s``;
@@ -122,6 +126,25 @@ class Run:
     complete: bool
     holds: list = field(default_factory=list)  # (t0, t1) s since the run's start
     stops: list = field(default_factory=list)  # (t0, t1, state) s since the run's start
+    reached: int = -1  # the last block number the run reported (how far an aborted run got)
+    ended: str = ""  # how an incomplete run ended, in words
+    skip: list = field(default_factory=list)  # (k0, k1) events of a first pass a restart repeated
+    restarts: list = field(default_factory=list)  # (t s since the run's start, from line, back to line)
+
+    def describe(self) -> str:
+        """One line for a person: the program, complete or how it ended, its pauses."""
+        what = "complete" if self.complete else f"incomplete ({self.ended or 'the log ends in it'})"
+        out = f"{self.program or '(unnamed)'}, {what}"
+        if self.reached >= 0 and not self.complete:
+            out += f", reached line {self.reached}"
+        if self.holds:
+            out += f", {len(self.holds)} feed hold(s)"
+        if self.stops:
+            out += f", {len(self.stops)} program stop(s) ({', '.join(st for _, _, st in self.stops)})"
+        for t, a, b in self.restarts:
+            out += f"; restarted at {t:.0f} s from line {a} back to line {b} (its first pass through lines {b}–{a} " \
+                   f"is taken out: no time is counted twice)"
+        return out
 
 
 def _seconds(ts: str, path: str, ln: int) -> float:
@@ -256,6 +279,7 @@ def runs(events: list) -> list:
             start, holds, stops, paused = None, [], [], None
     if start is not None:
         out.append(Run(name, start, len(events), False, holds, stops))
+    out = [x for r in out for x in _restarts(events, r)]
     # the name running at the start of each run (names may switch before it); else the name
     # last loaded for editing before it
     for r in out:
@@ -267,6 +291,70 @@ def runs(events: list) -> list:
             edit = [e.value for e in events[:r.start] if e.item == "program_editing" and e.value]
             r.program = edit[-1] if edit else ""
     return out
+
+
+# a run that resumes after a stop at a block number within this many of its first one — or
+# within this share of where it stopped — started again from the program's start
+RESTART_SLACK = 2
+RESTART_SHARE = 0.02
+
+
+def _block(e: Event) -> int | None:
+    try:
+        v = float(e.value)
+    except ValueError:
+        return None
+    return int(v) if math.isfinite(v) and v >= 0 and v == int(v) else None
+
+
+def _restarts(events: list, r: Run) -> list:
+    """A run as the control ran it.  After a program stop, execution that resumes with the
+    block number back near the run's first block is a new run from the start (the one before
+    was aborted: a restart, often with the runtime counter reset); one that resumes further
+    back than where it stopped, but not at the start, repeated lines — a restart in the middle:
+    the first pass through the repeated lines is set to be skipped (``skip``) and taken out of
+    the timing with the stop (state RESTART), so no time is counted twice."""
+    blocks = [(k, b) for k in range(r.start, r.end) if events[k].item == "block" and (b := _block(events[k])) is not None]
+    if blocks:
+        r.reached = blocks[-1][1]
+    if not r.stops or len(blocks) < 2:
+        return [r]
+    t_start = events[r.start].t
+    first = blocks[0][1]
+    for a, b, state in r.stops:
+        ta, tb = t_start + a, t_start + b
+        before = [x for x in blocks if events[x[0]].t <= ta]
+        after = [x for x in blocks if events[x[0]].t >= tb]
+        if not before or not after:
+            continue
+        was, now = before[-1][1], after[0][1]
+        if now >= was - 1:
+            continue  # it went on where it stopped (an M00/M01 wait)
+        # the ACTIVE that resumed it
+        k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= tb - 1e-9
+                      and events[k].value.upper() == "ACTIVE"), after[0][0])
+        if now <= first + RESTART_SLACK or now <= RESTART_SHARE * was:
+            aborted = Run(r.program, r.start, k_res, False, [h for h in r.holds if h[1] <= a],
+                          [x for x in r.stops if x[1] <= a], reached=was,
+                          ended=f"stopped at line {was} at {a:.0f} s and started again from the program's start "
+                                f"{b - a:.0f} s later")
+            dt = events[k_res].t - t_start
+            rest = Run(r.program, k_res, r.end, r.complete, [(h0 - dt, h1 - dt) for h0, h1 in r.holds if h0 >= b],
+                       [(x0 - dt, x1 - dt, st) for x0, x1, st in r.stops if x0 >= b], ended=r.ended)
+            return [aborted] + _restarts(events, rest)
+        # in the middle: the first pass from where it first reached the line it resumed at
+        k_first = next((k for k, v in blocks if v >= now and events[k].t <= ta), None)
+        if k_first is None:
+            continue
+        while k_first > r.start and events[k_first - 1].t == events[k_first].t:
+            k_first -= 1  # (what was logged at the same moment belongs to the repeated pass)
+        t_first = events[k_first].t - t_start
+        r.skip.append((k_first, k_res))
+        r.stops = [x for x in r.stops if not (x[0] >= t_first and x[1] <= b)] + [(t_first, b, "RESTART")]
+        r.stops.sort()
+        r.holds = [h for h in r.holds if not (h[0] >= t_first and h[1] <= b)]
+        r.restarts.append((a, was, now))
+    return [r]
 
 
 def n_to_lines(program_data: bytes) -> dict:
@@ -287,8 +375,10 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
         raise MeasurementError("no program run in the log (no Program_Status / Execution ACTIVE)",
                                SourceLocation(path, events[0].line, 1))
     if run is None:
+        # the last complete run: an aborted run before it, restarted from the start, is the
+        # operator's false start, the complete one the part
         complete = [r for r in all_runs if r.complete]
-        chosen = complete[0] if complete else all_runs[0]
+        chosen = complete[-1] if complete else all_runs[0]
     else:
         if not 1 <= run <= len(all_runs):
             raise MeasurementError(f"--run {run}: the log has {len(all_runs)} run(s)", SourceLocation(path, 0, 0))
@@ -307,8 +397,11 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
         _apply(state, e, path, None, [0])
     pos = [0]  # the line an N word was last mapped to
     src: list = []  # the log line of each sample
-    for e in ev:
-        if not _apply(state, e, path, n_map, pos):
+    skipped = np.zeros(len(ev), bool)
+    for k0, k1 in chosen.skip:  # (a restart's repeated first pass: its state, not its samples)
+        skipped[max(k0 - chosen.start, 0):max(k1 - chosen.start, 0)] = True
+    for e, skip in zip(ev, skipped):
+        if not _apply(state, e, path, n_map, pos) or skip:
             continue
         if rows_t and rows_t[-1] == e.t - t0:
             rows[-1] = dict(state)
@@ -331,6 +424,11 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     missing = [col.split("_")[0] for col in OVERRIDES.values() if col not in extra]
     if missing:
         meta["overrides"] = f"{', '.join(missing)} not logged: 100 % assumed"
+    if chosen.restarts:
+        meta["restarts"] = "; ".join(f"at {t:.3f} s from line {a} back to line {b}" for t, a, b in chosen.restarts)
+    others = [f"run {k}: {r.describe()}" for k, r in enumerate(all_runs, 1) if r is not chosen and not r.complete]
+    if others:
+        meta["other_runs"] = "; ".join(others)
     if chosen.holds:
         meta["feed_holds_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.holds)
     if chosen.stops:
