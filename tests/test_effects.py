@@ -335,6 +335,21 @@ def test_arc_acceleration_limits_arcs_to_the_root_of_a_r():
     assert slow.dur[i] >= 2 * math.pi / math.sqrt(300) and slow.total_time > base.total_time
 
 
+def test_a_feed_override_runs_the_program_as_if_every_f_were_scaled():
+    # an independent route: the program with each F multiplied by 1.3 by hand plans the same
+    # (rapids and dwells untouched); a long move's time at speed falls as 1/1.3
+    tw = mtwin.Twin()
+    text = "G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG1 X600 F{a}\nG2 X600 Y-40 I0 J-20 F{b}\nG0 Z5\nG4 P1\nM30\n"
+    prog = tw.load(text.format(a=600, b=300).encode(), path="f.nc")
+    by_hand = tw.load(text.format(a=780, b=390).encode(), path="f.nc")
+    over = tw.with_effects("feed-override:feed=130").plan(prog)
+    ref = tw.plan(by_hand)
+    np.testing.assert_allclose(over.dur, ref.dur, rtol=1e-12)
+    base = tw.plan(prog)
+    i = int(np.flatnonzero(base.seg["line"] == 3)[0])
+    assert base.dur[i] - over.dur[i] == pytest.approx(600 / 10.0 - 600 / 13.0, rel=0.02)  # mm / (mm/s)
+
+
 def test_tool_change_and_spindle_waits_add_their_times():
     tw = mtwin.Twin()
     prog = tw.load(b"G21 G90 G94\nT1 M6\nS1000 M3\nG0 X0 Y0 Z5\nT2 M6\nG0 X10\nM30\n", path="t.nc")

@@ -6,6 +6,7 @@ with known overrides and waits, so the answers are known."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from dataclasses import replace
@@ -466,3 +467,64 @@ def test_a_restart_in_the_middle_counts_no_time_twice(setup, tmp_path):
     assert r.returncode == 0, r.stderr
     c = json.loads(r.stdout)["cycle_time"]
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+
+
+def _sampled_log(tw, prog, every: float = 0.2, feed_override: float | None = None) -> str:
+    """``_log`` with the path feed also sampled every ``every`` s, as a real agent samples it
+    (the Hurco logs: 0.15-0.2 s); with ``feed_override``, a Feed_Override item at that value."""
+    ev = _events(_log(tw, prog))
+    tr = _truth(tw, prog)
+    t, line, f = np.asarray(tr.t), np.asarray(tr.line), np.asarray(tr.signal("feed")) / 60.0
+    # the log's times: the M01 wait shifts everything after line 14
+    t14 = float(t[np.argmax(line >= 15)]) if (line >= 15).any() else math.inf
+    extra = [(float(x) + (WAIT if x >= t14 else 0.0), f"Feed_Rate|{float(v):.6f}")
+             for x, v in zip(t[::max(1, int(every / (t[1] - t[0])))], f[::max(1, int(every / (t[1] - t[0])))])]
+    head = [(-0.4, f"Feed_Override|{feed_override:.6f}")] if feed_override is not None else []
+    done = [e for e in ev if "PROGRAM_COMPLETED" in e[1]]
+    body = sorted([e for e in ev if "PROGRAM_COMPLETED" not in e[1]] + extra + head, key=lambda e: e[0])
+    return "\n".join(f"{_ts(x)}|{r}" for x, r in body + done) + "\n"
+
+
+def test_an_unlogged_feed_override_is_found_ranked_and_calibrated(setup, tmp_path):
+    from mtwin.effects import get
+
+    d, tw, prog = setup
+    fast = tw.with_effects(get("feed-override")(feed=130.0))
+    (d / "ovr.txt").write_text(_sampled_log(fast, prog))
+    # compare: the log's own feed against the programmed F
+    r = _cli("compare", str(d / "PART.NC"), str(d / "ovr.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    x = doc["logged_against_programmed"]["feed"]
+    assert x["suspect"] and x["ratio"] == pytest.approx(1.30, abs=0.02) and x["samples"] >= 20
+    assert "feed moves ran at 1.30× the programmed F" in r.stderr
+    before = doc["cycle_time"]["relative_error"]
+    assert abs(before) > 0.05
+    # diagnose: the feed-override effect first
+    r = _cli("diagnose", str(d / "PART.NC"), str(d / "ovr.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    cands = json.loads(r.stdout)["timing"]["candidates"]
+    assert cands[0]["effect"] == "feed-override", [c["effect"] for c in cands]
+    # calibrate: recovered within 2 %, and the cycle time within 1 %
+    out = tmp_path / "t.toml"
+    r = _cli("calibrate", str(d / "PART.NC"), str(d / "ovr.txt"), "--fit", "feed-override", "-o", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    params = json.loads(r.stdout)["params"]
+    assert params["effects.feed-override.feed"] == pytest.approx(130.0, rel=0.02)
+    (entry,) = mtwin.loop.journal.read_journal(str(out))
+    assert abs(entry["cycle_error_before"]["ovr.txt"]) > 0.05 and abs(entry["cycle_error_after"]["ovr.txt"]) < 0.01
+    # the twin file says the value is the run's, not the machine's
+    assert "an effective value of the run it was fitted to, not a machine property" in out.read_text()
+
+
+def test_a_logged_feed_override_leaves_nothing_suspected(setup):
+    from mtwin.effects import get
+
+    d, tw, prog = setup
+    fast = tw.with_effects(get("feed-override")(feed=130.0))
+    (d / "ovr_logged.txt").write_text(_sampled_log(fast, prog, feed_override=130.0))
+    r = _cli("compare", str(d / "PART.NC"), str(d / "ovr_logged.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    x = json.loads(r.stdout)["logged_against_programmed"]["feed"]
+    assert not x["suspect"] and x["ratio"] == pytest.approx(1.0, abs=0.02)
+    assert "the programmed F" not in r.stderr

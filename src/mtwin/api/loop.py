@@ -154,6 +154,12 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     res = run_compare(trace, meas, align, xcorr_signal, program=prog)
     for n in res.notes:
         msgs.note(n)
+    from ..loop.asrun import logged_against_programmed, ratio_note
+
+    res.logged_ratio = {} if meas.is_summary else logged_against_programmed(prog, meas, trace)
+    for sig, x in res.logged_ratio.items():
+        if x["suspect"]:
+            msgs.note(ratio_note(sig, x))
     blocks = res.blocks
     if blocks is not None:
         if blocks.hold_time > 0:
@@ -245,8 +251,10 @@ def diagnose(twin=None, program=None, measurement=None, *, signals=None, candida
     if objective_for(objective, meas) == "timing":
         case = timing_case(tw, prog, meas, str(measurement))
         _case_notes(case, msgs)
-        return Diagnosis("timing", timing=diagnose_timing(tw, [case], list(candidates) if candidates else None),
-                         messages=msgs.items)
+        t = diagnose_timing(tw, [case], list(candidates) if candidates else None)
+        for n in t.get("notes", ()):
+            msgs.note(n)
+        return Diagnosis("timing", timing=t, messages=msgs.items)
 
     tg = target(tw, prog, meas, align, list(signals) if signals else None, stock)
     d = run_diagnose(tg, list(candidates) if candidates else None)

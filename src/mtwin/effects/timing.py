@@ -81,3 +81,17 @@ class ArcAcceleration(Effect):
 
     def machine(self, m, p):
         return _controller_set(m, "arc_acceleration", p["acceleration"])
+
+
+class FeedOverride(Effect):
+    name = "feed-override"
+    description = ("the run went at a feed override the log did not record — or the machine ran another version "
+                   "of the program: an effective value of this run, not a machine property")
+    stage = "plan"
+    run_property = True  # (the twin file says so: journal.calibrated_text)
+    params = (Param("feed", "", 100.0, 10.0, 300.0, "feed override in force for the whole run, %"),)
+    signals = _TIME
+
+    def machine(self, m, p):
+        c = m.controller
+        return replace(m, controller=replace(c, feed_override=c.feed_override * p["feed"] / 100.0))

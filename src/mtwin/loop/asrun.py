@@ -17,6 +17,7 @@ program line gets each override's mean over the whole run, and says so.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -212,3 +213,77 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (integral(b) - integral(a)) / span
     return np.where(span > 1e-9, mean, at)
+
+
+#: a logged/programmed ratio this far from 1, over this many samples, with this little spread,
+#: is reported: an unlogged override, or another version of the program
+RATIO_OFF = 0.03
+RATIO_SAMPLES = 20
+RATIO_SPREAD = 0.10
+
+
+def logged_against_programmed(program, meas, trace) -> dict:
+    """The log's own feed (and spindle speed) against the program's: per sample in a feed move
+    whose programmed F the twin reaches in that block, the logged path feed over F; for the
+    spindle, the logged speed over S.  Returns {signal: {ratio, samples, blocks, spread,
+    by_kind, suspect}} for the signals the log has (``program``: as run, its logged overrides
+    applied — a logged override leaves a ratio of 1)."""
+    out: dict = {}
+    if meas.line is None or meas.t is None:
+        return out
+    rec = program.records
+    line = np.asarray(meas.line)
+    feed_kind = ((rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & \
+        ((rec["flags"] & R.FL_SYNC) == 0)
+    tl = np.asarray(trace.line)
+    tf = np.asarray(trace.signal("feed"))
+    for sig, col, kinds in (("feed", "feed", feed_kind), ("spindle_speed", "spindle", rec["spindle"] > 0)):
+        if sig not in meas.signals:
+            continue
+        logged = np.asarray(meas.signals[sig], float)
+        by_line: dict = {}
+        for ln in np.unique(rec["line"][kinds]):
+            vals = np.unique(np.round(rec[col][kinds & (rec["line"] == ln)], 6))
+            if len(vals) != 1 or vals[0] <= 0:
+                continue  # a line run at several values (a loop, a subprogram): no one programmed value
+            prog_v = float(vals[0])
+            if sig == "feed":
+                reach = tf[tl == ln]
+                if not len(reach) or reach.max() < 0.98 * prog_v:
+                    continue  # the twin does not reach F there (a short block): no steady feed to hold
+            by_line[int(ln)] = prog_v
+        ok = np.isin(line, list(by_line)) & np.isfinite(logged) & (logged > 0)
+        if sig == "feed":
+            # the first sample of a block is taken as it accelerates: steady samples only
+            first = np.r_[True, line[1:] != line[:-1]]
+            ok &= ~first
+        idx = np.flatnonzero(ok)
+        if len(idx) < 3:
+            continue
+        r = logged[idx] / np.array([by_line[int(x)] for x in line[idx]])
+        med = float(np.median(r))
+        q1, q3 = np.percentile(r, [25, 75])
+        spread = float((q3 - q1) / med) if med > 0 else math.inf
+        kind_of = {int(ln): ("arc" if (rec["kind"][rec["line"] == ln] != R.LINEAR).any() else "line")
+                   for ln in by_line}
+        by_kind = {}
+        for k in ("line", "arc"):
+            m = np.array([kind_of[int(x)] == k for x in line[idx]])
+            if m.sum() >= 3:
+                by_kind[k] = {"ratio": float(np.median(r[m])), "samples": int(m.sum())}
+        suspect = abs(med - 1.0) > RATIO_OFF and len(idx) >= RATIO_SAMPLES and spread < RATIO_SPREAD
+        out[sig] = {"ratio": med, "samples": int(len(idx)), "blocks": int(len(np.unique(line[idx]))),
+                    "spread": spread, "by_kind": by_kind, "suspect": bool(suspect)}
+    return out
+
+
+def ratio_note(sig: str, x: dict) -> str:
+    """The sentence for a person when a logged/programmed ratio is suspect."""
+    what = "feed moves ran" if sig == "feed" else "the spindle turned"
+    prog = "programmed F" if sig == "feed" else "programmed S"
+    names = {"line": "straight moves", "arc": "arcs"}
+    kinds = ", ".join(f"{names[k]} {v['ratio']:.2f}× over {v['samples']}" for k, v in x["by_kind"].items())
+    return (f"{what} at {x['ratio']:.2f}× the {prog} over {x['samples']} logged samples in {x['blocks']} blocks "
+            f"(spread {x['spread']:.1%}{'; ' + kinds if kinds else ''}): an unlogged "
+            f"{'feed' if sig == 'feed' else 'spindle'} override, or another version of the program — "
+            f"diagnose ranks effects.feed-override, calibrate --fit feed-override fits it")

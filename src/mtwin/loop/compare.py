@@ -41,6 +41,7 @@ class Comparison:
     line: np.ndarray = field(repr=False, default=None)  # program line of each sample (simulation's)
     notes: list = field(default_factory=list)
     blocks: object = None  # blocks.BlockTiming: per-block timing against a log of the executing line
+    logged_ratio: dict = field(default_factory=dict)  # a log's own feed/speed over the program's (asrun)
 
     def as_dict(self, text=None) -> dict:
         out = {"alignment": self.alignment, "time_offset": self.time_offset, "cycle_time": self.cycle_time,
@@ -48,6 +49,8 @@ class Comparison:
                "units": "signals in the measurement format's units (docs/measurement-format.md); times in s"}
         if self.blocks is not None:
             out["blocks"] = self.blocks.as_dict(text)
+        if self.logged_ratio:
+            out["logged_against_programmed"] = self.logged_ratio
         return out
 
 

@@ -99,6 +99,10 @@ def calibrated_text(source_text: str, effects, entry: dict, previous: list[dict]
     for e in effects:
         values = e.resolved()
         lines = [f"[effects.{e.name}]"] + [f"{k} = {toml_value(v)}" for k, v in values.items()]
+        if getattr(e, "run_property", False):
+            # (a value of the run it was fitted to — an operator's override — not of the machine)
+            lines.insert(0, f"# {e.name}: an effective value of the run it was fitted to, not a machine property: "
+                            f"remove it before predicting another run")
         parts.append("\n".join(lines))
     for j in list(previous) + [entry]:
         lines = ["[[journal]]"]

@@ -361,8 +361,17 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
     from ..effects import available
 
     in_model = {e.name for e in twin.effects}
+    notes: list = []
+    skip = set()
+    if candidates is None and "feed-override" not in in_model:
+        # an override in force for the whole run fits any error of the feed blocks, real or
+        # not: tried only where the log's own feed shows one (named in candidates: always)
+        suspect, why = _override_evidence(twin, cases)
+        notes.append(why)
+        if not suspect:
+            skip.add("feed-override")
     classes = [c for n, c in available().items()
-               if c.stage == "plan" and n not in in_model and (candidates is None or n in candidates)]
+               if c.stage == "plan" and n not in in_model and n not in skip and (candidates is None or n in candidates)]
     before = summary(twin, cases)
     n = before["windows"]
     rows = []
@@ -389,4 +398,22 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
                          f"ΔBIC {r['delta_bic']:+.0f}; cycle time "
                          + ", ".join(f"{e:+.1%}" for e in r["cycle_error_after"]))
     return {"rms": rms0, "window_rms": wrms0, "noise": NOISE_FLOOR, "window_noise": NOISE_FLOOR * math.sqrt(2.0),
-            "verdict": said, "before": before, "candidates": rows}
+            "verdict": said, "before": before, "candidates": rows, "notes": notes}
+
+
+def _override_evidence(twin, cases) -> tuple[bool, str]:
+    """Does any case's log show a constant ratio of its own feed to the programmed F (an
+    unlogged override)?  With the sentence that says why, or why not."""
+    from .asrun import logged_against_programmed, ratio_note
+
+    for c in cases:
+        x = logged_against_programmed(c.program, c.meas,
+                                      twin.simulate(c.program, cutting=False, chatter=False)).get("feed")
+        if x is not None and x["suspect"]:
+            return True, f"{c.label}: {ratio_note('feed', x)}"
+    if len(cases) == 1 and x is not None:
+        return False, (f"feed-override not tried: the log's own feed is {x['ratio']:.2f}× the programmed F over "
+                       f"{x['samples']} samples with a {x['spread']:.0%} spread — no constant override (name it "
+                       f"with --candidates to try it anyway)")
+    return False, ("feed-override not tried: no log shows its own feed at a constant ratio to the programmed F (name "
+                   "it with --candidates to try it anyway)")

@@ -395,6 +395,7 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     records but for their feeds) on the same machine, made with ``keep_geometry``; only the
     limits, corners, look-ahead and timing are planned again (how the optimiser plans a
     program at several feeds)."""
+    program = _overridden(program, machine.controller)
     geom = _same_geometry(program, machine, like)
     if geom is not None:
         rec, shift, seg, feed_box, warnings = geom
@@ -439,6 +440,27 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     geometry = (program.records, rec, shift, seg.copy(), feed_box, list(warnings), machine, program.lexed,
                 end_change) if keep_geometry else None
     return _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, program.rapid_scale, program.path)
+
+
+def _overridden(program, c):
+    """The program as a run with a constant feed and rapid override runs it (the controller's
+    ``feed_override``/``rapid_override``, %): feed moves' F scaled (threads and rigid taps
+    follow the spindle: not), rapids' speed scaled.  100 % leaves the program as it is."""
+    if c.feed_override == 100.0 and c.rapid_override == 100.0:
+        return program
+    from dataclasses import replace as dc_replace
+
+    rec = program.records
+    out = {}
+    if c.feed_override != 100.0:
+        feed = (rec["kind"] != R.RAPID) & (rec["kind"] != R.DWELL) & ((rec["flags"] & R.FL_SYNC) == 0)
+        new = rec.copy()
+        new["feed"] = np.where(feed, rec["feed"] * (c.feed_override / 100.0), rec["feed"])
+        out["records"] = new
+    if c.rapid_override != 100.0:
+        base = program.rapid_scale if program.rapid_scale is not None else np.ones(len(rec))
+        out["rapid_scale"] = np.where(rec["kind"] == R.RAPID, base * (c.rapid_override / 100.0), base)
+    return dc_replace(program, **out)
 
 
 def _clamp_cutting_feed(seg, is_pause, machine, warnings, path) -> None:

@@ -51,6 +51,11 @@ class Controller:
                            "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg")
     arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), 0 = the axes' "
                                 "limits only [E: small arcs on a Hurco VMX24 run at 250-340 mm/s^2]", "nonneg")
+    feed_override: float = P(100.0, "", "feed override in % in force for the whole run (a run's, not the "
+                             "machine's: what effects.feed-override fits to a log that did not record it)",
+                             lo=1.0, hi=1000.0)
+    rapid_override: float = P(100.0, "", "rapid override in % in force for the whole run (as feed_override)",
+                              lo=1.0, hi=100.0)
 
 
 @dataclass(frozen=True)
