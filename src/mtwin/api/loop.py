@@ -156,7 +156,13 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
         msgs.note(n)
     from ..loop.asrun import logged_against_programmed, ratio_note
 
-    res.logged_ratio = {} if meas.is_summary else logged_against_programmed(prog, meas, trace)
+    kind_of = None
+    if res.blocks is not None:  # (the ratios per block kind, for the block timing's table)
+        b = res.blocks
+        kind_of = {ln: k for a, z, k in zip(b.first_line, b.last_line, b.kind) for ln in range(int(a), int(z) + 1)}
+    res.logged_ratio = {} if meas.is_summary else logged_against_programmed(prog, meas, trace, kind_of)
+    if res.blocks is not None and "feed" in res.logged_ratio:
+        res.blocks.feed_ratio = {k: v["ratio"] for k, v in res.logged_ratio["feed"]["by_kind"].items()}
     for sig, x in res.logged_ratio.items():
         if x["suspect"]:
             msgs.note(ratio_note(sig, x))

@@ -222,12 +222,13 @@ RATIO_SAMPLES = 20
 RATIO_SPREAD = 0.10
 
 
-def logged_against_programmed(program, meas, trace) -> dict:
+def logged_against_programmed(program, meas, trace, kind_of: dict | None = None) -> dict:
     """The log's own feed (and spindle speed) against the program's: per sample in a feed move
     whose programmed F the twin reaches in that block, the logged path feed over F; for the
     spindle, the logged speed over S.  Returns {signal: {ratio, samples, blocks, spread,
     by_kind, suspect}} for the signals the log has (``program``: as run, its logged overrides
-    applied — a logged override leaves a ratio of 1)."""
+    applied — a logged override leaves a ratio of 1).  ``kind_of``: line -> block kind
+    (``blocks.KINDS``) to give ``by_kind`` per block kind instead of straight moves and arcs."""
     out: dict = {}
     if meas.line is None or meas.t is None:
         return out
@@ -247,6 +248,9 @@ def logged_against_programmed(program, meas, trace) -> dict:
             if len(vals) != 1 or vals[0] <= 0:
                 continue  # a line run at several values (a loop, a subprogram): no one programmed value
             prog_v = float(vals[0])
+            if sig == "feed" and ((rec["line"] == ln) & ((rec["kind"] == R.RAPID) |
+                                                         ((rec["flags"] & R.FL_CANNED) != 0))).any():
+                continue  # a canned cycle, or a line that rapids too: the logged feed is not F's
             if sig == "feed":
                 reach = tf[tl == ln]
                 if not len(reach) or reach.max() < 0.98 * prog_v:
@@ -264,11 +268,11 @@ def logged_against_programmed(program, meas, trace) -> dict:
         med = float(np.median(r))
         q1, q3 = np.percentile(r, [25, 75])
         spread = float((q3 - q1) / med) if med > 0 else math.inf
-        kind_of = {int(ln): ("arc" if (rec["kind"][rec["line"] == ln] != R.LINEAR).any() else "line")
-                   for ln in by_line}
+        kinds_here = kind_of or {int(ln): ("arc" if (rec["kind"][rec["line"] == ln] != R.LINEAR).any() else "line")
+                                 for ln in by_line}
         by_kind = {}
-        for k in ("line", "arc"):
-            m = np.array([kind_of[int(x)] == k for x in line[idx]])
+        for k in dict.fromkeys(kinds_here.get(int(x), "other") for x in line[idx]):
+            m = np.array([kinds_here.get(int(x), "other") == k for x in line[idx]])
             if m.sum() >= 3:
                 by_kind[k] = {"ratio": float(np.median(r[m])), "samples": int(m.sum())}
         suspect = abs(med - 1.0) > RATIO_OFF and len(idx) >= RATIO_SAMPLES and spread < RATIO_SPREAD
@@ -282,7 +286,7 @@ def ratio_note(sig: str, x: dict) -> str:
     what = "feed moves ran" if sig == "feed" else "the spindle turned"
     prog = "programmed F" if sig == "feed" else "programmed S"
     names = {"line": "straight moves", "arc": "arcs"}
-    kinds = ", ".join(f"{names[k]} {v['ratio']:.2f}× over {v['samples']}" for k, v in x["by_kind"].items())
+    kinds = ", ".join(f"{names.get(k, k)} {v['ratio']:.2f}× over {v['samples']}" for k, v in x["by_kind"].items())
     return (f"{what} at {x['ratio']:.2f}× the {prog} over {x['samples']} logged samples in {x['blocks']} blocks "
             f"(spread {x['spread']:.1%}{'; ' + kinds if kinds else ''}): an unlogged "
             f"{'feed' if sig == 'feed' else 'spindle'} override, or another version of the program — "

@@ -43,6 +43,7 @@ class BlockTiming:
     excluded: list = field(default_factory=list)  # groups left out (the machine held at 0 % override)
     hold_time: float = 0.0  # s of feed hold taken out of the measured durations
     stops: list = field(default_factory=list)  # dicts: program stops (M00/M01 waits, logged stop states)
+    feed_ratio: dict = field(default_factory=dict)  # kind -> the log's own feed over the programmed F (asrun)
 
     @property
     def stop_time(self) -> float:
@@ -60,7 +61,8 @@ class BlockTiming:
             if m.any():
                 out.append({"kind": k, "groups": int(m.sum()), "measured": float(self.measured[m].sum()),
                             "simulated": float(self.simulated[m].sum()), "error": float(self.error[m].sum()),
-                            "rms": float(np.sqrt(np.mean(self.error[m] ** 2)))})
+                            "rms": float(np.sqrt(np.mean(self.error[m] ** 2))),
+                            "logged_over_programmed_feed": self.feed_ratio.get(k)})
         return sorted(out, key=lambda d: -abs(d["error"]))
 
     def worst(self, n: int = 10, text: list | None = None) -> list:
