@@ -505,6 +505,8 @@ def test_an_unlogged_feed_override_is_found_ranked_and_calibrated(setup, tmp_pat
     assert r.returncode == 0, r.stderr
     cands = json.loads(r.stdout)["timing"]["candidates"]
     assert cands[0]["effect"] == "feed-override", [c["effect"] for c in cands]
+    # with the evidence a person acts on: the ratio, its samples and blocks, its spread
+    assert "the log's own feed: feed moves ran at 1.30× the programmed F over" in cands[0]["evidence"]
     # calibrate: recovered within 2 %, and the cycle time within 1 %
     out = tmp_path / "t.toml"
     r = _cli("calibrate", str(d / "PART.NC"), str(d / "ovr.txt"), "--fit", "feed-override", "-o", str(out), "--json")

@@ -363,12 +363,15 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
     in_model = {e.name for e in twin.effects}
     notes: list = []
     skip = set()
-    if candidates is None and "feed-override" not in in_model:
+    evidence = ""
+    if "feed-override" not in in_model and (candidates is None or "feed-override" in candidates):
         # an override in force for the whole run fits any error of the feed blocks, real or
         # not: tried only where the log's own feed shows one (named in candidates: always)
         suspect, why = _override_evidence(twin, cases)
         notes.append(why)
-        if not suspect:
+        if suspect:
+            evidence = why.split(": ", 1)[1].split(" — diagnose")[0]
+        elif candidates is None:
             skip.add("feed-override")
     classes = [c for n, c in available().items()
                if c.stage == "plan" and n not in in_model and n not in skip and (candidates is None or n in candidates)]
@@ -397,6 +400,8 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
                          f"{max(r['explained_variance'], 0.0):.0%} of the squared error removed, "
                          f"ΔBIC {r['delta_bic']:+.0f}; cycle time "
                          + ", ".join(f"{e:+.1%}" for e in r["cycle_error_after"]))
+        if r["effect"] == "feed-override" and evidence:
+            r["evidence"] += f"; the log's own feed: {evidence}"
     return {"rms": rms0, "window_rms": wrms0, "noise": NOISE_FLOOR, "window_noise": NOISE_FLOOR * math.sqrt(2.0),
             "verdict": said, "before": before, "candidates": rows, "notes": notes}
 
@@ -412,8 +417,8 @@ def _override_evidence(twin, cases) -> tuple[bool, str]:
         if x is not None and x["suspect"]:
             return True, f"{c.label}: {ratio_note('feed', x)}"
     if len(cases) == 1 and x is not None:
-        return False, (f"feed-override not tried: the log's own feed is {x['ratio']:.2f}× the programmed F over "
+        return False, (f"feed-override not tried by default: the log's own feed is {x['ratio']:.2f}× the programmed F over "
                        f"{x['samples']} samples with a {x['spread']:.0%} spread — no constant override (name it "
                        f"with --candidates to try it anyway)")
-    return False, ("feed-override not tried: no log shows its own feed at a constant ratio to the programmed F (name "
+    return False, ("feed-override not tried by default: no log shows its own feed at a constant ratio to the programmed F (name "
                    "it with --candidates to try it anyway)")
