@@ -173,5 +173,28 @@ def test_a_bad_input_ends_in_exit_2_with_a_message_and_changes_nothing(tmp_path,
     assert where in err, (where, err[-2000:])
     numpy_warnings = [w for w in caught if issubclass(w.category, RuntimeWarning)]
     assert not numpy_warnings, [str(w.message) for w in numpy_warnings]
-    assert "RuntimeWarning" not in err
+    assert "RuntimeWarning" not in err and "numerical warning inside mtwin" not in err, err[-2000:]
     assert _snapshot(tmp_path) == before
+
+
+def test_a_numpy_warning_inside_a_command_becomes_one_note():
+    import contextlib
+    import io
+
+    import numpy as np
+
+    from mtwin.cli.app import reports_errors
+
+    @reports_errors
+    def command():
+        for _ in range(3):
+            np.array([1.0]) / np.array([0.0])  # (a division by zero, three times at one place)
+        return 0
+
+    buf = io.StringIO()
+    with contextlib.redirect_stderr(buf):
+        command()
+    out = buf.getvalue()
+    assert "RuntimeWarning" not in out
+    assert out.count("note: a numerical warning inside mtwin (divide by zero encountered in divide, at "
+                     "test_fuzz_table.py:") == 1 and "3 times" in out, out

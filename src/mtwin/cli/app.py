@@ -140,6 +140,36 @@ INTERRUPTED = ("interrupted (Ctrl-C): no output is left half-written (an output 
                "written; one written before the interrupt is whole)")
 
 
+@contextlib.contextmanager
+def _numeric_warnings():
+    """numpy's RuntimeWarnings (a division by zero, an overflow inside a computation) are not a
+    user's business in numpy's words, nor silence: each distinct one becomes one note naming
+    where it arose, after the command (every figure mtwin prints is checked finite, so the note
+    is for the developers).  Other warnings pass through as they are."""
+    import warnings
+
+    seen: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", RuntimeWarning)  # (each counted; none printed as numpy words it)
+        shown = warnings.showwarning
+
+        def collect(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, RuntimeWarning):
+                seen.setdefault((str(message), f"{os.path.basename(filename)}:{lineno}"), 0)
+                seen[(str(message), f"{os.path.basename(filename)}:{lineno}")] += 1
+            else:
+                shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = collect
+        try:
+            yield
+        finally:
+            warnings.showwarning = shown
+            for (msg, where), n in list(seen.items())[:3]:
+                err.print(f"note: a numerical warning inside mtwin ({msg}, at {where}{f', {n} times' if n > 1 else ''}); "
+                          f"the figures it printed are checked finite — please report it", highlight=False)
+
+
 def reports_errors(command):
     """Turn every exception of a command into a message and an exit code (see ``fail``)."""
 
@@ -148,7 +178,7 @@ def reports_errors(command):
         from ..io import command_scope
 
         try:
-            with command_scope():  # (the inputs it reads, so that no output replaces one)
+            with command_scope(), _numeric_warnings():  # (the inputs it reads, so that no output replaces one)
                 return command(*args, **kwargs)
         except typer.Exit:
             raise
