@@ -157,20 +157,18 @@ class Ledger:
             if not create:
                 raise MtwinError(f"{self.path}: no such tool ledger (one is created by simulate/optimize --record)")
             _create(self.path)
-        exists = True
-        if exists and os.path.getsize(self.path) == 0:
+        if os.path.getsize(self.path) == 0:
             raise MtwinError(f"{self.path}: an empty file, not an mtwin tool ledger; it is left as it is — give a "
                              f"new --ledger path (a ledger is created where no file exists)")
         try:
-            if exists:
-                # read-only first: a file that is not a ledger is never written
-                from pathlib import Path
+            # read-only first: a file that is not a ledger is never written
+            from pathlib import Path
 
-                ro = sqlite3.connect(f"{Path(self.path).resolve().as_uri()}?mode=ro", uri=True, timeout=_TIMEOUT)
-                try:
-                    _check_schema(ro, self.path)
-                finally:
-                    ro.close()
+            ro = sqlite3.connect(f"{Path(self.path).resolve().as_uri()}?mode=ro", uri=True, timeout=_TIMEOUT)
+            try:
+                _check_schema(ro, self.path)
+            finally:
+                ro.close()
             self._db = sqlite3.connect(self.path, timeout=_TIMEOUT, isolation_level=None)
         except sqlite3.DatabaseError as exc:
             raise MtwinError(f"{self.path}: not a readable tool ledger ({exc}); it is left as it is — restore it "

@@ -155,8 +155,8 @@ def _numeric_warnings():
 
         def collect(message, category, filename, lineno, file=None, line=None):
             if issubclass(category, RuntimeWarning):
-                seen.setdefault((str(message), f"{os.path.basename(filename)}:{lineno}"), 0)
-                seen[(str(message), f"{os.path.basename(filename)}:{lineno}")] += 1
+                key = (str(message), f"{os.path.basename(filename)}:{lineno}")
+                seen[key] = seen.get(key, 0) + 1
             else:
                 shown(message, category, filename, lineno, file, line)
 

@@ -427,10 +427,10 @@ def _restore_after_changed(w: _Writer, prog: Program, f_target: dict, changed_f,
     if not len(feed_idx):
         return {}
     fl = line0[feed_idx]
-    # per feed record: the position of the next feed record on another line
-    nxt = np.full(len(feed_idx), len(feed_idx), np.int64)
-    for k in range(len(feed_idx) - 2, -1, -1):
-        nxt[k] = k + 1 if fl[k + 1] != fl[k] else nxt[k + 1]
+    # per feed record: the position of the next feed record on another line (the start of the
+    # next run of equal lines)
+    starts = np.append(np.flatnonzero(fl[1:] != fl[:-1]) + 1, len(feed_idx))
+    nxt = starts[np.searchsorted(starts, np.arange(len(feed_idx)), side="right")]
     restored: dict = {}
     pos = np.searchsorted(feed_idx, changed_f)
     for i, k in zip(changed_f, pos):

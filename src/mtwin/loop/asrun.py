@@ -281,13 +281,15 @@ def logged_against_programmed(program, meas, trace, kind_of: dict | None = None)
     return out
 
 
-def ratio_note(sig: str, x: dict) -> str:
-    """The sentence for a person when a logged/programmed ratio is suspect."""
+def ratio_note(sig: str, x: dict, advice: bool = True) -> str:
+    """The sentence for a person when a logged/programmed ratio is suspect (``advice``: with
+    what to run next, for the feed: the effect that fits it)."""
     what = "feed moves ran" if sig == "feed" else "the spindle turned"
     prog = "programmed F" if sig == "feed" else "programmed S"
     names = {"line": "straight moves", "arc": "arcs"}
     kinds = ", ".join(f"{names.get(k, k)} {v['ratio']:.2f}× over {v['samples']}" for k, v in x["by_kind"].items())
     return (f"{what} at {x['ratio']:.2f}× the {prog} over {x['samples']} logged samples in {x['blocks']} blocks "
             f"(spread {x['spread']:.1%}{'; ' + kinds if kinds else ''}): an unlogged "
-            f"{'feed' if sig == 'feed' else 'spindle'} override, or another version of the program — "
-            f"diagnose ranks effects.feed-override, calibrate --fit feed-override fits it")
+            f"{'feed' if sig == 'feed' else 'spindle'} override, or another version of the program"
+            + (" — diagnose ranks effects.feed-override, calibrate --fit feed-override fits it"
+               if advice and sig == "feed" else ""))

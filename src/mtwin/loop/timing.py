@@ -367,11 +367,9 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
     if "feed-override" not in in_model and (candidates is None or "feed-override" in candidates):
         # an override in force for the whole run fits any error of the feed blocks, real or
         # not: tried only where the log's own feed shows one (named in candidates: always)
-        suspect, why = _override_evidence(twin, cases)
+        suspect, why, evidence = _override_evidence(twin, cases)
         notes.append(why)
-        if suspect:
-            evidence = why.split(": ", 1)[1].split(" — diagnose")[0]
-        elif candidates is None:
+        if not suspect and candidates is None:
             skip.add("feed-override")
     classes = [c for n, c in available().items()
                if c.stage == "plan" and n not in in_model and n not in skip and (candidates is None or n in candidates)]
@@ -406,19 +404,20 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
             "verdict": said, "before": before, "candidates": rows, "notes": notes}
 
 
-def _override_evidence(twin, cases) -> tuple[bool, str]:
+def _override_evidence(twin, cases) -> tuple[bool, str, str]:
     """Does any case's log show a constant ratio of its own feed to the programmed F (an
-    unlogged override)?  With the sentence that says why, or why not."""
+    unlogged override)?  With the note that says why, or why not, and the evidence for the
+    candidate's row ("" when there is none)."""
     from .asrun import logged_against_programmed, ratio_note
 
     for c in cases:
         x = logged_against_programmed(c.program, c.meas,
                                       twin.simulate(c.program, cutting=False, chatter=False)).get("feed")
         if x is not None and x["suspect"]:
-            return True, f"{c.label}: {ratio_note('feed', x)}"
+            return True, f"{c.label}: {ratio_note('feed', x)}", ratio_note("feed", x, advice=False)
     if len(cases) == 1 and x is not None:
-        return False, (f"feed-override not tried by default: the log's own feed is {x['ratio']:.2f}× the programmed F over "
-                       f"{x['samples']} samples with a {x['spread']:.0%} spread — no constant override (name it "
-                       f"with --candidates to try it anyway)")
-    return False, ("feed-override not tried by default: no log shows its own feed at a constant ratio to the programmed F (name "
-                   "it with --candidates to try it anyway)")
+        return False, (f"feed-override not tried by default: the log's own feed is {x['ratio']:.2f}× the programmed F "
+                       f"over {x['samples']} samples with a {x['spread']:.0%} spread — no constant override (name it "
+                       f"with --candidates to try it anyway)"), ""
+    return False, ("feed-override not tried by default: no log shows its own feed at a constant ratio to the programmed "
+                   "F (name it with --candidates to try it anyway)"), ""

@@ -414,10 +414,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         # a servo loop (or drive) the twin's values make unstable: its numbers are no answer —
         # a following error that came out NaN would read as 0 in every figure after it
         bad = np.flatnonzero(~np.isfinite(act).all(axis=1) | ~np.isfinite(err).all(axis=1))
-        raise MtwinError(warning_text(program.path, int(line[bad[0]]) if len(line) else 0,
-                                      "the simulated axes diverged (positions not finite): the twin's servo or drive "
-                                      "values make the loop unstable; check the [axes.*.servo] gains and the "
-                                      "controller's servo_period").replace(": warning:", ":", 1))
+        raise MtwinError(f"{program.path}:{int(line[bad[0]])}:1: the simulated axes diverged (positions not finite): "
+                         f"the twin's servo or drive values make the loop unstable; check the [axes.*.servo] gains "
+                         f"and the controller's servo_period")
     kt = np.array([ax.torque_constant for ax in machine.axes])
     trace = Trace(t, line, cmd, act, err, vel, trq, pathv, kt, summary, every, program.path,
                   force if eng is not None else None, cut if eng is not None else None, eng, record)
