@@ -85,7 +85,11 @@ def test_the_calibrated_profiles_keep_their_values():
     from mtwin.twin.files import load_machine
     from conftest import ROOT
 
-    for name in ("hurco-vmx24.toml", "linuxcnc-sim.toml"):
-        m = load_machine(str(ROOT / "samples" / "machines" / name))
-        assert [ax.servo.feedforward for ax in m.axes] == [0.0, 0.0, 0.0], name
+    m = load_machine(str(ROOT / "samples" / "machines" / "linuxcnc-sim.toml"))
+    assert [ax.servo.feedforward for ax in m.axes] == [0.0, 0.0, 0.0]
+    # the Hurco profile was recalibrated with the default's feed-forward (scripts/hurco-vmx24.sh
+    # says why): it keeps what it was calibrated with by not setting it
+    m = load_machine(str(ROOT / "samples" / "machines" / "hurco-vmx24.toml"))
+    assert [ax.servo.feedforward for ax in m.axes] == [0.9, 0.9, 0.9]
+    assert "feedforward" not in (ROOT / "samples" / "machines" / "hurco-vmx24.toml").read_text()
     assert [ax.servo.feedforward for ax in Twin.from_toml(None).machine.axes] == [0.9, 0.9, 0.9]

@@ -335,6 +335,25 @@ def test_arc_acceleration_limits_arcs_to_the_root_of_a_r():
     assert slow.dur[i] >= 2 * math.pi / math.sqrt(300) and slow.total_time > base.total_time
 
 
+def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():
+    # a long rapid without jerk: t = L/v + v/a (accelerate and brake at a, cruise between);
+    # the feed move after it keeps the axes' acceleration
+    tw = mtwin.Twin().with_params({"controller.bell_time": 0.0, "controller.after_filter": "none",
+                                   "axes.x.max_acceleration": 400.0,
+                                   "axes.x.max_velocity": 6000.0})
+    prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z0\nG0 X300\nG1 X0 F3000\nM30\n", path="r.nc")
+    base, fast = tw.plan(prog), tw.with_effects("rapid-acceleration:acceleration=5000").plan(prog)
+    v = 6000.0 / 60.0  # mm/s: reached after 12.5 mm at 400 mm/s²
+    rapid = lambda plan: float(plan.dur[plan.seg["line"] == 3].sum())
+    assert rapid(base) == pytest.approx(300 / v + v / 400.0, rel=1e-3)
+    assert rapid(fast) == pytest.approx(300 / v + v / 5000.0, rel=1e-3)
+    feed = lambda plan: float(plan.dur[plan.seg["line"] == 4].sum())
+    assert feed(fast) == pytest.approx(feed(base), rel=1e-9)
+    # more than the drives can give is refused, like an axis acceleration
+    with pytest.raises(ConfigError, match="rapid_acceleration"):
+        tw.with_effects("rapid-acceleration:acceleration=90000").plan(prog)
+
+
 def test_a_feed_override_runs_the_program_as_if_every_f_were_scaled():
     # an independent route: the program with each F multiplied by 1.3 by hand plans the same
     # (rapids and dwells untouched); a long move's time at speed falls as 1/1.3

@@ -17,7 +17,8 @@ from .drives import CoulombFriction, Gravity, Inertia, StribeckFriction, Viscous
 from .observation import Backlash, Runout, ServoDelay, SpindleNoLoad, ThermalDrift
 from .process import SizeEffect, ToolWear
 from .wear import FlankWear
-from .timing import ArcAcceleration, BlockTime, CornerSlowdown, FeedOverride, SpindleRunup, ToolChangeTime
+from .timing import (ArcAcceleration, BlockTime, CornerSlowdown, FeedOverride, RapidAcceleration, SpindleRunup,
+                     ToolChangeTime)
 
 __all__ = ["Effect", "StepInfo", "ToolHistory", "available", "get", "load_file", "register", "parse_effect_spec"]
 
@@ -26,7 +27,7 @@ ENTRY_POINT_GROUP = "mtwin.effects"
 BUILTIN: tuple[type[Effect], ...] = (
     SpindleNoLoad, ToolWear, FlankWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
     Backlash, ServoDelay, ThermalDrift, Inertia,
-    ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration, FeedOverride,
+    ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration, RapidAcceleration, FeedOverride,
 )
 
 # effects registered in this process (files, tests, register()): name -> class

@@ -83,6 +83,22 @@ class ArcAcceleration(Effect):
         return _controller_set(m, "arc_acceleration", p["acceleration"])
 
 
+class RapidAcceleration(Effect):
+    name = "rapid-acceleration"
+    description = "rapids accelerate on their own acc/dec, harder (or softer) than feed moves"
+    stage = "plan"
+    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
+                    "each axis' acceleration on rapids, 0 = the twin file's"),)
+    signals = ("feed",)
+
+    def machine(self, m, p):
+        from ..twin.machine import validate_machine
+
+        out = _controller_set(m, "rapid_acceleration", p["acceleration"])
+        validate_machine(out, "effects.rapid-acceleration")  # (what the drives can give)
+        return out
+
+
 class FeedOverride(Effect):
     name = "feed-override"
     description = ("the run went at a feed override the log did not record — or the machine ran another version "

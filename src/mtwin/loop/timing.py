@@ -13,7 +13,11 @@ simulated with the fitted twin.
 
 Residuals are per window of consecutive block groups (≈ 10 s of measured time):
 (simulated − measured time) / the noise of a window's length, the noise floor (0.15 s) × √2 —
-only its two ends' report jitter.  The fit is bounded least squares (scipy's trust-region
+only its two ends' report jitter — and per block kind of each log, the error summed over the
+kind's groups (simulated as logged, :func:`.blocks.simulated_as_logged`) / its report jitter
+(the sampling interval / √12 at each of the kind's boundaries with another kind).  Windows
+alone let errors of opposite sign cancel — rapids long, short feed moves short — wherever the
+kinds share a window; the sums by kind do not.  The fit is bounded least squares (scipy's trust-region
 reflective) from a start found by scanning each parameter over its range — timing
 objectives have kinks (a minimum block time binds or not, an arc limit bites or not) that a
 local method alone can stall on.  A fit works on copies of its cases: the caller's waits
@@ -29,7 +33,8 @@ import numpy as np
 
 from ..errors import ConfigError, MtwinError
 from ..fitting import delta_bic, solve, verdict
-from .blocks import NOISE_FLOOR, Groups, measurement_groups, set_apart_stops, simulated_durations
+from .blocks import (NOISE_FLOOR, Groups, measurement_groups, set_apart_stops, simulated_as_logged,
+                     simulated_durations)
 
 SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
 WINDOW = 10.0  # s: block groups are summed into windows of at least this much measured time…
@@ -62,6 +67,9 @@ class TimingCase:
     wait: np.ndarray = field(default=None)  # s, the wait of each of those lines at in_position = width
     slope: np.ndarray = field(default=None)  # s per unit of ln(width / in_position): how it grows as it narrows
     width: float = 0.0  # mm, the in-position width the waits were simulated at
+    kinds: tuple = ()  # the block kinds fitted by their sums
+    kind_index: np.ndarray = field(default=None)  # (groups,) index into kinds, -1 for a kind not fitted
+    kind_noise: np.ndarray = field(default=None)  # (kinds,) s, the report jitter of each kind's sum
 
 
 def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
@@ -79,9 +87,25 @@ def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
         raise MtwinError(f"{meas.path}: only {len(g.measured)} block groups: too few to fit timing to")
     length = min(WINDOW, max(1.0, float(np.sum(g.measured)) / WINDOWS))
     case.groups, case.window = g, windows(g.measured, length)
+    case.kinds, case.kind_index, case.kind_noise = _kind_sums(g)
     # (the run as the program made it: the feed holds, logged stops and operator waits taken out)
     case.cycle_measured = end - g.hold_time - g.stop_time - g.wait_time
     return case
+
+
+UNFITTED_KINDS = ("program end", "other")  # (an end waits on the operator; "other" moves nothing)
+
+
+def _kind_sums(g: Groups):
+    """(kinds, each group's index into them or -1, the noise of each kind's summed error): a
+    kind's sum carries the report jitter (uniform over one sampling interval, σ = interval/√12)
+    of both ends of every run of consecutive groups of that kind."""
+    kinds = tuple(k for k in dict.fromkeys(g.kind) if k not in UNFITTED_KINDS)
+    idx = np.array([kinds.index(k) if k in kinds else -1 for k in g.kind], np.int64)
+    jitter = (g.period or 2.0 * NOISE_FLOOR) / math.sqrt(12.0)
+    starts = np.concatenate(([True], idx[1:] != idx[:-1])) if len(idx) else np.zeros(0, bool)
+    runs = np.bincount(idx[starts & (idx >= 0)], minlength=len(kinds))
+    return kinds, idx, jitter * np.sqrt(2.0 * np.maximum(runs, 1))
 
 
 def refresh_waits(twin, case: TimingCase) -> None:
@@ -147,23 +171,32 @@ def plan_starts(plan, wait_line: np.ndarray, wait: np.ndarray):
 
 
 def evaluate(twin, case: TimingCase):
-    """(simulated duration of each group, simulated cycle time) of the case on ``twin``."""
+    """(simulated duration of each group as the log would show it, simulated cycle time) of the
+    case on ``twin``."""
     plan = twin.plan(case.program)
     lines, starts, end = plan_starts(plan, case.wait_line, case_waits(twin, case))
-    return simulated_durations(case.groups, lines, starts, end), end
+    sim = simulated_durations(case.groups, lines, starts, end)
+    return simulated_as_logged(case.groups, sim, lines, starts, end), end
 
 
 def _errors(twin, case: TimingCase):
-    """(simulated − measured time per group, per window, simulated cycle time)."""
+    """(simulated − measured time per group, per window, per fitted kind, simulated cycle time)."""
     d, cyc = evaluate(twin, case)
     e = np.where(np.isfinite(d), d - case.groups.measured, 0.0)
-    return e, np.bincount(case.window, weights=e), cyc
+    fitted = case.kind_index >= 0
+    by_kind = np.bincount(case.kind_index[fitted], weights=e[fitted], minlength=len(case.kinds))
+    return e, np.bincount(case.window, weights=e), by_kind, cyc
 
 
 def residuals(twin, cases) -> np.ndarray:
     """Per window of each case: (simulated − measured time) / the noise of a window's length
-    (its two ends' report jitter, the noise floor × √2)."""
-    return np.concatenate([_errors(twin, c)[1] for c in cases]) / (NOISE_FLOOR * math.sqrt(2.0))
+    (its two ends' report jitter, the noise floor × √2); then per block kind of each case, the
+    summed error / the noise of that sum."""
+    out = []
+    for c in cases:
+        _, we, ke, _ = _errors(twin, c)
+        out += [we / (NOISE_FLOOR * math.sqrt(2.0)), ke / c.kind_noise]
+    return np.concatenate(out)
 
 
 def summary(twin, cases) -> dict:
@@ -171,7 +204,7 @@ def summary(twin, cases) -> dict:
     out = {"cases": []}
     sq, n, wsq, wn = 0.0, 0, 0.0, 0
     for c in cases:
-        e, we, cyc = _errors(twin, c)
+        e, we, ke, cyc = _errors(twin, c)
         sq += float(np.sum(e * e))
         n += len(e)
         wsq += float(np.sum(we * we))
@@ -179,7 +212,8 @@ def summary(twin, cases) -> dict:
         out["cases"].append({"measurement": c.label, "cycle_measured": c.cycle_measured, "cycle_simulated": cyc,
                              "cycle_error": (cyc - c.cycle_measured) / c.cycle_measured,
                              "rms": float(np.sqrt(np.mean(e * e))) if len(e) else 0.0,
-                             "window_rms": float(np.sqrt(np.mean(we * we))) if len(we) else 0.0})
+                             "window_rms": float(np.sqrt(np.mean(we * we))) if len(we) else 0.0,
+                             "kind_error": dict(zip(c.kinds, map(float, ke)))})
     out["rms"] = math.sqrt(sq / n) if n else 0.0
     out["window_rms"] = math.sqrt(wsq / wn) if wn else 0.0
     out["windows"] = wn
@@ -281,10 +315,21 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
     count = [0]
     before = summary(twin, cases)
 
+    size = [0]
+
     def fun_x(x):
         count[0] += 1
-        tw, fitted = build_fitted(twin, effects, keys, x)
-        return residuals(tw.with_effects(*fitted), cases)
+        try:
+            tw, fitted = build_fitted(twin, effects, keys, x)
+            r = residuals(tw.with_effects(*fitted), cases)
+        except ConfigError:
+            if not size[0]:
+                raise
+            # a step into values the machine refuses (an acceleration its drives cannot give):
+            # as far off as can be, so the solver steps back
+            return np.full(size[0], 1e3)
+        size[0] = len(r)
+        return r
 
     x = x0
     for _ in range(max(1, passes)):
@@ -313,7 +358,9 @@ def _plan_starts(twin, effects) -> dict:
            "block-time.min_time": m.controller.min_block_time,
            "corner-slowdown.corner_velocity": m.controller.corner_velocity,
            "arc-acceleration.acceleration": (m.controller.arc_acceleration
-                                             or min(a.max_acceleration for a in m.axes))}
+                                             or min(a.max_acceleration for a in m.axes)),
+           "rapid-acceleration.acceleration": (m.controller.rapid_acceleration
+                                               or min(a.max_acceleration for a in m.axes))}
     out = {}
     for e in effects:
         for d in e.params:

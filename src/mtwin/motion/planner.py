@@ -102,6 +102,12 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
         aline = np.min(np.where(u > 1e-12, acc / np.maximum(u, 1e-300), np.inf), axis=1)
     vmax[line] = vline[line]
     amax[line] = aline[line]
+    if getattr(c, "rapid_acceleration", 0.0) > 0:
+        # rapids run on their own acc/dec (each axis' rapid acceleration, along the move)
+        with np.errstate(divide="ignore"):
+            arap = c.rapid_acceleration / np.maximum(np.max(u, axis=1), 1e-300)
+        r = line & (seg["rapid"] == 1)
+        amax[r] = arap[r]
     arc = seg["kind"] == ARC
     if arc.any():
         a = seg[arc]

@@ -49,6 +49,11 @@ class Controller:
     exact_stop_rapids: bool = P(True, "bool", "decelerate to a stop at the end of every rapid (in-position check)", "bool")
     in_position: float = P(0.02, "mm", "in-position width: at an exact stop the next block waits until every "
                            "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg")
+    # Fanuc sets the acc/dec of rapids apart from that of cutting feed (the rapid and the cutting
+    # time constants are separate parameters, 1620 and 1622 on a 0i/30i): a control accelerates its
+    # rapids harder than it lets its feed moves (which carry the contour's accuracy)
+    rapid_acceleration: float = P(0.0, "mm/s^2", "acceleration of each axis on rapids, 0 = its max_acceleration "
+                                  "[S: separate rapid and cutting acc/dec, Fanuc parameters 1620/1622]", "nonneg")
     arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), 0 = the axes' "
                                 "limits only [E: small arcs on a Hurco VMX24 run at 250-340 mm/s^2]", "nonneg")
     feed_override: float = P(100.0, "", "feed override in % in force for the whole run (a run's, not the "
@@ -256,6 +261,9 @@ def validate_machine(m: Machine, where: str = "twin file") -> None:
         if ax.max_torque * ax.force_per_torque < ax.equivalent_mass * ax.max_acceleration * 1e-3:
             raise ConfigError(f"{where}: axes.{name}.max_torque: {ax.max_torque} N*m cannot give "
                               f"{ax.max_acceleration} mm/s^2 to {ax.equivalent_mass:.0f} kg (equivalent mass)")
+        if ax.max_torque * ax.force_per_torque < ax.equivalent_mass * c.rapid_acceleration * 1e-3:
+            raise ConfigError(f"{where}: controller.rapid_acceleration: {c.rapid_acceleration} mm/s^2 is more than "
+                              f"axes.{name}.max_torque ({ax.max_torque} N*m) can give {ax.equivalent_mass:.0f} kg")
 
 
 def _fmt(value, unit) -> str:
