@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from ..errors import ConfigError
 from ..params import Param
 from .base import Effect
 
@@ -87,16 +88,18 @@ class RapidAcceleration(Effect):
     name = "rapid-acceleration"
     description = "rapids accelerate on their own acc/dec, harder (or softer) than feed moves"
     stage = "plan"
-    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
-                    "each axis' acceleration on rapids, 0 = the twin file's"),)
+    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 20000.0,
+                    "each axis' acceleration on rapids (to 2 g), 0 = the twin file's"),)
     signals = ("feed",)
 
     def machine(self, m, p):
-        from ..twin.machine import validate_machine
-
-        out = _controller_set(m, "rapid_acceleration", p["acceleration"])
-        validate_machine(out, "effects.rapid-acceleration")  # (what the drives can give)
-        return out
+        a = p["acceleration"]
+        for name, ax in zip("xyz", m.axes):  # what the drives can give (the twin file's own check)
+            if a > 0 and ax.max_torque * ax.force_per_torque < ax.equivalent_mass * a * 1e-3:
+                raise ConfigError(f"effects.rapid-acceleration: controller.rapid_acceleration: {a:g} mm/s^2 is more "
+                                  f"than axes.{name}.max_torque ({ax.max_torque:g} N*m) can give "
+                                  f"{ax.equivalent_mass:.0f} kg")
+        return _controller_set(m, "rapid_acceleration", a)
 
 
 class FeedOverride(Effect):

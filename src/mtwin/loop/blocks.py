@@ -192,10 +192,11 @@ class Groups:
 
 
 def report_period(t: np.ndarray, line: np.ndarray, least: int = 20) -> float:
-    """The interval at which the control samples its executing line, read off the log: reports
-    come only at samples, so the times between consecutive changes cluster at one interval, two,
-    … (0.17–0.19 s on the NIST Hurco logs); the median of the first cluster.  0 with fewer than
-    ``least`` changes."""
+    """The interval at which the executing line is sampled, read off the log.  A control's log
+    (on change) reports only at samples, so the times between consecutive changes cluster at
+    one interval, two, … (0.17–0.19 s on the NIST Hurco logs): the median of the first cluster.
+    A recording that holds the line at every sample, far more often than it changes (a trace at
+    100 Hz), is sampled at its own rate.  0 with fewer than ``least`` changes."""
     t, line = np.asarray(t, np.float64), np.asarray(line)
     if len(t) < 2:
         return 0.0
@@ -205,7 +206,10 @@ def report_period(t: np.ndarray, line: np.ndarray, least: int = 20) -> float:
         return 0.0
     q = float(np.percentile(dt, 25))
     one = dt[(dt > 0.5 * q) & (dt < 1.5 * q)]
-    return float(np.median(one)) if len(one) else 0.0
+    period = float(np.median(one)) if len(one) else 0.0
+    step = np.diff(t)
+    step = float(np.median(step[step > 0])) if (step > 0).any() else period
+    return step if step < 0.5 * period else period
 
 
 def simulated_as_logged(groups: Groups, sim: np.ndarray, lines: np.ndarray, starts: np.ndarray,
