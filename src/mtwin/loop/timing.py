@@ -316,6 +316,7 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
     before = summary(twin, cases)
 
     size = [0]
+    best = [math.inf, None]  # the lowest cost at values the machine takes, and where
 
     def fun_x(x):
         count[0] += 1
@@ -329,7 +330,21 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
             # as far off as can be, so the solver steps back
             return np.full(size[0], 1e3)
         size[0] = len(r)
+        cost = float(np.sum(r * r))
+        if cost < best[0]:
+            best[0], best[1] = cost, np.array(x, np.float64)
         return r
+
+    def usable(x):
+        """``x``, or the best point seen where the solver ended on values the machine refuses
+        (least squares may end on a step it was still trying)."""
+        try:
+            build_fitted(twin, effects, keys, x)
+        except ConfigError:
+            if best[1] is None:
+                raise
+            return best[1].copy()
+        return x
 
     x = x0
     for _ in range(max(1, passes)):
@@ -337,7 +352,7 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
             x = _scan(fun_x, x, lo, hi, keys)
         # (block times are not noise-scaled residuals: no identifiability cut on them)
         sol = solve(fun_x, x, lo, hi, scale, max_evaluations=60, xtol=1e-6, ftol=1e-8, blind_check=False)
-        x = sol.x
+        x = usable(sol.x)
         tw, fitted = build_fitted(twin, effects, keys, x)
         for c in cases:  # the waits as the fitted twin has them
             refresh_waits(tw.with_effects(*fitted), c)
