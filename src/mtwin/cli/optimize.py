@@ -86,6 +86,11 @@ CHATTER_MARGIN = typer.Option(0.8, "--chatter-margin", help="With tools whose mo
                               "every cut's axial depth at most this share of the stability limit at its speed "
                               "(docs/chatter.md); S moves into stable pockets with --spindle-range.")
 CHATTER_METHOD = typer.Option("auto", "--chatter-method", help="zoa | sdm | auto: how the lobes are computed.")
+LAYERS = typer.Option("off", "--layers", help="off | auto: a cut over a given limit even at the lowest feed is "
+                      "re-cut in layers of equal depth (the fewest that meet it, up to --max-layers), proven to "
+                      "leave the same part (docs/optimize.md, depth layering).")
+MAX_LAYERS = typer.Option(None, "--max-layers", help="With --layers auto: at most this many layers per cut "
+                          "(default 8); alone, it turns layering on.")
 RECORD = typer.Option(False, "--record", help="Add the optimised program's run to the --ledger tools' history.")
 
 
@@ -111,6 +116,8 @@ def optimize(
     record: bool = RECORD,
     chatter_margin: float = CHATTER_MARGIN,
     chatter_method: str = CHATTER_METHOD,
+    layers: str = LAYERS,
+    max_layers: Optional[int] = MAX_LAYERS,
     setup=None, ga=None, limits=None,
 ):
     """Segment the predicted power curve, choose F (and S) per segment for the objective under
@@ -124,11 +131,16 @@ def optimize(
     _check_outputs(output, report, json_out)
     if record and not setup.ledger:
         raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
+    if layers not in ("off", "auto"):
+        raise MtwinError(f"--layers must be off or auto, got {layers!r}")
+    from ..optimize.layers import MAX_LAYERS as LAYERS_AUTO
+
+    n_layers = 0 if layers == "off" and max_layers is None else (max_layers if max_layers is not None else LAYERS_AUTO)
     opts = OptimizeOptions(objective, method, feed_range=value_range(feed_range, "--feed-range"),
                            spindle_range=value_range(spindle_range, "--spindle-range"), spindle_per=spindle_per,
                            allow_s_changes=allow_s_changes, target_power=target_power,
                            power_tolerance=power_tolerance, segmentation=segmentation, min_segment=min_segment, ga=ga,
-                           chatter_margin=chatter_margin, chatter_method=chatter_method,
+                           chatter_margin=chatter_margin, chatter_method=chatter_method, max_layers=n_layers,
                            tradeoff_resimulated=report is not None, **limits)
     tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
     prog = load_part(tw, part, Messages(message))

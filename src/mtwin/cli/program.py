@@ -8,7 +8,7 @@ import typer
 from ..errors import EXIT_CHECK_FAILED, MtwinError
 from .app import app, err, reports_errors
 from .argtypes import check_outputs, write_output
-from .options import JSON, PART, PROGRAM, groups
+from .options import JSON, PART, PROGRAM, groups, twin_options
 from .render import emit_json, message
 
 
@@ -93,22 +93,39 @@ def scale(
     err.print(f"wrote {output}: {res.changed_lines} line(s) changed, geometry verified", soft_wrap=True)
 
 
-@app.command(short_help="Prove two programs cut the same path.")
+@app.command(short_help="Prove two programs cut the same path (or, --by-stock, the same part).")
 @reports_errors
-@groups(setup=PROGRAM)
+@groups(setup=twin_options(stock=True, tools=True))
 def verify(
     original: str = typer.Argument(..., help="Original program."),
     optimised: str = typer.Argument(..., help="Rewritten program."),
     tol: float = typer.Option(0.001, "--tol", help="Geometric tolerance, mm (default 1 µm)."),
+    by_stock: bool = typer.Option(False, "--by-stock", help="Prove the same part instead of the same path: both "
+                                  "programs run on the original's stock (--stock, its comments, the twin file's, "
+                                  "or the guess) leave the same Z-map within --tol, nowhere deeper, and no rapid "
+                                  "of the rewritten one goes through stock (for a program cut in layers)."),
     json_out: bool = JSON,
     setup=None,
 ):
-    """Prove two programs cut the same path (ignoring F/S words and move splits). Exit 0 same, 1 different."""
+    """Prove two programs cut the same path (ignoring F/S words and move splits), or with
+    --by-stock leave the same part. Exit 0 same, 1 different."""
     from ..gcode.verify import compare
     from ..twin.setup import Messages, load_part, open_twin
 
     if not (tol > 0):
         raise MtwinError("--tol must be positive")
+    if by_stock:
+        from ..api.verify import prove_stock
+
+        proof = prove_stock(setup, original, optimised, stock=setup.stock_box(), tol=tol,
+                            on_message=lambda kind, text: message(kind, text))
+        if json_out:
+            emit_json(proof.as_dict(), indent=None)
+        if proof.same:
+            err.print(proof.reason())
+            return
+        err.print(f"[red]not the same part:[/red] {proof.reason()}", soft_wrap=True)
+        raise typer.Exit(EXIT_CHECK_FAILED)
     tw = open_twin(setup)
     a = load_part(tw, original, Messages(message))
     b = load_part(tw, optimised, Messages(message))

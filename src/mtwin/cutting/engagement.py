@@ -56,6 +56,7 @@ class Engagement:
     helix: np.ndarray  # (ntools,) tan of the helix angle
     warnings: list
     motion: np.ndarray | None = None  # indices of the plan's motion segments the arrays were made for
+    rapid_line: int = 0  # the line of the first rapid that goes through stock standing then, 0: none
 
     @property
     def steps(self) -> int:
@@ -335,7 +336,8 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
                      (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings,
-                     np.flatnonzero(seg["kind"] != PAUSE))
+                     np.flatnonzero(seg["kind"] != PAUSE),
+                     int(seg["line"][collide[0]]) if collide[0] >= 0 else 0)
     if cache is not None:
         cache.put(key, eng)
     return eng

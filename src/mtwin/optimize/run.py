@@ -92,6 +92,9 @@ class OptimizeOptions:
     # most this share of the lobes' limit at its speed (docs/chatter.md); None: no check
     chatter_margin: float | None = 0.8
     chatter_method: str = "auto"  # zoa | sdm | auto (chatter.lobes)
+    # depth layering (optimize.layers): a cut over its limit even at the lowest feed is re-cut in
+    # up to this many layers of equal depth; 0: off (a program is refused there, as it always was)
+    max_layers: int = 0
 
     def __post_init__(self):
         # every option within its domain, named as the command line names it
@@ -128,6 +131,8 @@ class OptimizeOptions:
             (0.1 <= o.limit_scale <= 1.5 and math.isfinite(o.limit_scale),
              lambda: f"--limit-scale must be between 0.1 and 1.5 (a share of the physics limits), got {o.limit_scale:g}"),
             (o.min_segment >= 0, lambda: f"--min-segment must be >= 0, got {o.min_segment:g}"),
+            (o.max_layers == 0 or 2 <= o.max_layers <= 20,
+             lambda: f"--max-layers must be between 2 and 20 (or --layers off), got {o.max_layers}"),
             (o.ga.population >= 4 and o.ga.generations >= 1,
              lambda: "--population must be at least 4 and --generations at least 1"),
         ]
@@ -224,6 +229,10 @@ class OptimizeResult:
     # with limits from physics: cycle time against their scale (0.6-1.0 of each), estimated, and
     # re-simulated at a few scales ({"scale", "estimate", "resimulated" or None})
     tradeoff_scale: list = field(default_factory=list)
+    # with --layers: per layered cut its lines, layers, depths and feeds (optimize.layers), and
+    # the proof that the written program leaves the original's part (cutting.stockproof)
+    layers: list = field(default_factory=list)
+    stock_proof: object = None
 
     @property
     def tools(self) -> list:
@@ -258,6 +267,7 @@ class OptimizeResult:
                 "tradeoff_source": self.tradeoff_source, "tradeoff_scale": self.tradeoff_scale,
                 **({"tool_wear": {str(k): v for k, v in self.tool_wear.items()}} if self.tool_wear else {}),
                 **({"chatter": self.chatter} if self.chatter else {}),
+                **({"layers": self.layers, "stock_proof": self.stock_proof.as_dict()} if self.layers else {}),
                 "slower_because": self.slower_because,
                 "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in self.changed_lines]}
 
@@ -290,8 +300,78 @@ def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progr
     msgs = Messages()
     twin = open_twin(twin)
     program = load_part(twin, program, msgs)
-    res = _optimize(twin, program, opts or OptimizeOptions(), progress, stock, stage)
+    opts = opts or OptimizeOptions()
+    try:
+        res = _optimize(twin, program, opts, progress, stock, stage)
+    except InfeasibleError as exc:
+        if not opts.max_layers:
+            raise
+        res = _layered(twin, program, opts, progress, stock, stage, exc)
     res.warnings[:0] = msgs.warnings
+    return res
+
+
+def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refused: InfeasibleError) -> OptimizeResult:
+    """The program with each cut that is over a limit even at the lowest feed written in layers
+    (:mod:`.layers`: the fewest, from the load's excess, one more wherever the layered program is
+    still over), optimised as any program, and proven to leave the original's part."""
+    from ..cutting.engagement import engagement_for
+    from ..cutting.stockproof import prove_same_stock
+    from ..motion.simulate import _program_cutting
+    from .layers import Layering, NotLayerable, find_cut, layered_text, material_top
+
+    stage = stage or (lambda text: None)
+    stage("layering the cuts over the limit")
+    plan0 = twin.plan(program)
+    eng0 = engagement_for(plan0, program, _program_cutting(twin, program), stock, cache=twin.engagement_cache)
+    layerings: dict[int, Layering] = {}
+    reasons, origin = refused.reasons, None
+    for _ in range(opts.max_layers):
+        for r in reasons:
+            a, b = r["lines"]
+            if origin is not None:  # a line of the layered program: the program's line it came from
+                a, b = int(origin[a - 1]), int(origin[b - 1])
+            try:
+                cut = find_cut(program, a, b)
+            except NotLayerable as why:
+                raise InfeasibleError(f"{refused} — and lines {a}-{b} cannot be cut in layers: {why}",
+                                      reasons=refused.reasons) from None
+            ly = layerings.get(cut.plunge_line)
+            if ly is None:
+                # the load falls about as the depth: the fewest layers that bring it under
+                n = max(2, math.ceil(r["value"] / r["limit_value"] - 1e-9))
+                ly = layerings[cut.plunge_line] = Layering(cut, n, material_top(eng0, plan0, cut))
+            else:
+                ly.layers += 1
+            if ly.layers > opts.max_layers:
+                raise InfeasibleError(f"{refused} — lines {a}-{b} are still over it in {opts.max_layers} layers "
+                                      f"(--max-layers)", reasons=refused.reasons)
+        text, origin = layered_text(program, list(layerings.values()))
+        layered = twin.load(text, path=program.path)
+        try:
+            res = _optimize(twin, layered, opts, progress, stock, stage)
+        except InfeasibleError as again:
+            reasons = again.reasons
+            continue
+        break
+    else:
+        raise InfeasibleError(f"{refused} — still over it in {opts.max_layers} layers (--max-layers)",
+                              reasons=refused.reasons)
+    stage("proving the layered program leaves the same part")
+    out = twin.load(res.output, path=program.path)
+    plan1 = twin.plan(out)
+    eng1 = engagement_for(plan1, out, _program_cutting(twin, out), eng0.stock.box, cache=twin.engagement_cache)
+    proof = prove_same_stock(eng0, plan0, eng1, plan1)
+    if not proof.same:
+        raise VerifyError(f"internal check failed, nothing written: the layered program does not leave the "
+                          f"original's part: {proof.reason()}")
+    added = twin.plan(layered).total_time - plan0.total_time
+    res.layers = [ly.as_dict() | {"time_added_at_program_feeds": added} for ly in layerings.values()]
+    res.stock_proof = proof
+    res.warnings.append(f"{program.path}: {len(layerings)} cut(s) written in layers to meet the limit: "
+                        + "; ".join(f"lines {ly.cut.plunge_line}-{ly.cut.last_line} in {ly.layers} layers of "
+                                    f"{ly.depth_per_layer:.3g} mm" for ly in layerings.values())
+                        + f" ({proof.reason()})")
     return res
 
 

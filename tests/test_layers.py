@@ -1,0 +1,132 @@
+"""Depth layering (optimize.layers) and the proof by the part (cutting.stockproof,
+``mtwin verify --by-stock``): issue 35."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import pytest
+from conftest import SAMPLES
+
+import mtwin
+from mtwin.optimize.run import InfeasibleError, OptimizeOptions, optimize
+
+SLOTS = SAMPLES / "slots.nc"  # three slots in 1045; the 6 mm deep one is 82 N at 100 mm/min
+LIMIT = dict(force_limit=60.0, feed_range=(100.0, 3000.0))
+
+
+def _mtwin(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "mtwin", *map(str, args)], capture_output=True, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def layered():
+    return optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**LIMIT, max_layers=8))
+
+
+def test_without_layers_the_deepest_slot_is_refused():
+    with pytest.raises(InfeasibleError, match="lines 17-17"):
+        optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**LIMIT))
+
+
+def test_the_deepest_slot_is_cut_in_the_fewest_layers_under_the_limit(layered):
+    (ly,) = layered.layers
+    assert ly["lines"] == [16, 17] and ly["layers"] == 2
+    assert ly["z"] == pytest.approx([-3.0, -6.0]) and ly["depth_per_layer"] == pytest.approx(3.0)
+    # re-simulated on the full twin: the peak load within the limit (one layer was not)
+    assert layered.after.peak_load <= 60.0 * 1.001
+    assert layered.stock_proof.same and layered.stock_proof.max_difference <= 1e-3
+    text = layered.output.decode()
+    # the upper layer is a copy at its own Z with the program's number style; the last one the
+    # program's own lines; the link goes up to the plunge's own clearance and back
+    assert "(MTWIN LAYER 1/2 Z-3.)\nG1 Z-3. F100\nG1 X60. F" in text
+    assert "G0 Z5.\nG0 X0. Y30.\nG1 F100\n(MTWIN LAYER 2/2 Z-6.: THE PROGRAM'S OWN LINES)\nG1 Z-6. F100\n" in text
+    # each layer's feed is raised to the limit, above the range's floor the single pass broke
+    feeds = [float(f) for f in re.findall(r"G1 X60\. F(\d+)", text)[2:]]
+    assert len(feeds) == 2 and min(feeds) > 100.0
+    assert layered.as_dict()["stock_proof"]["same_stock"] is True
+
+
+def test_layers_change_nothing_where_no_cut_is_over_the_limit():
+    # byte-identical to the optimiser without layers: layering starts only at a refusal
+    opts = dict(force_limit=200.0, feed_range=(100.0, 3000.0))
+    a = optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**opts))
+    b = optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**opts, max_layers=8))
+    assert a.output == b.output and not b.layers
+
+
+def test_a_helical_entry_is_not_layered_and_says_why(tmp_path):
+    p = tmp_path / "helix.nc"
+    p.write_text(SLOTS.read_text().replace("G0 X0 Y30.\nG1 Z-6. F100\n",
+                                           "G0 X0 Y30.\nG1 Z0 F100\nG2 X0 Y30. Z-6. I3. J0\n"))
+    with pytest.raises(InfeasibleError, match="cannot be cut in layers: .*(plunge|ramp or a helix)"):
+        optimize(mtwin.Twin(), str(p), OptimizeOptions(**LIMIT, max_layers=8))
+
+
+def test_cli_layers_and_the_json(tmp_path):
+    out = tmp_path / "o.nc"
+    r = _mtwin("optimize", SLOTS, "-o", out, "--force-limit", "60", "--feed-range", "100,3000", "--layers", "auto",
+               "--json")
+    assert r.returncode == 0, r.stderr.decode()
+    import json
+
+    d = json.loads(r.stdout)
+    assert d["layers"][0]["layers"] == 2 and d["stock_proof"]["same_stock"]
+    assert _mtwin("verify", SLOTS, out, "--by-stock").returncode == 0
+    assert _mtwin("optimize", SLOTS, "-o", out, "--layers", "sometimes").returncode == 2
+
+
+# ---------------------------------------------------------------- the proof by the part
+
+ORIGINAL = """(MTWIN STOCK -10,-10,-10,60,20,0)
+G21 G90 G94 G17
+T1 M6
+S8000 M3
+G0 X0 Y5 Z5
+G1 Z-6 F100
+G1 X50 F300
+G0 Z5
+M30
+"""
+LAYERED = """(MTWIN STOCK -10,-10,-10,60,20,0)
+G21 G90 G94 G17
+T1 M6
+S8000 M3
+G0 X0 Y5 Z5
+G1 Z-3 F100
+G1 X50 F300
+G0 Z5
+G0 X0 Y5
+G1 Z-6 F100
+G1 X50 F300
+G0 Z5
+M30
+"""
+
+
+@pytest.mark.parametrize("name, text, code, said", [
+    ("layered.nc", LAYERED, 0, "same stock"),
+    # the last layer stops 0.1 mm short: the cell and the lines are named
+    ("short.nc", LAYERED.replace("G1 Z-6 F100", "G1 Z-5.9 F100"), 1,
+     r"leaves Z-5\.900, 0\.100 mm short of the original's Z-6\.000 \(nearest feed moves: original line 6, "
+     r"optimised line 10\)"),
+    # deeper than the original anywhere is not the same part either
+    ("deep.nc", LAYERED.replace("G1 Z-6 F100", "G1 Z-6.2 F100"), 1, r"0\.200 mm deeper than"),
+    # the link rapids down through the material the first layer left
+    ("rapid.nc", LAYERED.replace("G1 Z-6 F100", "G0 Z-6"), 1, "line 10 of the optimised program rapids through stock"),
+])
+def test_verify_by_stock(tmp_path, name, text, code, said):
+    (tmp_path / "orig.nc").write_text(ORIGINAL)
+    (tmp_path / name).write_text(text)
+    r = _mtwin("verify", "orig.nc", name, "--by-stock", cwd=tmp_path)
+    assert r.returncode == code, r.stderr.decode()
+    assert re.search(said, r.stderr.decode().replace("\n", " ")), r.stderr.decode()
+
+
+def test_the_same_path_is_the_same_part():
+    # an independent route to "same": a feed rewrite (verify's own case) leaves the same stock
+    from mtwin.api.verify import prove_stock
+
+    p = prove_stock(None, ORIGINAL.encode(), ORIGINAL.replace("F300", "F900").encode())
+    assert p.same and p.max_difference == 0.0 and p.cells > 100_000
