@@ -131,16 +131,11 @@ def optimize(
     _check_outputs(output, report, json_out)
     if record and not setup.ledger:
         raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
-    if layers not in ("off", "auto"):
-        raise MtwinError(f"--layers must be off or auto, got {layers!r}")
-    from ..optimize.layers import MAX_LAYERS as LAYERS_AUTO
-
-    n_layers = 0 if layers == "off" and max_layers is None else (max_layers if max_layers is not None else LAYERS_AUTO)
     opts = OptimizeOptions(objective, method, feed_range=value_range(feed_range, "--feed-range"),
                            spindle_range=value_range(spindle_range, "--spindle-range"), spindle_per=spindle_per,
                            allow_s_changes=allow_s_changes, target_power=target_power,
                            power_tolerance=power_tolerance, segmentation=segmentation, min_segment=min_segment, ga=ga,
-                           chatter_margin=chatter_margin, chatter_method=chatter_method, max_layers=n_layers,
+                           chatter_margin=chatter_margin, chatter_method=chatter_method, max_layers=_max_layers(layers, max_layers),
                            tradeoff_resimulated=report is not None, **limits)
     tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
     prog = load_part(tw, part, Messages(message))
@@ -162,6 +157,17 @@ def optimize(
         emit_json(res.as_dict(prog.path), indent=1)
         return
     _print_optimize(res, prog)
+
+
+def _max_layers(layers: str, max_layers) -> int:
+    """--layers and --max-layers as OptimizeOptions.max_layers (0: off)."""
+    from ..optimize.layers import MAX_LAYERS
+
+    if layers not in ("off", "auto"):
+        raise MtwinError(f"--layers must be off or auto, got {layers!r}")
+    if layers == "off" and max_layers is None:
+        return 0
+    return MAX_LAYERS if max_layers is None else max_layers
 
 
 def _check_outputs(output: str, report, json_out: bool) -> None:
