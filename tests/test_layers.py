@@ -130,3 +130,13 @@ def test_the_same_path_is_the_same_part():
 
     p = prove_stock(None, ORIGINAL.encode(), ORIGINAL.replace("F300", "F900").encode())
     assert p.same and p.max_difference == 0.0 and p.cells > 100_000
+
+
+def test_the_report_shows_the_layers_and_the_two_z_maps(layered):
+    from mtwin.report.optimize_html import optimize_html
+
+    doc = optimize_html(layered, str(SLOTS)).decode()
+    assert "<h2>Cuts in layers</h2>" in doc and "<td>16–17</td><td>T1</td><td>2</td><td>3.000 mm</td>" in doc
+    assert "same stock: 1,600,000 cells" in doc
+    for title in ("the original leaves", "the optimised program leaves", "difference (largest 0 mm)"):
+        assert title in doc

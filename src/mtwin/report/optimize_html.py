@@ -92,6 +92,8 @@ def optimize_html(res, program: str) -> bytes:
         parts.append(_scale_plot(plt, res))
     if res.chatter:
         parts.append(_chatter(res))
+    if res.layers:
+        parts.append(_layers(plt, res))
     parts.append(_segments_table(res))
     parts.append(_changes_table(res))
     style = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}"
@@ -205,6 +207,40 @@ def _chatter(res) -> str:
         out.append("<p><b>Cannot be made stable</b> by any allowed speed (the CAM must take less depth): " + "; ".join(
             f"lines {u['lines'][0]}-{u['lines'][1]} (T{u['tool']}, ap {u['ap']:.2f} mm; at most "
             f"{u['deepest_stable']:.2f} mm at {u['at_speed']:.0f} rpm)" for u in ch["unstable"]) + "</p>")
+    return "".join(out)
+
+
+def _layers(plt, res) -> str:
+    """The cuts written in layers, and the proof by the part: the two Z-maps and their difference."""
+    e = html.escape
+    p = res.stock_proof
+    rows = "".join(f"<tr><td>{ly['lines'][0]}–{ly['lines'][1]}</td><td>T{ly['tool']}</td><td>{ly['layers']}</td>"
+                   f"<td>{ly['depth_per_layer']:.3f} mm</td><td>{', '.join(f'{z:.3f}' for z in ly['z'])}</td>"
+                   f"<td>{ly['time_added_at_program_feeds']:+.1f} s</td></tr>" for ly in res.layers)
+    out = [f"<h2>Cuts in layers</h2><p>Over the limit even at the lowest feed, so cut again in layers of equal "
+           f"depth (docs/optimize.md, depth layering). The proof by the part: {e(p.reason())}.</p>"
+           "<table><tr><th>lines</th><th>tool</th><th>layers</th><th>depth per layer</th><th>Z of each layer</th>"
+           "<th>time the layers add at the program's feeds</th></tr>" + rows + "</table>"]
+    step = max(1, int(np.ceil(max(p.original.shape) / 300)))  # at most ~300 cells a side drawn
+    a, b = p.original[::step, ::step], p.optimised[::step, ::step]
+    box = p.box
+    ext = (box[0], box[0] + p.original.shape[1] * p.resolution, box[1], box[1] + p.original.shape[0] * p.resolution)
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.4), dpi=100)
+    lo, hi = float(min(a.min(), b.min())), float(max(a.max(), b.max()))
+    for ax, z, title in ((axes[0], a, "the original leaves"), (axes[1], b, "the optimised program leaves")):
+        im = ax.imshow(z, origin="lower", extent=ext, vmin=lo, vmax=hi, cmap="viridis", interpolation="nearest")
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("X [mm]")
+    axes[0].set_ylabel("Y [mm]")
+    fig.colorbar(im, ax=axes[1], label="Z [mm]")
+    d = (b - a).astype(np.float64)
+    m = max(float(np.abs(d).max()), p.tolerance)
+    im = axes[2].imshow(d, origin="lower", extent=ext, vmin=-m, vmax=m, cmap="coolwarm", interpolation="nearest")
+    axes[2].set_title(f"difference (largest {p.max_difference:.3g} mm)", fontsize=9)
+    axes[2].set_xlabel("X [mm]")
+    fig.colorbar(im, ax=axes[2], label="optimised − original [mm]")
+    fig.tight_layout()
+    out.append(_svg(fig))
     return "".join(out)
 
 
