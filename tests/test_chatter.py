@@ -187,6 +187,19 @@ def test_tap_test_fit_recovers_two_modes_through_noise(tmp_path):
     flipped.write_text("\n".join(out) + "\n")
     r = mtwin("calibrate-frf", flipped)
     assert r.returncode == 2 and "imaginary part is positive at its resonance" in r.stderr, r.stderr
+    # and so wherever it is read: a twin file's FRF for the lobes too (it gave the lowest limit at
+    # 11,943 rpm instead of 7,615)
+    (tmp_path / "tf.toml").write_text('[tools.3]\ntype = "flat"\ndiameter = 8.0\nfrf = "flipped.csv"\n')
+    r = mtwin("lobes", "--twin", tmp_path / "tf.toml", "--tool", "3", "--immersion", "0.5")
+    assert r.returncode == 2 and "imaginary part is positive at its resonance" in r.stderr, r.stderr
+    # one outlier row (1e300 m/N) fits a mode no tool tip has: refused, not written as k = 1e-295
+    spiked = tmp_path / "spiked.csv"
+    rows = path.read_text().splitlines()
+    v = rows[len(rows) // 2].split(",")
+    rows[len(rows) // 2] = ",".join([v[0], "1e300", *v[2:]])
+    spiked.write_text("\n".join(rows) + "\n")
+    r = mtwin("calibrate-frf", spiked)
+    assert r.returncode == 2 and "outside what a tool tip has" in r.stderr, r.stderr
     # the printed tables read back as a twin file's modes
     toml = mtwin("calibrate-frf", path, "--tool", "3").stdout
     twin = tmp_path / "t.toml"
@@ -200,15 +213,18 @@ def test_tap_test_fit_recovers_two_modes_through_noise(tmp_path):
 
 @pytest.mark.parametrize("text,needle", [
     ("freq,re_xx,im_xx\n100,1e-7,-1e-7\n90,1e-7,-1e-7\n110,1e-7,-1e-7\n", ":3:1: frequencies must increase"),
-    ("freq,re_xx,im_xx\n100,1e-7,-1e-7\n110,nan,-1e-7\n120,1e-7,-1e-7\n", ":3:5: re_xx: nan is not a finite"),
+    ("freq,re_xx,im_xx\n100,1e-7,-1e-7\n110,nan,-1e-7\n120,1e-7,-1e-7\n", ":3:5: re_xx: not a finite number"),
     ("freq,re_xx\n100,1e-7\n110,1e-7\n120,1e-7\n", "direction X needs both re_xx and im_xx"),
-    ("freq,re_xx,im_xx,phase\n100,1e-7,-1e-7,1\n", ":1:18: unknown column 'phase'"),
+    ("freq,re_xx,im_xx,phase\n100,1e-7,-1e-7,1\n", ":1:18: unknown column (an FRF"),
+    # the place, never the text there: a twin file may point its FRF at any file beside it
+    ("freq,re_xx,im_xx\n100,1e-7,-1e-7\n110,SECRET_KEY=abc123,-1e-7\n", ":3:5: re_xx: expected a number"),
 ])
 def test_bad_frf_files_exit_2_with_their_place(tmp_path, text, needle):
     p = tmp_path / "tap.csv"
     p.write_text(text)
     r = mtwin("calibrate-frf", p)
     assert r.returncode == 2 and needle in r.stderr, r.stderr
+    assert "SECRET" not in r.stderr and "phase" not in r.stderr
 
 
 def test_bad_modes_and_options_exit_2(tmp_path):

@@ -40,6 +40,7 @@ PROGRAMS = {
     "number_overflow": (b"G21 G90\nG1 X1e999 F100\nM30\n", "p.nc:2:"),
     "nan_word": (b"G21 G90\nG1 Xnan F100\nM30\n", "p.nc:2:"),
     "empty_sub_call": (b"G21\nM98 P9999\nM30\n", "p.nc:2:"),
+    "helix_turns_huge": (b"G21 G90 G17\nG0 X0 Y0 Z0\nG2 X0 Y0 Z-10 I5 J0 P99999 F1000\nM30\n", "p.nc:3:"),
 }
 
 TWINS = {
@@ -58,6 +59,8 @@ TWINS = {
     "twin_unknown_material": ('[cutting]\nmaterial = "unobtainium"\n', "unobtainium"),
     "twin_servo_period": ("[controller]\nservo_period = 1e-300\n", "servo_period"),
     "twin_bool_number": ("[axes.x]\nmax_velocity = true\n", "max_velocity"),
+    "twin_mode_fn_tiny": ("[tools.1]\ntype = \"flat\"\ndiameter = 6\n[[tools.1.modes]]\ndirection = \"x\"\n"
+                          "fn = 1e-300\nzeta = 0.02\nk = 1e7\n", "below any tool-tip mode"),
 }
 
 MEASUREMENTS = {
@@ -69,6 +72,7 @@ MEASUREMENTS = {
     "meas_short_row": ("t,line,spindle_power\n0,1,100\n0.1,1\n", "m.csv:3:"),
     "meas_empty": ("", "m.csv"),
     "meas_binary": ("\x00\x00\x00", "m.csv"),
+    "meas_field_huge": ("t,line,spindle_power\n0,1,100\n0.1,1," + "9" * 200_000 + "\n", "m.csv:3:"),
 }
 
 LOGS = {
@@ -145,6 +149,13 @@ def _cases():
         "batch-manifest-missing": ["batch", "simulate", "--manifest", "{d}/missing.csv", "-o", "{d}/out"],
         "tools-ledger-foreign": ["tools", "--ledger", "{d}/m.csv"],
         "config-show-missing": ["config", "show", "{d}/missing.toml"],
+        "simulate-decimate-tiny": ["simulate", "{d}/p.nc", "--decimate", "1e-300"],
+        "simulate-every-huge": ["simulate", "{d}/p.nc", "--every", "99999999999999999999"],
+        "simulate-effect-file-not-python": ["simulate", "{d}/p.nc", "--effect-file", "{d}/m.csv"],
+        "batch-scheduler-file-folder": ["batch", "simulate", "{d}/p.nc", "-o", "{d}/out", "--scheduler-file", "{d}"],
+        "optimize-layers": ["optimize", "{d}/p.nc", "--layers", "sometimes", "-o", "{d}/o.nc"],
+        "optimize-max-layers": ["optimize", "{d}/p.nc", "--max-layers", "1", "-o", "{d}/o.nc"],
+        "verify-by-stock-tol": ["verify", "{d}/p.nc", "{d}/p.nc", "--by-stock", "--tol", "0"],
     }
     for name, args in opts.items():
         out.append(pytest.param({"p.nc": GOOD, "m.csv": "not,an,frf\n1,2,3\n"}, args, "", id=name))

@@ -160,7 +160,8 @@ def test_a_scheduler_that_never_answers_or_answers_junk_is_given_up(files, reply
     assert not (d / "out").exists() or not any((d / "out").iterdir())
 
 
-def test_sigterm_leaves_no_temporary_file(files):
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_sigterm_leaves_no_temporary_file(files, signame):
     import signal
 
     d, prog, _ = files
@@ -182,7 +183,7 @@ def test_sigterm_leaves_no_temporary_file(files):
     if not seen:
         p.kill()
         pytest.skip("the run ended before its output was being written: nothing to interrupt")
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(getattr(signal, signame))
     p.communicate(timeout=60)
     assert p.returncode == 130
     left = [x.name for x in d.iterdir() if x.name not in {"p.nc", "t.toml", "big.nc"}]
@@ -199,3 +200,31 @@ def test_a_batch_refuses_an_output_folder_that_holds_its_inputs(tmp_path):
     code, err, _ = run("batch", "optimize", "--manifest", bt / "m.csv", "-o", bt)
     assert code == 2 and "the output folder holds an input of the batch" in err, err
     assert _snapshot(bt) == before and _snapshot(bt / "j") == before_j
+
+
+def test_inputs_are_read_in_pieces_up_to_their_limit(monkeypatch):
+    # read(limit + 1) reserved the whole limit (4 GB for a measurement) before a byte came; in
+    # pieces it holds what it read, and a stream past the limit stops one byte over it
+    import io
+
+    from mtwin import io as mio
+
+    class Stream(io.RawIOBase):
+        asked = []
+
+        def readable(self):
+            return True
+
+        def readinto(self, b):
+            self.asked.append(len(b))
+            b[:] = b"\0" * len(b)
+            return len(b)
+
+    s = io.BufferedReader(Stream(), buffer_size=4096)
+    data = mio._read_within(s, 3 * 1048576)
+    assert len(data) == 3 * 1048576 + 1 and max(Stream.asked) <= 1048576
+    # the measurement on stdin: the limit applies there too, with the limit's message
+    monkeypatch.setenv("MTWIN_MAX_MEASUREMENT_MB", "1")
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BufferedReader(Stream())))
+    with pytest.raises(mio.MtwinError, match="over the 1 MB a measurement may have"):
+        mio.read_input("-", "measurement")

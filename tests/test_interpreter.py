@@ -620,3 +620,20 @@ def test_an_f_word_on_the_line_that_switches_units_is_read_before_the_switch_and
     for text in (b"G20\nG0 X0 Y0 Z1\nF6\nG1 X1\nM30\n", b"G20\nG0 X0 Y0 Z1\nG20 F6\nG1 X1\nM30\n"):
         prog = load_program(text, path="u.nc")
         assert not any("switches units" in str(w) for w in prog.warnings)
+
+
+def test_repeats_inside_repeats_stop_at_the_move_limit(tmp_path):
+    # M98 ... L9999 calling a G81 ... L9999: 1e8 cycles, hours; stopped at 5,000,000 moves in
+    # seconds with the place and the limit named (issue 33)
+    import time
+
+    from mtwin.errors import GCodeError
+    from mtwin.gcode.interpreter import load_program
+
+    p = tmp_path / "mult.nc"
+    p.write_text("O1000\nG21 G90 G17\nG0 X0 Y0 Z5\nM98 P2000 L9999\nM30\nO2000\n"
+                 "G91 G81 X0.001 Z-1 R1 L9999 F100\nG80 G90\nM99\n")
+    t0 = time.monotonic()
+    with pytest.raises(GCodeError, match="more than 5,000,000 moves"):
+        load_program(str(p))
+    assert time.monotonic() - t0 < 60

@@ -93,3 +93,21 @@ def test_runs_are_recorded_all_or_none_and_bounded(tmp_path, monkeypatch):
     assert led.read_bytes() == before
     code, _, err = run_command(["simulate", str(prog), "--runs", "1000000000"])
     assert code == 2 and "over 10,000 runs" in err
+
+
+@pytest.mark.parametrize("column, value", [("vb_end", "nan"), ("length", 1e400), ("time", -1.0), ("sliding", "x")])
+def test_a_run_whose_numbers_are_not_finite_is_an_error_not_a_total(tmp_path, column, value):
+    # a ledger edited by hand or damaged: a NaN land crashed the table (exit 3), an infinite
+    # one printed JSON's Infinity, a NaN time counted as 0 s in the cut
+    prog = tmp_path / "p.nc"
+    prog.write_text(PROG)
+    led = tmp_path / "l.db"
+    code, _, err = run_command(["simulate", str(prog), "--ledger", str(led), "--tool-id", "T1=EM-1", "--record"])
+    assert code == 0, err
+    db = sqlite3.connect(led)
+    db.execute(f"UPDATE runs SET {column} = ?", (value,))
+    db.commit()
+    db.close()
+    for args in (["tools", "--ledger", str(led)], ["tools", "--ledger", str(led), "--json"]):
+        code, out, err = run_command(args)
+        assert code == 2 and f"run 1: {column} = " in err and "Infinity" not in out, (args, err)

@@ -82,16 +82,32 @@ def read_input(path, kind: str) -> bytes:
     limit."""
     path = os.fspath(path)
     limit = input_limit(kind)
-    if path == "-":
-        data = sys.stdin.buffer.read(limit + 1)
-    else:
-        check_input(path, kind)
-        with open(path, "rb") as fh:
-            data = fh.read(limit + 1)  # (a file that grows while it is read stops at the limit too)
+    try:
+        if path == "-":
+            data = _read_within(sys.stdin.buffer, limit)
+        else:
+            check_input(path, kind)
+            with open(path, "rb") as fh:
+                data = _read_within(fh, limit)  # (a file that grows while it is read stops at the limit too)
+    except MemoryError:
+        raise MtwinError(f"{path}: not enough memory to read it (a {kind} may have {limit / 1048576:.0f} MB; "
+                         f"MTWIN_MAX_{kind.upper()}_MB lowers it)") from None
     if len(data) > limit:
         raise MtwinError(f"{path}: over the {limit / 1048576:.0f} MB a {kind} may have "
                          f"(MTWIN_MAX_{kind.upper()}_MB raises it)")
     return data
+
+
+def _read_within(fh, limit: int) -> bytes:
+    """At most ``limit`` + 1 bytes of ``fh``, read in 1-MB pieces: what it holds, not the limit,
+    is what it takes in memory (``read(limit + 1)`` reserves the whole limit at once)."""
+    buf = bytearray()
+    while len(buf) <= limit:
+        chunk = fh.read(min(1 << 20, limit + 1 - len(buf)))
+        if not chunk:
+            break
+        buf += chunk
+    return bytes(buf)
 
 
 @contextlib.contextmanager

@@ -86,6 +86,24 @@ class ToolRecord:
                 round(left, 6), "parts_left": parts}
 
 
+_AMOUNTS = ("length", "sliding", "time", "volume")  # what a run cut: finite and >= 0
+_LANDS = ("vb_start", "vb_end")  # mm, finite and >= 0, or none recorded
+
+
+def _check_run(d: dict, path: str, ident: str) -> None:
+    """A run's numbers as the ledger writes them, or an error naming the run (a file edited by
+    hand, or damaged: never a silently wrong total)."""
+    import math
+
+    for k in _AMOUNTS + _LANDS:
+        v = d[k]
+        if v is None and k in _LANDS:
+            continue
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or v < 0:
+            raise MtwinError(f"{path}: tool {ident!r}, run {d['n']}: {k} = {v!r} is not a finite number >= 0 "
+                             f"(the ledger was changed by hand or damaged)")
+
+
 def _law(values: dict) -> dict:
     from .effects.wear import FlankWear
 
@@ -204,10 +222,10 @@ class Ledger:
         row = self._db.execute("SELECT id, created, law FROM tools WHERE id=?", (ident,)).fetchone()
         if row is None:
             raise MtwinError(f"{self.path}: no tool {ident!r} (tools: {', '.join(self.ids()) or 'none yet'})")
+        last = self.runs(ident)[-1:]  # (every run's numbers checked)
         s = self._db.execute("SELECT COUNT(*), COALESCE(SUM(length),0), COALESCE(SUM(sliding),0), "
                              "COALESCE(SUM(time),0), COALESCE(SUM(volume),0) FROM runs WHERE tool=?",
                              (ident,)).fetchone()
-        last = self.runs(ident)[-1:]
         return ToolRecord(row[0], row[1], json.loads(row[2]) if row[2] else None,
                           ToolHistory(s[1], s[2], s[3], s[4]), int(s[0]), last[0] if last else None)
 
@@ -218,8 +236,11 @@ class Ledger:
     def runs(self, ident: str) -> list[dict]:
         cols = ("n", "at", "program", "tool_number", "material", "length", "sliding", "time", "volume", "vb_start",
                 "vb_end", "source")
-        return [dict(zip(cols, r)) for r in self._db.execute(
+        out = [dict(zip(cols, r)) for r in self._db.execute(
             f"SELECT {', '.join(cols)} FROM runs WHERE tool=? ORDER BY n", (ident,))]
+        for d in out:
+            _check_run(d, self.path, ident)
+        return out
 
     def calibrations(self, ident: str) -> list[dict]:
         cols = ("n", "at", "law", "measurement", "rms_before", "rms_after")

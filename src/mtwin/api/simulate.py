@@ -1,6 +1,7 @@
 """Running a program on the twin: ``simulate``, and ``scale`` (an override baked into it)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
@@ -167,18 +168,22 @@ def simulate_runs(setup, program=None, runs: int = 1, *, record: bool = False, s
     return Simulation(prog, trace, msgs.items, 1, tw, runs=table if runs > 1 else [], recorded=recorded)
 
 
+EVERY_MAX = 10**9  # servo samples per trace sample (11.6 days at 1 ms)
+
+
 def _every(every: Optional[int], rate: Optional[float], dt: float) -> int:
     """Servo samples per trace sample, from ``every`` or a ``rate`` in Hz."""
     if every is not None and rate is not None:
         raise MtwinError("give --every or --decimate, not both")
     if rate is not None:
-        if not rate > 0:
-            raise MtwinError(f"--decimate must be a positive rate in Hz, got {rate:g}")
+        # (a rate under 1e-3 Hz keeps less than one sample in 17 minutes: no trace)
+        if not (1e-3 <= rate < math.inf):
+            raise MtwinError(f"--decimate must be a rate in Hz of at least 0.001, got {rate:g}")
         every = max(1, int(round(1.0 / (rate * dt))))
     if every is None:
         every = 1
-    if every < 1:
-        raise MtwinError(f"--every must be at least 1, got {every}")
+    if not 1 <= every <= EVERY_MAX:
+        raise MtwinError(f"--every must be between 1 and {EVERY_MAX:,} servo samples, got {every}")
     return every
 
 

@@ -46,7 +46,11 @@ def read_spectrum(path: str) -> list[Spectrum]:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read the spectrum file: {exc.strerror or exc}") from None
     with fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+        reader = csv.reader(fh)
+        try:
+            rows = [r for r in reader if r and not r[0].lstrip().startswith("#")]
+        except (csv.Error, UnicodeDecodeError) as exc:
+            raise ConfigError(f"{path}:{reader.line_num}:1: not a CSV row: {exc}") from None
     if not rows:
         raise ConfigError(f"{path}: empty spectrum file")
     head = [h.strip().lower() for h in rows[0]]

@@ -56,6 +56,7 @@ MODE_KEYS = {"direction": "x | y (machine axis)", "fn": "natural frequency, Hz",
 
 K_RANGE = (1e2, 1e12)  # N/m
 FN_MAX = 1e5  # Hz
+FN_MIN = 1.0  # Hz: below it no tool tip (a machine's frame may ring at 10-50 Hz)
 
 
 def parse_modes(raw, where: str) -> tuple[Mode, ...]:
@@ -101,6 +102,8 @@ def parse_modes(raw, where: str) -> tuple[Mode, ...]:
                               f"{K_RANGE[1]:g} N/m): a typo or a unit mistake?")
         if vals["fn"] > FN_MAX:
             raise ConfigError(f"{at}.fn: {vals['fn']:g} Hz is above any tool-tip mode ({FN_MAX:g} Hz at most)")
+        if vals["fn"] < FN_MIN:
+            raise ConfigError(f"{at}.fn: {vals['fn']:g} Hz is below any tool-tip mode ({FN_MIN:g} Hz at least)")
         out.append(Mode(d, vals["fn"], vals["zeta"], k))
     return tuple(out)
 
@@ -140,11 +143,28 @@ def read_frf(path: str | Path, need: tuple[str, ...] = ()) -> FRF:
         frf = _read_csv(str(path), lines)
     else:
         frf = _read_cutpro(str(path), lines)
+    check_sign(frf)
     for d in need:
         if not np.any(getattr(frf, d + d)):
             raise ConfigError(f"{path}: the FRF has no {d.upper()} direction (columns re_{d}{d}, im_{d}{d}), "
                              f"which this use needs")
     return frf
+
+
+def check_sign(frf: FRF) -> None:
+    """A direct compliance X/F (e^{iwt}) lags the force by 90° at resonance: its imaginary part
+    is negative at the peak.  A positive one is the other sign convention (e^{-iwt}, or a force
+    sensor wired the other way): fitted or used as it is, it gives a stiffness off by orders of
+    magnitude (k = 1.7e14 N/m for a true 8e6) and lobes at the wrong speeds."""
+    for d in ("x", "y"):
+        h = getattr(frf, d + d)
+        if not np.any(h):
+            continue
+        at = int(np.argmax(np.abs(h)))
+        if h[at].imag > 0:
+            raise ConfigError(f"{frf.source}: the {d.upper()} FRF's imaginary part is positive at its resonance "
+                              f"({frf.freq[at]:.0f} Hz, im = {h[at].imag:.3g} m/N): the other sign convention "
+                              f"(e^(-iwt), or the force taken the other way); negate the im_{d}{d} column")
 
 
 def _numbers(fields: list) -> bool:
@@ -167,7 +187,15 @@ def finite_number(tok: str, where: str, expected: str = "a number") -> float:
 
 
 def _num(tok: str, path: str, ln: int, col: int, what: str) -> float:
-    return finite_number(tok, f"{path}:{ln}:{col}: {what}")
+    """A number of an FRF file.  Its errors name the place, not the text there: a twin file may
+    point its FRF at any file beside it, and a batch copies errors into its reports."""
+    try:
+        v = float(tok)
+    except ValueError:
+        raise ConfigError(f"{path}:{ln}:{col}: {what}: expected a number") from None
+    if not math.isfinite(v):
+        raise ConfigError(f"{path}:{ln}:{col}: {what}: not a finite number")
+    return v
 
 
 def _check_freqs(freq: list, rows: list, path: str) -> None:
@@ -190,10 +218,10 @@ def _read_csv(path: str, lines: list[str]) -> FRF:
         h2 = {"re_x": "re_xx", "im_x": "im_xx", "re_y": "re_yy", "im_y": "im_yy", "frequency": "freq",
               "f": "freq", "freq_hz": "freq"}.get(h2, h2)
         if h2 not in ("freq", "re_xx", "im_xx", "re_yy", "im_yy"):
-            raise ConfigError(f"{path}:{header_at + 1}:{_col(lines[header_at], i)}: unknown column {h!r} (an FRF "
+            raise ConfigError(f"{path}:{header_at + 1}:{_col(lines[header_at], i)}: unknown column (an FRF "
                              f"CSV has freq, re_xx, im_xx, re_yy, im_yy; m/N)")
         if h2 in alias:
-            raise ConfigError(f"{path}:{header_at + 1}:{_col(lines[header_at], i)}: column {h2!r} twice")
+            raise ConfigError(f"{path}:{header_at + 1}:{_col(lines[header_at], i)}: a column named twice")
         alias[h2] = i
     if "freq" not in alias:
         raise ConfigError(f"{path}:{header_at + 1}:1: no freq column (Hz)")
@@ -250,8 +278,7 @@ def _read_cutpro(path: str, lines: list[str]) -> FRF:
             im_.append(_num(toks[2], path, i + 1, starts[2], "imaginary part"))
             rows.append(i + 1)
         elif freq:
-            raise ConfigError(f"{path}:{i + 1}:1: expected three numbers (frequency Hz, real, imaginary m/N), "
-                             f"got {s[:40]!r}")
+            raise ConfigError(f"{path}:{i + 1}:1: expected three numbers (frequency Hz, real, imaginary m/N)")
     if not freq:
         raise ConfigError(f"{path}: no FRF rows (CSV with a freq,re_xx,im_xx… header, or CutPro lines "
                          f"'frequency real imaginary')")

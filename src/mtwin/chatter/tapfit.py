@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from .modes import FRF, Mode
+from .modes import FN_MAX, FN_MIN, FRF, K_RANGE, Mode, check_sign
 
 
 @dataclass
@@ -71,15 +71,7 @@ def fit_frf(frf: FRF, modes_per_direction: int = 2) -> TapFit:
         if not np.any(h):
             continue
         f = frf.freq
-        # a direct compliance X/F (e^{iwt}) lags the force by 90 deg at resonance: its imaginary
-        # part is negative at the peak.  A positive one is the other sign convention (e^{-iwt},
-        # or a force sensor wired the other way): fitted as it is, it gives a stiffness off by
-        # orders of magnitude (k = 1.7e14 N/m for a true 8e6)
-        at = int(np.argmax(np.abs(h)))
-        if h[at].imag > 0:
-            raise ConfigError(f"{frf.source}: the {d.upper()} FRF's imaginary part is positive at its resonance "
-                              f"({f[at]:.0f} Hz, im = {h[at].imag:.3g} m/N): the other sign convention (e^(-iwt), "
-                              f"or the force taken the other way); negate the im_{d}{d} column")
+        check_sign(frf)  # (read_frf checks it too: an FRF built in Python comes here directly)
         start = _peaks(f, h, modes_per_direction)
         if not start:
             raise ConfigError(f"{frf.source}: no resonance peak in the {d.upper()} FRF to fit a mode to")
@@ -113,6 +105,11 @@ def fit_frf(frf: FRF, modes_per_direction: int = 2) -> TapFit:
             if not (0 < z < 1):
                 raise ConfigError(f"{frf.source}: the {d.upper()} fit gives a damping ratio {z:.3g} outside (0, 1): "
                                   f"the FRF does not look like a structure's")
+            if not (K_RANGE[0] <= k <= K_RANGE[1] and FN_MIN <= fn <= FN_MAX):
+                # what a twin file would refuse: an outlier in the FRF, or its units (m/N) wrong
+                raise ConfigError(f"{frf.source}: the {d.upper()} fit gives a mode at {fn:.4g} Hz with a stiffness of "
+                                  f"{k:.3g} N/m, outside what a tool tip has ({K_RANGE[0]:g} to {K_RANGE[1]:g} N/m, "
+                                  f"{FN_MIN:g} to {FN_MAX:g} Hz): an outlier in the file, or its units not m/N?")
             modes.append(Mode(d, float(fn), float(z), float(k)))
             sigmas.append({"fn": float(fn * sd_log[3 * j]), "zeta": float(z * sd_log[3 * j + 1]),
                            "k": float(k * sd_log[3 * j + 2])})

@@ -66,11 +66,14 @@ def main() -> None:
     import signal
 
     def _terminated(signum, frame):
-        # SIGTERM unwinds like Ctrl-C: every output's temporary file is removed on the way out
+        # SIGTERM (a job's end) and SIGHUP (the terminal closed) unwind like Ctrl-C: every
+        # output's temporary file is removed on the way out
         raise KeyboardInterrupt
 
     with contextlib.suppress(ValueError):  # (not in the main thread: an embedding program's business)
         signal.signal(signal.SIGTERM, _terminated)
+        if hasattr(signal, "SIGHUP") and signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:
+            signal.signal(signal.SIGHUP, _terminated)  # (left ignored under nohup)
     try:
         app()
     except KeyboardInterrupt:  # pragma: no cover (an interrupt before a command started)

@@ -129,6 +129,10 @@ def _runner(workers, scheduler, scheduler_file, retries, n_jobs):
 
     if scheduler and scheduler_file:
         raise MtwinError("give --scheduler or --scheduler-file, not both")
+    if scheduler_file:  # (Dask reads it to the end: a regular file of a manifest's size, like every input)
+        from ..io import check_input
+
+        check_input(scheduler_file, "manifest")
     if workers is not None and (scheduler or scheduler_file):
         raise MtwinError("--workers makes a local cluster; an existing cluster's workers are its own")
     if workers is not None and workers < 0:

@@ -99,6 +99,8 @@ def load_file(path: str) -> list[type[Effect]]:
 
     check_input(path, "effects")  # (Python code, run as a plugin is: docs/effects.md)
     modname = f"mtwin_user_effects_{abs(hash(os.path.abspath(path)))}"
+    if not path.endswith(".py"):  # (Python imports only a .py file by its name; say so, not a traceback)
+        raise ConfigError(f"--effect-file {path}: not a Python file (an effect file is Python code ending in .py)")
     spec = importlib.util.spec_from_file_location(modname, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[modname] = module

@@ -133,7 +133,11 @@ def _machines(jobs: list[Job], rows: list) -> list[Job]:
 
 
 def _csv_rows(path: str, text: str) -> list:
-    lines = [ln for ln in csv.reader(text.splitlines())]
+    reader = csv.reader(text.splitlines())
+    try:
+        lines = [ln for ln in reader]
+    except csv.Error as exc:
+        raise MtwinError(f"{path}:{reader.line_num}:1: not a CSV row: {exc}") from None
     head_at = next((i for i, ln in enumerate(lines) if ln and not ln[0].lstrip().startswith("#")), None)
     if head_at is None:
         return []

@@ -88,6 +88,8 @@ E_RESTORE_OFFSETS = 45
 E_POLAR16 = 46
 E_MIRROR = 47
 E_REPEATS = 48
+E_MOVES = 49
+MAX_MOVES = 5_000_000  # moves a program may expand to: 1.4 GB of records, 50x a 1-hour raster (L9999 x L9999 is 1e8)
 MAX_SAVED = 32  # call levels with a saved modal state (M70/M73)
 
 # ---- warning codes ----
@@ -552,6 +554,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         steps += 1
         if steps > max_steps:
             return n, E_LOOP, -1, li, err_vals, nwarn
+        if n > MAX_MOVES:
+            return n, E_MOVES, -1, li, err_vals, nwarn
         lf = line_flags[li]
         if lf & LF_PERCENT:
             percents += 1
@@ -1559,6 +1563,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                             tp = val[_P]
                             if tp < 1 or tp != math.floor(tp):
                                 return n, E_BAD_TURNS, widx[_P], li, err_vals, nwarn
+                            if tp > MAX_REPEATS:  # (a helix of more turns is a typo; the records hold int16)
+                                return n, E_REPEATS, widx[_P], li, err_vals, nwarn
                             turns = int(tp) - 1
                         ctol = CENTER_TOL_INCH_MM if inch else CENTER_TOL_MM
                         fl = first_flag

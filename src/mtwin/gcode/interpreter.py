@@ -316,8 +316,8 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
         more_warnings = warn_code.size < nwarn <= 1_000_000
         if n <= cap and not more_warnings:
             break
-        if n > 50_000_000:
-            raise GCodeError("program expands to more than 50 million moves")
+        if n > K.MAX_MOVES:
+            raise GCodeError(f"program expands to more than {K.MAX_MOVES:,} moves")
         cap = max(cap, n + 16)
         if more_warnings:  # run again with room for all of them, so each is counted where it occurs
             warn_code = np.zeros(nwarn, np.int64)
@@ -480,6 +480,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals, lenient: bool 
         K.E_REPEATS: f"a repeat count {w} over {K.MAX_REPEATS} (Fanuc's own range L1-L9999), the limit of the "
                      f"interpreter",
         K.E_LOOP: "program does not terminate (subprogram loop)",
+        K.E_MOVES: f"the program expands to more than {K.MAX_MOVES:,} moves here (repeats inside repeats?), the "
+                   f"limit of the interpreter",
         K.E_GEOMETRY_G: (f"{w} is not supported: it changes the toolpath geometry (cutter compensation, "
                          "rotation, scaling, polar or lathe modes), which mtwin does not model yet"),
         K.E_BAD_WCS: f"work offset number {w} out of range",

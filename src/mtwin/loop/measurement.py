@@ -301,17 +301,11 @@ def _unit_scale(unit: str, target: str, path: str, line: int, col: int) -> float
 
 
 def _read_csv(path: str):
+    from ..io import read_input
+
     try:
-        if path == "-":
-            import sys
-
-            text = sys.stdin.read().lstrip("\ufeff")
-        else:
-            from ..io import check_input
-
-            check_input(path, "measurement")
-            with open(path, encoding="utf-8-sig", newline="") as fh:  # a spreadsheet's BOM too
-                text = fh.read()
+        # (stdin within the same limit as a file; a spreadsheet's BOM taken off)
+        text = read_input(path, "measurement").decode("utf-8").lstrip("\ufeff")
     except OSError as exc:
         raise MtwinError(f"cannot read {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
@@ -326,8 +320,12 @@ def _read_csv(path: str):
         k += 1
     if k >= len(lines):
         raise MeasurementError("the file is empty (no header row)", SourceLocation(path, max(k, 1), 1))
-    header = next(csv.reader([lines[k]]))
-    rows = list(csv.reader(io.StringIO("\n".join(lines[k + 1:]))))
+    reader = csv.reader(io.StringIO("\n".join(lines[k:])))
+    try:
+        header = next(reader)
+        rows = list(reader)
+    except csv.Error as exc:  # (a field over the csv module's limit, a NUL byte)
+        raise MeasurementError(f"not a CSV row: {exc}", SourceLocation(path, k + reader.line_num, 1)) from None
     return header, rows, meta, k + 2
 
 
