@@ -175,27 +175,22 @@ def _numbers(fields: list) -> bool:
     return True
 
 
-def finite_number(tok: str, where: str, expected: str = "a number") -> float:
-    """``tok`` as a finite float, or a ConfigError that starts with ``where``."""
+def finite_number(tok: str, where: str, expected: str = "a number", echo: bool = True) -> float:
+    """``tok`` as a finite float, or a ConfigError that starts with ``where`` (and quotes ``tok``
+    unless ``echo`` is false: a file's text where the file may be anyone's)."""
     try:
         v = float(tok)
     except ValueError:
-        raise ConfigError(f"{where}: expected {expected}, got {tok.strip()!r}") from None
+        raise ConfigError(f"{where}: expected {expected}" + (f", got {tok.strip()!r}" if echo else "")) from None
     if not math.isfinite(v):
-        raise ConfigError(f"{where}: {tok.strip()} is not a finite number")
+        raise ConfigError(f"{where}: " + (f"{tok.strip()} is not a finite number" if echo else "not a finite number"))
     return v
 
 
 def _num(tok: str, path: str, ln: int, col: int, what: str) -> float:
-    """A number of an FRF file.  Its errors name the place, not the text there: a twin file may
-    point its FRF at any file beside it, and a batch copies errors into its reports."""
-    try:
-        v = float(tok)
-    except ValueError:
-        raise ConfigError(f"{path}:{ln}:{col}: {what}: expected a number") from None
-    if not math.isfinite(v):
-        raise ConfigError(f"{path}:{ln}:{col}: {what}: not a finite number")
-    return v
+    # an FRF's errors name the place, not the text there: a twin file may point its FRF at any
+    # file beside it, and a batch copies errors into its reports
+    return finite_number(tok, f"{path}:{ln}:{col}: {what}", echo=False)
 
 
 def _check_freqs(freq: list, rows: list, path: str) -> None:
