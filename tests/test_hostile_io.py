@@ -228,3 +228,19 @@ def test_inputs_are_read_in_pieces_up_to_their_limit(monkeypatch):
     monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BufferedReader(Stream())))
     with pytest.raises(mio.MtwinError, match="over the 1 MB a measurement may have"):
         mio.read_input("-", "measurement")
+
+
+def test_a_trace_is_written_in_blocks_the_same_bytes(tmp_path, monkeypatch):
+    # written whole, a 4-hour trace took 650 bytes a sample beside the trace itself; in blocks the
+    # file is the same to the byte (a log's empty line cells included)
+    import numpy as np
+
+    import mtwin.motion.trace as T
+
+    cols = {"t": np.arange(1000) * 0.001, "line": np.where(np.arange(1000) < 10, -1, 7),
+            "x_cmd": np.linspace(0, 1, 1000)}
+    T.write_columns(tmp_path / "a.csv", cols)
+    monkeypatch.setattr(T, "WRITE_ROWS", 64)
+    T.write_columns(tmp_path / "b.csv", cols)
+    a = (tmp_path / "a.csv").read_bytes()
+    assert a == (tmp_path / "b.csv").read_bytes() and b"\n0.009000000,,0.00900900900901\n" in a

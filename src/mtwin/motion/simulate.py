@@ -229,7 +229,9 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     n_est = n_plan + int(n_stops * wait_guess / dt)
     if n_plan > 500_000_000:
         raise MtwinError(f"program runs {total / 3600:.1f} h: more than 500 million servo samples")
-    bytes_per_sample = 92  # t, line, cmd (float64), act/err/vel/torque/path speed (float32)
+    # t, cmd (float64); line, record (int32); act, err, vel, torque, force (3 x float32 each),
+    # path speed, the 7 cutting channels (float32): what a trace keeps per sample
+    bytes_per_sample = 132
     need = (n_plan // every + 1) * bytes_per_sample
     if need > 4e9:
         suggest = int(math.ceil(need / 1e9)) * every
