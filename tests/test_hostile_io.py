@@ -244,3 +244,18 @@ def test_a_trace_is_written_in_blocks_the_same_bytes(tmp_path, monkeypatch):
     T.write_columns(tmp_path / "b.csv", cols)
     a = (tmp_path / "a.csv").read_bytes()
     assert a == (tmp_path / "b.csv").read_bytes() and b"\n0.009000000,,0.00900900900901\n" in a
+
+
+def test_a_value_that_is_not_finite_is_written_as_missing(tmp_path):
+    # a vibration past divergence (--dynamics) was written 'inf'/'nan', which mtwin's own reader
+    # then refused: it is missing, and reads back so
+    import numpy as np
+
+    import mtwin.motion.trace as T
+    from mtwin.loop.measurement import read_measurement
+
+    cols = {"t": np.arange(4) * 0.001, "line": np.array([1, 1, 2, 2]), "vib_x": np.array([0.0, 1e-3, np.inf, np.nan])}
+    T.write_columns(tmp_path / "d.csv", cols)
+    assert (tmp_path / "d.csv").read_text().splitlines()[-2:] == ["0.002000000,2,", "0.003000000,2,"]
+    m = read_measurement(str(tmp_path / "d.csv"))
+    assert m.signals["vib_x"][:2].tolist() == [0.0, 1e-3] and np.isnan(m.signals["vib_x"][2:]).all()

@@ -280,19 +280,24 @@ def write_columns(path: str | os.PathLike, cols: dict[str, np.ndarray], metadata
         # 4-h trace written whole took 650 bytes a sample beside the trace's 132)
         for lo in range(0, n, WRITE_ROWS):
             data = np.column_stack([np.asarray(v[lo:lo + WRITE_ROWS], dtype=np.float64) for v in cols.values()])
-            if li is None or not (data[:, li] < 0).any():
+            no_line = li is not None and (data[:, li] < 0).any()
+            if not no_line and np.isfinite(data).all():
                 np.savetxt(fh, data, fmt=fmts, delimiter=",")
                 continue
             # a sample before the control reported any line (a log): its line cell is left
-            # empty, which reads back as no line — "-1" is no line number, and a reader refuses it
+            # empty, which reads back as no line — "-1" is no line number, and a reader refuses
+            # it; so is a value that is not finite (a vibration past divergence): missing
             import io
 
             buf = io.StringIO()
-            np.savetxt(buf, data, fmt=fmts, delimiter=",")
-            for row in buf.getvalue().splitlines():
+            np.savetxt(buf, np.where(np.isfinite(data), data, 0.0), fmt=fmts, delimiter=",")
+            bad = ~np.isfinite(data)
+            for r, row in enumerate(buf.getvalue().splitlines()):
                 cells = row.split(",")
-                if cells[li].startswith("-"):
+                if no_line and data[r, li] < 0:
                     cells[li] = ""
+                for c in np.flatnonzero(bad[r]):
+                    cells[c] = ""
                 fh.write(",".join(cells) + "\n")
 
     if path == "-":
