@@ -39,13 +39,18 @@ class SpindleRunup(Effect):
     description = "the control waits until the spindle is at speed after a start, a speed change and a stop"
     stage = "plan"
     params = (Param("acceleration", "rpm/s", 0.0, 0.0, 100000.0,
-                    "run-up and braking rate the waits follow, 0 = the twin file's"),)
+                    "run-up and braking rate the waits follow, 0 = the twin file's"),
+              Param("power_speed", "rpm", 0.0, 0.0, 100000.0,
+                    "above this speed the rate falls as power_speed/n (the drive's power limit), 0 = the twin "
+                    "file's"))
     signals = _TIME
 
     def machine(self, m, p):
         sp = replace(m.spindle, wait_for_speed=True)
         if p["acceleration"] > 0:
             sp = replace(sp, acceleration=p["acceleration"])
+        if p.get("power_speed", 0.0) > 0:
+            sp = replace(sp, runup_power_speed=p["power_speed"])
         return replace(m, spindle=sp)
 
 

@@ -370,6 +370,7 @@ def _plan_starts(twin, effects) -> dict:
     'the twin file's' (so the scan and the solver start from the twin as it is)."""
     m = twin.planned_machine
     own = {"spindle-runup.acceleration": m.spindle.acceleration,
+           "spindle-runup.power_speed": m.spindle.runup_power_speed or m.spindle.max_speed,
            "block-time.min_time": m.controller.min_block_time,
            "corner-slowdown.corner_velocity": m.controller.corner_velocity,
            "arc-acceleration.acceleration": (m.controller.arc_acceleration

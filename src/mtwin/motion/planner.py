@@ -161,6 +161,21 @@ def _m6_lines(program) -> np.ndarray:
     return np.unique(lx.w_line[m6].astype(np.int64) + 1)
 
 
+def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0.0) -> float:
+    """Seconds for the spindle to go from n0 to n1 rpm (signed): at ``acceleration`` rpm/s, and
+    above ``power_speed`` (> 0) at acceleration·power_speed/|n| — a drive at its power limit,
+    where the time from power_speed to n is (n² − power_speed²) / (2·acceleration·power_speed)."""
+    def from_rest(n: float) -> float:
+        n = abs(n)
+        if power_speed <= 0 or n <= power_speed:
+            return n / acceleration
+        return power_speed / acceleration + (n * n - power_speed * power_speed) / (2.0 * acceleration * power_speed)
+
+    if n0 * n1 >= 0:  # the same way round: the difference of the times from rest
+        return abs(from_rest(n1) - from_rest(n0))
+    return from_rest(n0) + from_rest(n1)  # a reversal: down to rest, then up
+
+
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
             m6: np.ndarray | None = None, tool_changes: bool = True):
     """(record index, category, duration) of the pauses before each record, and dwells."""
@@ -189,7 +204,7 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
     if sp.wait_for_speed:
         prev = np.concatenate(([0.0], target[:-1]))
         for i in change_speed:
-            dt = abs(target[i] - prev[i]) / sp.acceleration
+            dt = runup_time(prev[i], target[i], sp.acceleration, getattr(sp, "runup_power_speed", 0.0))
             if dt > 0:
                 out.append((int(i), 1, CAT_SPINDLE, dt))
     for i in np.nonzero(rec["kind"] == R.DWELL)[0]:

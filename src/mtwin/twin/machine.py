@@ -124,6 +124,12 @@ class Spindle:
     base_speed: float = P(1500.0, "rpm", "end of the constant-torque range: torque limit = rated power / "
                           "(2*pi*max(n, base)/60) [E]")
     acceleration: float = P(4000.0, "rpm/s", "run-up / braking rate [E]")
+    # a spindle drive accelerates at its torque limit up to its base speed and at its power limit
+    # above it, where the torque falls as 1/n: the rate falls as power_speed/n, so the time to
+    # speed grows with n^2 (a 12,000-rpm start takes far longer than 4/3 of a 9,000-rpm one)
+    runup_power_speed: float = P(0.0, "rpm", "above this speed the run-up and braking rate falls as "
+                                 "runup_power_speed/n (the drive's constant-power range), 0 = a constant rate",
+                                 "nonneg")
     wait_for_speed: bool = P(True, "bool", "feed moves wait until the spindle is at speed after M3/M4/S", "bool")
 
 
