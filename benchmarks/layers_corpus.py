@@ -51,8 +51,8 @@ def one(path: Path, limit: float, material: str | None, timeout: int) -> dict:
         try:
             res = optimize(tw, prog, OptimizeOptions(force_limit=limit, max_layers=8))
         except InfeasibleError as exc:
-            why = str(exc)
-            rec.update(status="still refused", reason=why[why.find(" — ") + 3:][:200] if " — " in why else why[:200])
+            why = str(exc)  # (the layering's own reason is the last part: "… — and lines a-b cannot …")
+            rec.update(status="still refused", reason=why[why.rfind(" — ") + 3:][:300] if " — " in why else why[:300])
             return rec
         rec["seconds"] = time.perf_counter() - t0
         written = tw.load(res.output, path=str(path))

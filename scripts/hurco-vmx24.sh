@@ -29,7 +29,8 @@ cat > "$work/0.toml" <<'TOML'
 #   axes.z.max_velocity = X's and Y's rapid rate: the logs hold no long Z rapid to read it from
 #     (the tool-change retracts run G28 to a home position the programs do not give).
 # Everything else below the [spindle] table comes from the calibration steps:
-#   1 spindle-runup, 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration (the order
+#   1 spindle-runup (its rate, and the speed above which the drive is at its power limit:
+#   plate 12 runs S12000, 13 and 14 S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration (the order
 #   mtwin diagnose ranks them on the default twin), 5 the axes: rapid rates (read off the logged
 #   rapids), feed accelerations, jerk (controller.bell_time) and the in-position width.
 # The servos keep the default machine's velocity feed-forward: fitted without it (0), the

@@ -161,10 +161,15 @@ def _markdown(rows, kinds, elapsed) -> str:
             "≈ 5.7 m/s²), as a Fanuc-style control sets rapid and cutting acc/dec apart.  Before it was separate, "
             "rapids ran ≈ 21 s long per plate while small arcs and short lines ran 8–13 s short each, errors that "
             "cancelled in the cycle time; the calibration now also fits the error summed by block kind.",
-            "- Still short: small arcs by up to 7 s on plates 12 and 14 (helical entries of 0.3–3 mm radius, "
-            "where the arc's curvature reverses from block to block: a jerk limit at a curvature change is not "
-            "modelled), and the tool changes of plate 12 (−4.5 s, while 13 and 14 are +2.5 and +1.6 s: the "
-            "same changes take different times from plate to plate).",
+            "- The spindle's run-up and braking follow its drive: torque-limited to ≈ 6,100 rpm, power-limited "
+            "above (the rate falls as 1/n; `spindle-runup`'s `power_speed`).  Plate 12 runs S12000, plates 13 and "
+            "14 S9000: with a constant rate its tool changes ran 4.5 s short and theirs 2.5 s long.  Fitted on "
+            "plates 13 and 14 alone, the power speed cannot be seen (both run one speed), so the leave-one-out "
+            "prediction of plate 12's tool changes is 8 s short.",
+            "- Still off by more than 2 s: small arcs, up to 6.2 s short on plate 14 (helical entries of 0.3–3 mm "
+            "radius whose curvature reverses from block to block: a jerk limit at a curvature change is not "
+            "modelled; a normal-jerk limit v³/r² ≤ J fitted no better), and short lines and feed moves by 2–3 s "
+            "on some plates.",
             "- Per-group RMS rises slightly with the profile (the waits after M3/M5 sit on the line the twin runs "
             "them on, the control reports the next one): the error moves between neighbouring groups, which the "
             "windows absorb.",

@@ -354,6 +354,27 @@ def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_mov
         tw.with_effects("rapid-acceleration:acceleration=19000").plan(prog)
 
 
+def test_a_spindle_at_its_power_limit_takes_the_square_of_the_speed_to_get_there():
+    # torque-limited to power_speed (rate a), power-limited above (rate a*nb/n): from rest to n
+    # takes nb/a + (n^2 - nb^2) / (2 a nb) -- the integral of n dn / (a nb)
+    from mtwin.motion.planner import runup_time
+
+    a, nb = 2000.0, 6000.0
+    assert runup_time(0, 5000, a) == pytest.approx(2.5)
+    assert runup_time(0, 5000, a, nb) == pytest.approx(2.5)  # below it: as before
+    assert runup_time(0, 12000, a, nb) == pytest.approx(3.0 + (12000**2 - 6000**2) / (2 * a * nb))
+    assert runup_time(9000, 12000, a, nb) == pytest.approx((12000**2 - 9000**2) / (2 * a * nb))
+    assert runup_time(12000, 0, a, nb) == pytest.approx(runup_time(0, 12000, a, nb))  # braking alike
+    assert runup_time(-3000, 3000, a, nb) == pytest.approx(3.0)  # a reversal: to rest, then up
+    # the plan's spindle waits follow it: a 12,000-rpm start waits (12000/6000)^2 = 4x longer over
+    # the power speed than a 6,000-rpm one, not 2x
+    tw = mtwin.Twin().with_params({"spindle.max_speed": 12000.0})
+    prog = lambda s: tw.load(f"G21 G90 G94\nS{s} M3\nG1 X10 F1000\nM30\n".encode(), path="s.nc")
+    fx = tw.with_effects("spindle-runup:acceleration=2000,power_speed=6000")
+    w = [float(fx.plan(prog(s)).category_times()["spindle_wait"]) for s in (6000, 12000)]
+    assert w[0] == pytest.approx(3.0, rel=1e-6) and w[1] - w[0] == pytest.approx((12000**2 - 6000**2) / (2 * a * nb))
+
+
 def test_a_feed_override_runs_the_program_as_if_every_f_were_scaled():
     # an independent route: the program with each F multiplied by 1.3 by hand plans the same
     # (rapids and dwells untouched); a long move's time at speed falls as 1/1.3
