@@ -83,12 +83,18 @@ def main() -> None:
     ap.add_argument("--force-limit", type=float, default=60.0)
     ap.add_argument("--timeout", type=int, default=300)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--resume", action="store_true", help="skip the programs already in --out")
     a = ap.parse_args()
     import tomllib
 
     rules = tomllib.loads(Path(a.materials).read_text(encoding="utf-8"))["rule"] if a.materials else []
     recs = []
+    if a.resume and a.out and Path(a.out).exists():
+        recs = [json.loads(line) for line in Path(a.out).read_text(encoding="utf-8").splitlines() if line.strip()]
+    seen = {r["program"] for r in recs}
     for p in programs(Path(a.corpus)):
+        if str(p) in seen:
+            continue
         m = material_for(p, rules)
         r = one(p, a.force_limit, m[0] if m else None, a.timeout)
         recs.append(r)

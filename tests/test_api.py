@@ -148,3 +148,16 @@ def test_the_fitting_core_on_a_closed_form():
     assert delta_bic(100, 50.0, 100.0, 1) == pytest.approx(100 * np.log(0.5) + np.log(100))
     assert verdict(1.0, 1.0, None) == "fits" and verdict(3.0, 1.0, -11.0, 0.6) == "explained"
     assert verdict(3.0, 1.0, -9.0, 0.9) == "unexplained"
+
+
+def test_a_program_read_by_the_caller_without_motion_is_refused_like_a_file():
+    # an API optimize of a Program that only defines a subroutine (LinuxCNC's factorial.ngc)
+    # failed inside the optimiser (AttributeError); the command said "no motion" (exit 2)
+    from mtwin.errors import GCodeError
+    from mtwin.optimize.run import optimize
+
+    tw = mtwin.Twin()
+    prog = tw.load(b"o<f> sub\no<f> endsub\nm2\n", path="f.ngc")
+    for run in (lambda: optimize(tw, prog), lambda: mtwin.simulate(tw, prog)):
+        with pytest.raises(GCodeError, match="f.ngc:1:1: the program has no motion"):
+            run()

@@ -118,11 +118,18 @@ def open_twin(twin=None):
     return Twin.from_toml(None if twin is None else str(twin))
 
 
+NO_MOTION = "the program has no motion (no G0/G1/G2/G3, cycle or dwell is run)"
+
+
 def load_part(twin, program, messages: Optional[Messages] = None, need_motion: bool = True):
     """The program (a Program as it is; a path, ``-`` for stdin, or bytes read with the twin's
     interpreter settings), its warnings told.  An empty file is an error; one without a move
     is an error where the use case needs motion (``need_motion``), else a warning."""
     if isinstance(program, Program):
+        # (a Program the caller read: the motion it needs is checked all the same — an API
+        # optimize of a program that only defines a subroutine failed inside the optimiser)
+        if need_motion and program.records.size == 0:
+            raise GCodeError(NO_MOTION, SourceLocation(program.path, 1, 1))
         return program
     messages = messages if messages is not None else Messages()
     tw = open_twin(twin)
@@ -143,8 +150,7 @@ def load_part(twin, program, messages: Optional[Messages] = None, need_motion: b
     for line, col, text in read_workpiece(prog).warnings:
         messages.warn(warning_text(prog.path, line, text, col))
     if prog.records.size == 0:
-        msg = "the program has no motion (no G0/G1/G2/G3, cycle or dwell is run)"
         if need_motion:
-            raise GCodeError(msg, SourceLocation(prog.path, 1, 1))
-        messages.warn(warning_text(prog.path, 0, msg))
+            raise GCodeError(NO_MOTION, SourceLocation(prog.path, 1, 1))
+        messages.warn(warning_text(prog.path, 0, NO_MOTION))
     return prog
