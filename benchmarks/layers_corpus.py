@@ -84,6 +84,7 @@ def main() -> None:
     ap.add_argument("--timeout", type=int, default=300)
     ap.add_argument("--out", default=None)
     ap.add_argument("--resume", action="store_true", help="skip the programs already in --out")
+    ap.add_argument("--programs", default=None, help="a file of program paths, one a line: only these")
     a = ap.parse_args()
     import tomllib
 
@@ -92,8 +93,9 @@ def main() -> None:
     if a.resume and a.out and Path(a.out).exists():
         recs = [json.loads(line) for line in Path(a.out).read_text(encoding="utf-8").splitlines() if line.strip()]
     seen = {r["program"] for r in recs}
+    only = set(Path(a.programs).read_text(encoding="utf-8").split("\n")) if a.programs else None
     for p in programs(Path(a.corpus)):
-        if str(p) in seen:
+        if str(p) in seen or (only is not None and str(p) not in only):
             continue
         m = material_for(p, rules)
         r = one(p, a.force_limit, m[0] if m else None, a.timeout)

@@ -140,3 +140,23 @@ def test_the_report_shows_the_layers_and_the_two_z_maps(layered):
     assert "same stock: 1,600,000 cells" in doc
     for title in ("the original leaves", "the optimised program leaves", "difference (largest 0 mm)"):
         assert title in doc
+
+
+def test_the_link_goes_up_to_the_tools_own_retract_height_first():
+    # a CAM post that plunges from a feed height just above the floor (Fusion's 'Z1' after a G0
+    # Z10): a straight rapid back at that height crosses what the cut left standing (13 corpus
+    # programs failed the proof so); the link rises to the height the tool's rapids went to
+    from mtwin.optimize.layers import Layering, find_cut, layered_text
+
+    tw = mtwin.Twin()
+    prog = tw.load(b"G21 G90 G17\nT1 M6\nS6000 M3\nG0 X0 Y0 Z10.\nG0 Z1.\nG1 Z-4. F100\nG2 X20. Y0 I10. J0 F400\n"
+                   b"G0 Z10.\nM30\n", path="p.nc")
+    cut = find_cut(prog, 7, 7)
+    assert (cut.plunge_line, cut.last_line, cut.clearance, cut.safe) == (6, 7, 1.0, 10.0)
+    text, origin = layered_text(prog, [Layering(cut, 2, 0.0)])
+    lines = text.decode().splitlines()
+    at = lines.index("(MTWIN LAYER 1/2 Z-2.)")
+    assert lines[at + 1:at + 8] == ["G1 Z-2. F100", "G2 X20. Y0 I10. J0 F400", "G0 Z10.", "G0 X0. Y0.", "G0 Z1.",
+                                    "G1 F100", "(MTWIN LAYER 2/2 Z-4.: THE PROGRAM'S OWN LINES)"]
+    assert lines[at + 8:at + 10] == ["G1 Z-4. F100", "G2 X20. Y0 I10. J0 F400"]  # the program's own, as written
+    assert len(origin) == len(text.split(b"\n")) and origin[at + 2] == 7

@@ -10,8 +10,10 @@ point (its clearance).  Layer k of N is written as
     (MTWIN LAYER k/N Z…)            a comment the CAM user recognises
     G1 Z<z_k> F<the plunge's feed>  the plunge, to this layer's depth
     <the cut's lines, Z set to z_k> copies (N words left out: they would repeat the program's)
-    G0 Z<clearance>                 the link back: up to the clearance,
+    G0 Z<safe height>               the link back: up to the tool's own retract height (the
+                                    highest its rapids went before the cut),
     G0 X<start> Y<start>            over to the cut's start,
+    G0 Z<clearance>                 down to where the plunge starts (left out when it is there),
     G1 F<the plunge's feed>         (the plunge mode and feed the original plunge line may inherit)
 
 and the last layer is the program's own lines, byte for byte, so the cut ends at its depth and
@@ -55,6 +57,7 @@ class Cut:
     start: tuple  # (x, y) mm, the plunge's point
     plunge_feed: float  # mm/min
     tool: int
+    safe: float = 0.0  # mm, the tool's retract height: the highest its rapids went before the cut
 
     @property
     def lines(self) -> tuple[int, int]:
@@ -109,8 +112,11 @@ def find_cut(program, first: int, last: int) -> Cut:
     text = program.data.split(b"\n")[int(body["line"][0]) - 1:int(body["line"][-1])]
     if any(_OTHER_WORDS.search(_COMMENT.sub(b"", ln)) for ln in text):
         raise NotLayerable("an M, S or T word among its lines (each layer would repeat it)")
+    before = rec[:p]
+    mine = (before["kind"] == R.RAPID) & (before["tool"] == pl["tool"]) & ((before["flags"] & R.FL_MACHINE) == 0)
+    safe = max(float(pl["sz"]), float(before["z"][mine].max()) if mine.any() else -np.inf)
     return Cut(int(pl["line"]), int(body["line"][0]), int(body["line"][-1]), depth, float(pl["sz"]),
-               (float(pl["x"]), float(pl["y"])), float(pl["feed"]), int(pl["tool"]))
+               (float(pl["x"]), float(pl["y"])), float(pl["feed"]), int(pl["tool"]), safe)
 
 
 def _frame(span) -> str:
@@ -187,7 +193,10 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
         cr = b"\r" if strip_cr else b""
         fp = style.feed(c.plunge_feed / k, inch).encode()
         zc = style.coord(c.clearance / k).encode()
+        zs = style.coord(max(c.safe, c.clearance) / k).encode()
         xs, ys = (style.coord(v / k).encode() for v in c.start)
+        link = [b"G0 Z" + zs + cr, b"G0 X" + xs + b" Y" + ys + cr] + ([b"G0 Z" + zc + cr] if zs != zc else []) \
+            + [b"G1 F" + fp + cr]
         for n, z in enumerate(ly.depths[:-1], 1):
             zt = style.coord(z / k).encode()
             out.append(b"(MTWIN LAYER %d/%d Z%s)" % (n, ly.layers, zt) + cr)
@@ -195,8 +204,8 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
             origin += [c.plunge_line, c.plunge_line]
             out += [_set_z(_N_WORD.sub(rb"\1", ln), zt) + cr for ln in body]
             origin += list(range(c.first_line, c.last_line + 1))
-            out += [b"G0 Z" + zc + cr, b"G0 X" + xs + b" Y" + ys + cr, b"G1 F" + fp + cr]
-            origin += [c.plunge_line] * 3
+            out += link
+            origin += [c.plunge_line] * len(link)
         out.append(b"(MTWIN LAYER %d/%d Z%s: THE PROGRAM'S OWN LINES)"
                    % (ly.layers, ly.layers, style.coord(c.depth / k).encode()) + cr)
         origin.append(c.plunge_line)

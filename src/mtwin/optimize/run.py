@@ -362,9 +362,9 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     plan1 = twin.plan(out)
     eng1 = engagement_for(plan1, out, _program_cutting(twin, out), eng0.stock.box, cache=twin.engagement_cache)
     proof = prove_same_stock(eng0, plan0, eng1, plan1)
-    if not proof.same:
-        raise VerifyError(f"internal check failed, nothing written: the layered program does not leave the "
-                          f"original's part: {proof.reason()}")
+    if not proof.same:  # (the layering's limit, not a bug: the program is refused as it was)
+        raise InfeasibleError(f"{refused} — and the program cut in layers would not leave the same part "
+                              f"({proof.reason()}), so it is not written in layers", reasons=refused.reasons)
     added = twin.plan(layered).total_time - plan0.total_time
     res.layers = [ly.as_dict() | {"time_added_at_program_feeds": added} for ly in layerings.values()]
     res.stock_proof = proof
