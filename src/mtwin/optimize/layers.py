@@ -156,13 +156,24 @@ class Layering:
 
 
 def material_top(eng, plan, cut: Cut) -> float:
-    """The highest point of the material the cut meets, mm: its depth plus the largest axial
-    depth of cut along its feed moves (the engagement of the program as written)."""
+    """The top of the material the cut removes, mm: its depth plus its effective axial depth
+    along its feed moves (the engagement of the program as written), the cross-section the
+    tool sweeps over the width it engages — not the engaged flute's extent, which on a pass
+    that follows earlier step-downs reaches up a wall to the stock's top (95th percentile:
+    the entry's transients left out)."""
+    from ..layout import Q_AE, Q_AREA
+
     seg_of = eng.step_segments()
     lines = plan.seg["line"][seg_of] if len(seg_of) else np.zeros(0, np.int64)
     mine = (lines >= cut.first_line) & (lines <= cut.last_line)
-    ap = eng.q[mine, 2] if mine.any() else np.zeros(0)
-    return cut.depth + (float(ap.max()) if len(ap) else 0.0)
+    if not mine.any():
+        return cut.depth
+    ae = eng.q[mine, Q_AE].astype(np.float64)
+    ok = ae > 1e-6
+    if not ok.any():
+        return cut.depth
+    ap = eng.q[mine, Q_AREA][ok] / ae[ok]
+    return cut.depth + float(np.percentile(ap, 95))
 
 
 def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]:
