@@ -160,3 +160,24 @@ def test_the_link_goes_up_to_the_tools_own_retract_height_first():
                                     "G1 F100", "(MTWIN LAYER 2/2 Z-4.: THE PROGRAM'S OWN LINES)"]
     assert lines[at + 8:at + 10] == ["G1 Z-4. F100", "G2 X20. Y0 I10. J0 F400"]  # the program's own, as written
     assert len(origin) == len(text.split(b"\n")) and origin[at + 2] == 7
+
+
+def test_the_proof_holds_within_one_cell_and_no_further():
+    # an edge cell is cut or not as the path's steps fall (an arc split in two left a 5.5-mm step
+    # one cell over on a Fusion wall program): a height the other map has one cell around is the
+    # same part; two cells over, or a floor 0.1 mm off, is not
+    import numpy as np
+
+    from mtwin.cutting.stockproof import _beyond_one_cell
+
+    a = np.zeros((20, 20))
+    a[:, 10:] = -5.5  # a wall at column 10
+    b = a.copy()
+    b[:, 9] = -5.5  # the wall one cell over
+    assert np.abs(_beyond_one_cell(a, b, 1e-3)).max() == 0.0
+    c = a.copy()
+    c[:, 8:] = -5.5  # two cells over
+    assert np.abs(_beyond_one_cell(a, c, 1e-3)).max() == pytest.approx(5.5)
+    f = a.copy()
+    f[:, 12:] = -5.4  # the floor short by 0.1 mm away from the wall
+    assert np.abs(_beyond_one_cell(a, f, 1e-3)).max() == pytest.approx(0.1)
