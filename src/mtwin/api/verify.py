@@ -14,10 +14,9 @@ def prove_stock(twin=None, original=None, optimised=None, *, stock=None, tol: fl
     ``stock``: the box (xmin, ymin, zmin, xmax, ymax, zmax), mm, over the original's comment,
     the twin file's and the guess; the optimised program runs on the same box whatever its own
     comments say.  Returns a :class:`~mtwin.cutting.stockproof.StockProof`."""
-    from ..cutting.engagement import engagement_for
     from ..cutting.stockproof import prove_same_stock
     from ..errors import MtwinError
-    from ..motion.simulate import _program_cutting
+    from ..motion.simulate import program_engagement
 
     if not (tol > 0):
         raise MtwinError("the stock tolerance must be positive")
@@ -25,7 +24,6 @@ def prove_stock(twin=None, original=None, optimised=None, *, stock=None, tol: fl
     msgs = Messages(on_message)
     a = load_part(tw, original, msgs)
     b = load_part(tw, optimised, msgs)
-    plan_a, plan_b = tw.plan(a), tw.plan(b)
-    eng_a = engagement_for(plan_a, a, _program_cutting(tw, a), stock, cache=tw.engagement_cache)
-    eng_b = engagement_for(plan_b, b, _program_cutting(tw, b), eng_a.stock.box, cache=tw.engagement_cache)
+    plan_a, eng_a = program_engagement(tw, a, stock)
+    plan_b, eng_b = program_engagement(tw, b, eng_a.stock.box)  # (the original's stock, whatever b says)
     return prove_same_stock(eng_a, plan_a, eng_b, plan_b, tol)

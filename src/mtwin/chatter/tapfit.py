@@ -67,11 +67,11 @@ def fit_frf(frf: FRF, modes_per_direction: int = 2) -> TapFit:
     modes: list[Mode] = []
     sigmas: list = []
     rms: dict = {}
+    check_sign(frf)  # (read_frf checks it too: an FRF built in Python comes here directly)
     for d, h in (("x", frf.xx), ("y", frf.yy)):
         if not np.any(h):
             continue
         f = frf.freq
-        check_sign(frf)  # (read_frf checks it too: an FRF built in Python comes here directly)
         start = _peaks(f, h, modes_per_direction)
         if not start:
             raise ConfigError(f"{frf.source}: no resonance peak in the {d.upper()} FRF to fit a mode to")

@@ -100,7 +100,7 @@ class RapidAcceleration(Effect):
     def machine(self, m, p):
         a = p["acceleration"]
         for name, ax in zip("xyz", m.axes):  # what the drives can give (the twin file's own check)
-            if a > 0 and ax.max_torque * ax.force_per_torque < ax.equivalent_mass * a * 1e-3:
+            if a > ax.drive_acceleration:
                 raise ConfigError(f"effects.rapid-acceleration: controller.rapid_acceleration: {a:g} mm/s^2 is more "
                                   f"than axes.{name}.max_torque ({ax.max_torque:g} N*m) can give "
                                   f"{ax.equivalent_mass:.0f} kg")

@@ -221,7 +221,7 @@ def simulated_as_logged(groups: Groups, sim: np.ndarray, lines: np.ndarray, star
     sample falls inside it, which the log says happened) — so on average late by half the
     shorter of the two; a group's boundaries move by those delays.  Summed over consecutive
     groups the shifts cancel: the cycle time is unchanged."""
-    period = float(getattr(groups, "period", 0.0))
+    period = groups.period
     if period <= 0 or not len(lines):
         return sim
     order = np.argsort(starts, kind="stable")

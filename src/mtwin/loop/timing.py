@@ -335,25 +335,22 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
             best[0], best[1] = cost, np.array(x, np.float64)
         return r
 
-    def usable(x):
-        """``x``, or the best point seen where the solver ended on values the machine refuses
-        (least squares may end on a step it was still trying)."""
-        try:
-            build_fitted(twin, effects, keys, x)
-        except ConfigError:
-            if best[1] is None:
-                raise
-            return best[1].copy()
-        return x
-
     x = x0
     for _ in range(max(1, passes)):
         if scan:
             x = _scan(fun_x, x, lo, hi, keys)
         # (block times are not noise-scaled residuals: no identifiability cut on them)
         sol = solve(fun_x, x, lo, hi, scale, max_evaluations=60, xtol=1e-6, ftol=1e-8, blind_check=False)
-        x = usable(sol.x)
-        tw, fitted = build_fitted(twin, effects, keys, x)
+        x = sol.x
+        try:
+            tw, fitted = build_fitted(twin, effects, keys, x)
+        except ConfigError:
+            # the solver ended on values the machine refuses (a step it was still trying):
+            # the best point it saw instead
+            if best[1] is None:
+                raise
+            x = best[1].copy()
+            tw, fitted = build_fitted(twin, effects, keys, x)
         for c in cases:  # the waits as the fitted twin has them
             refresh_waits(tw.with_effects(*fitted), c)
     tw, fitted = build_fitted(twin, effects, keys, x)

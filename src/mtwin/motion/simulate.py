@@ -58,6 +58,15 @@ def _per_tool(program, plan, wait) -> dict[int, dict[str, float]]:
     return out
 
 
+def program_engagement(twin, program, box=None):
+    """(plan, engagement) of a program on the twin, on ``box`` (None: the program's stock as
+    ``simulate`` finds it) — what the proof by the part compares."""
+    from ..cutting.engagement import engagement_for
+
+    plan = twin.plan(program)
+    return plan, engagement_for(plan, program, _program_cutting(twin, program), box, cache=twin.engagement_cache)
+
+
 def _program_cutting(twin, program):
     """The twin's cutting part with the tools this program declares (cached on the program)."""
     from ..cutting.library import for_program

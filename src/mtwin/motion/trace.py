@@ -238,6 +238,7 @@ WRITE_ROWS = 65536  # samples a CSV writer formats at once
 def write_columns(path: str | os.PathLike, cols: dict[str, np.ndarray], metadata: dict[str, str] | None = None) -> None:
     """Write measurement-format columns as CSV (or Parquet for a .parquet name) atomically,
     or to standard output for ``-``."""
+    import io
     import sys
 
     from ..io import atomic_output
@@ -287,8 +288,6 @@ def write_columns(path: str | os.PathLike, cols: dict[str, np.ndarray], metadata
             # a sample before the control reported any line (a log): its line cell is left
             # empty, which reads back as no line — "-1" is no line number, and a reader refuses
             # it; so is a value that is not finite (a vibration past divergence): missing
-            import io
-
             buf = io.StringIO()
             np.savetxt(buf, np.where(np.isfinite(data), data, 0.0), fmt=fmts, delimiter=",")
             bad = ~np.isfinite(data)

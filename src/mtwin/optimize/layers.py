@@ -59,10 +59,6 @@ class Cut:
     tool: int
     safe: float = 0.0  # mm, the tool's retract height: the highest its rapids went before the cut
 
-    @property
-    def lines(self) -> tuple[int, int]:
-        return self.plunge_line, self.last_line
-
 
 def find_cut(program, first: int, last: int) -> Cut:
     """The cut that holds the lines ``first``..``last`` (a segment of the optimiser): from its

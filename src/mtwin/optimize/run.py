@@ -315,15 +315,13 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     """The program with each cut that is over a limit even at the lowest feed written in layers
     (:mod:`.layers`: the fewest, from the load's excess, one more wherever the layered program is
     still over), optimised as any program, and proven to leave the original's part."""
-    from ..cutting.engagement import engagement_for
     from ..cutting.stockproof import prove_same_stock
-    from ..motion.simulate import _program_cutting
+    from ..motion.simulate import program_engagement
     from .layers import Layering, NotLayerable, find_cut, layered_text, material_top
 
     stage = stage or (lambda text: None)
     stage("layering the cuts over the limit")
-    plan0 = twin.plan(program)
-    eng0 = engagement_for(plan0, program, _program_cutting(twin, program), stock, cache=twin.engagement_cache)
+    plan0, eng0 = program_engagement(twin, program, stock)
     layerings: dict[int, Layering] = {}
     reasons, origin = refused.reasons, None
     for _ in range(opts.max_layers):
@@ -358,9 +356,7 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
         raise InfeasibleError(f"{refused} — still over it in {opts.max_layers} layers (--max-layers)",
                               reasons=refused.reasons)
     stage("proving the layered program leaves the same part")
-    out = twin.load(res.output, path=program.path)
-    plan1 = twin.plan(out)
-    eng1 = engagement_for(plan1, out, _program_cutting(twin, out), eng0.stock.box, cache=twin.engagement_cache)
+    plan1, eng1 = program_engagement(twin, twin.load(res.output, path=program.path), eng0.stock.box)
     proof = prove_same_stock(eng0, plan0, eng1, plan1)
     if not proof.same:  # (the layering's limit, not a bug: the program is refused as it was)
         raise InfeasibleError(f"{refused} — and the program cut in layers would not leave the same part "

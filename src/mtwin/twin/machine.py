@@ -116,6 +116,11 @@ class Axis:
         """Axial force per motor torque, N/(N*m): 2*pi*eta/l."""
         return 2 * math.pi * self.efficiency / (self.screw_lead * 1e-3)
 
+    @property
+    def drive_acceleration(self) -> float:
+        """The most the motor's torque limit gives the equivalent mass, mm/s^2."""
+        return self.max_torque * self.force_per_torque / self.equivalent_mass * 1e3
+
 
 @dataclass(frozen=True)
 class Spindle:
@@ -264,10 +269,10 @@ def validate_machine(m: Machine, where: str = "twin file") -> None:
                               f"is too high for a {c.servo_period * 1e3:g} ms servo period (limit {1 / c.servo_period:g})")
         if s.kpp * s.s_pp >= s.velocity_bandwidth * s.s_vp:
             raise ConfigError(f"{where}: axes.{name}.servo.kpp must be below the velocity loop bandwidth")
-        if ax.max_torque * ax.force_per_torque < ax.equivalent_mass * ax.max_acceleration * 1e-3:
+        if ax.max_acceleration > ax.drive_acceleration:
             raise ConfigError(f"{where}: axes.{name}.max_torque: {ax.max_torque} N*m cannot give "
                               f"{ax.max_acceleration} mm/s^2 to {ax.equivalent_mass:.0f} kg (equivalent mass)")
-        if ax.max_torque * ax.force_per_torque < ax.equivalent_mass * c.rapid_acceleration * 1e-3:
+        if c.rapid_acceleration > ax.drive_acceleration:
             raise ConfigError(f"{where}: controller.rapid_acceleration: {c.rapid_acceleration} mm/s^2 is more than "
                               f"axes.{name}.max_torque ({ax.max_torque} N*m) can give {ax.equivalent_mass:.0f} kg")
 
