@@ -181,3 +181,20 @@ def test_the_proof_holds_within_one_cell_and_no_further():
     f = a.copy()
     f[:, 12:] = -5.4  # the floor short by 0.1 mm away from the wall
     assert np.abs(_beyond_one_cell(a, f, 1e-3)).max() == pytest.approx(0.1)
+
+
+def test_the_time_the_layers_add_is_each_cuts_own():
+    # two slots over the limit: each cut's figure is its own lines' time (copies and links
+    # counted as its own), and the two add up to the whole program's — it was the program's
+    # total in every row
+    tw = mtwin.Twin()
+    src = SLOTS.read_text().replace("G1 Z-2. F100", "G1 Z-6. F100").encode()
+    r = optimize(tw, src, OptimizeOptions(**LIMIT, max_layers=8))
+    added = [ly["time_added_at_program_feeds"] for ly in r.layers]
+    assert [ly["lines"] for ly in r.layers] == [[12, 13], [16, 17]] and added[0] != pytest.approx(added[1])
+    from mtwin.optimize.layers import Layering, find_cut, layered_text
+
+    prog = tw.load(src)
+    lays = [Layering(find_cut(prog, *ly["lines"]), ly["layers"], ly["top"]) for ly in r.layers]
+    whole = tw.plan(tw.load(layered_text(prog, lays)[0])).total_time - tw.plan(prog).total_time
+    assert sum(added) == pytest.approx(whole, abs=1e-6)

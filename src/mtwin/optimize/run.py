@@ -361,8 +361,17 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     if not proof.same:  # (the layering's limit, not a bug: the program is refused as it was)
         raise InfeasibleError(f"{refused} — and the program cut in layers would not leave the same part "
                               f"({proof.reason()}), so it is not written in layers", reasons=refused.reasons)
-    added = twin.plan(layered).total_time - plan0.total_time
-    res.layers = [ly.as_dict() | {"time_added_at_program_feeds": added} for ly in layerings.values()]
+    # per cut, the time its lines take (the layered program's lines counted as the lines they
+    # came from: copies, links and comments as the cut's own) at the program's feeds, added
+    plan_l = twin.plan(layered)
+    came_from = origin[np.asarray(plan_l.seg["line"], np.int64) - 1]
+
+    def within(lines, dur, c):
+        return float(dur[(lines >= c.plunge_line) & (lines <= c.last_line)].sum())
+
+    res.layers = [ly.as_dict() | {"time_added_at_program_feeds":
+                                  within(came_from, plan_l.dur, ly.cut) - within(plan0.seg["line"], plan0.dur, ly.cut)}
+                  for ly in layerings.values()]
     res.stock_proof = proof
     res.warnings.append(f"{program.path}: {len(layerings)} cut(s) written in layers to meet the limit: "
                         + "; ".join(f"lines {ly.cut.plunge_line}-{ly.cut.last_line} in {ly.layers} layers of "
