@@ -76,7 +76,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     from mtwin.errors import MtwinError
     from mtwin.gcode import records as R
     from mtwin.gcode.verify import compare
-    from mtwin.motion.simulate import _program_cutting
+    from mtwin.motion.simulate import program_cutting
     from mtwin.optimize.guards import contour_error
     from mtwin.cutting.engagement import GUESSED_STOCK
     from mtwin.optimize.run import OptimizeOptions, _feed_samples, optimize
@@ -137,7 +137,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     rec["changed_lines"] = len(res.changed_lines)
     rec["status"] = "unchanged" if res.output == bytes(prog.data) else "optimised"
     # feeds raised on a line whose tool the twin does not describe
-    cut = _program_cutting(tw, prog)
+    cut = program_cutting(tw, prog)
     undescribed = {int(t) for t in np.unique(prog.records["tool"]) if not describes(cut, int(t))}
     raised = []
     f_old: dict[int, float] = {}
@@ -170,6 +170,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     # runs at another feed, or its text differs other than by an F word restoring its own feed
     changed = set()
     ro, rn = prog.records, new.records
+    pieces: dict[int, list[int]] = {}  # original record -> the written program's records
     k = 0
     for i in range(len(ro)):
         start = k
@@ -179,6 +180,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
         if k >= len(rn):
             changed.update(ro["line"][i:].tolist())  # (cannot pair: counted as changed)
             break
+        pieces[i] = list(range(start, k + 1))
         ln, ln_new = int(ro["line"][i]), int(rn["line"][k])
         if k > start or abs(rn["feed"][k] - ro["feed"][i]) > 0.01:
             changed.add(ln)
@@ -195,7 +197,26 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     from mtwin.optimize.model import RAMP_DZ
 
     entries = feed & (r_["z"] - r_["sz"] < -RAMP_DZ)  # (the optimiser's own rule: CAM rounding is no entry)
-    rec["entry_changed"] = sorted(changed & set(r_["line"][entries].tolist()))[:20]
+    # a plunge the optimiser says runs its upper part in proven air (air_entries) may change there
+    # only: checked here — every piece above its air height cuts nothing in the re-simulation, and
+    # the piece that meets material runs at the program's own feed
+    air = {e["line"]: e for e in res.air_entries}
+    air_bad = []
+    mrr = after.signal("mrr") if after.cut is not None else None
+    for i in np.flatnonzero(entries & np.isin(r_["line"], list(air))):
+        e, ps = air[int(r_["line"][i])], pieces.get(int(i), [])
+        last = ps[-1] if ps else None
+        ok = last is not None and abs(rn["feed"][last] - r_["feed"][i]) <= 0.01 if e["air_to_z"] > e["to_z"] + 1e-6 \
+            else bool(ps)
+        fast = ps[:-1] if e["air_to_z"] > e["to_z"] + 1e-6 else ps
+        ok &= all(rn["z"][q] >= e["air_to_z"] - 1e-6 for q in fast)
+        if ok and mrr is not None and fast:
+            ok = not (mrr[np.isin(after.record, fast)] > 0).any()
+        if not ok:
+            air_bad.append(int(r_["line"][i]))
+    rec["air_entry_bad"] = air_bad[:20]
+    rec["air_entries"] = len(air)
+    rec["entry_changed"] = sorted((changed - set(air)) & set(r_["line"][entries].tolist()))[:20]
     c = before.summary.cutting
     faces = []
     if c is not None and c.stock_source == GUESSED_STOCK and c.stock is not None:
@@ -208,7 +229,16 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     ce_b = contour_error(before)
     ce_a = contour_error(after)
     rec["contour_before"] = float(np.max(ce_b[_feed_samples(before, prog)], initial=0.0))
-    rec["contour_after"] = float(np.max(ce_a[_feed_samples(after, new)], initial=0.0))
+    # (where the tool cannot reach the part its following error is in air: the pieces of a plunge
+    # in air all the way, while the command less the error stays above the material it is proven
+    # to stay above — its load there is checked to be none above)
+    reach = _feed_samples(after, new)
+    for i, ps in pieces.items():
+        e = air.get(int(r_["line"][i]))
+        if e is not None and e["air_to_z"] <= e["to_z"] + 1e-6:
+            m = np.isin(after.record, ps)
+            reach[m] &= after.cmd[m, 2] - ce_a[m] < e["material_z"]
+    rec["contour_after"] = float(np.max(ce_a[reach], initial=0.0))
     rec["contour_ok"] = rec["contour_after"] <= rec["contour_before"] + tol + 1e-9 and rec["segments_contour_held"]
     rec["kept"] = {k: len(v) for k, v in res.kept.items()}
     rec["described"] = bool(c is not None and c.tools and all(t["source"] != "default" for t in c.tools))
@@ -313,6 +343,7 @@ def main() -> None:
             elif r["change"] > 1e-4:
                 flags.append(f"slower: the program breaks the given limit ({r['slower_because']} segment(s))")
             for key, what in (("kept_changed", "KEPT LINE CHANGED"), ("entry_changed", "RAMP/HELIX CHANGED"),
+                              ("air_entry_bad", "AIR ENTRY NOT IN AIR"),
                               ("face_changed", "FACING PASS CHANGED")):
                 if r[key]:
                     flags.append(f"{what} {r[key][:5]}")
@@ -352,7 +383,9 @@ def _totals(recs: list, files: list, factor, materials: bool = False) -> None:
               f">= 5 % faster: {int((ch <= -5).sum())}; slower: {int((ch > 0.01).sum())} "
               f"({unnamed} without a broken limit named)")
         print(f"kept line changed: {sum(bool(r['kept_changed']) for r in done)}; ramp/helix changed: "
-              f"{sum(bool(r['entry_changed']) for r in done)}; facing pass changed: "
+              f"{sum(bool(r['entry_changed']) for r in done)}; plunge air not proven: "
+              f"{sum(bool(r.get('air_entry_bad')) for r in done)}; plunges run faster in proven air: "
+              f"{sum(1 for r in done if r.get('air_entries'))}; facing pass changed: "
               f"{sum(bool(r['face_changed']) for r in done)}")
         desc = np.array([r["change"] for r in done if r.get("described")]) * 100
         if len(desc):

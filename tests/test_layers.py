@@ -40,8 +40,11 @@ def test_the_deepest_slot_is_cut_in_the_fewest_layers_under_the_limit(layered):
     text = layered.output.decode()
     # the upper layer is a copy at its own Z with the program's number style; the last one the
     # program's own lines; the link goes up to the plunge's own clearance and back
-    assert "(MTWIN LAYER 1/2 Z-3.)\nG1 Z-3. F100\nG1 X60. F" in text
-    assert "G0 Z5.\nG0 X0. Y30.\nG1 F100\n(MTWIN LAYER 2/2 Z-6.: THE PROGRAM'S OWN LINES)\nG1 Z-6. F100\n" in text
+    # (each plunge then runs its proven air at the air feed: above the stock's top, and in the
+    # last layer down to 1 mm over the floor the upper layer left)
+    assert "(MTWIN LAYER 1/2 Z-3.)\nG1 Z1. F3000\nG1 Z-3. F100\nG1 X60. F" in text
+    assert "G0 Z5.\nG0 X0. Y30.\nG1 F100\n(MTWIN LAYER 2/2 Z-6.: THE PROGRAM'S OWN LINES)\nG1 Z-2. F3000\n" \
+        "G1 Z-6. F100\n" in text
     # each layer's feed is raised to the limit, above the range's floor the single pass broke
     feeds = [float(f) for f in re.findall(r"G1 X60\. F(\d+)", text)[2:]]
     assert len(feeds) == 2 and min(feeds) > 100.0

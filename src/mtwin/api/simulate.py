@@ -114,9 +114,9 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
     dyn = None
     if dynamics:
         from ..chatter.dynamics import trace_dynamics
-        from ..motion.simulate import _program_cutting
+        from ..motion.simulate import program_cutting
 
-        dyn = trace_dynamics(_program_cutting(tw, prog), prog, plan, trace)
+        dyn = trace_dynamics(program_cutting(tw, prog), prog, plan, trace)
         trace.vib = dyn.vib.astype(np.float32)
         for note in dyn.notes:
             msgs.note(note)

@@ -64,11 +64,12 @@ def program_engagement(twin, program, box=None):
     from ..cutting.engagement import engagement_for
 
     plan = twin.plan(program)
-    return plan, engagement_for(plan, program, _program_cutting(twin, program), box, cache=twin.engagement_cache)
+    return plan, engagement_for(plan, program, program_cutting(twin, program), box, cache=twin.engagement_cache)
 
 
-def _program_cutting(twin, program):
-    """The twin's cutting part with the tools this program declares (cached on the program)."""
+def program_cutting(twin, program):
+    """The twin's cutting part with the tools this program declares (its comments, the twin's
+    table): computed once per program and twin cutting set-up, and kept with the program."""
     from ..cutting.library import for_program
 
     hit = getattr(program, "_cutting_for", None)
@@ -76,11 +77,21 @@ def _program_cutting(twin, program):
     if hit is not None and hit[0] is twin.cutting:
         return hit[1]
     cut = for_program(twin.cutting, program)
+    _keep_cutting(program, twin, cut)
+    return cut
+
+
+def share_cutting(twin, program, like) -> None:
+    """Give ``program`` the cutting set-up of ``like`` on this twin: a rewrite of ``like`` that
+    changed F and S words only declares the same tools (the optimiser's rounds)."""
+    _keep_cutting(program, twin, program_cutting(twin, like))
+
+
+def _keep_cutting(program, twin, cut) -> None:
     try:
         object.__setattr__(program, "_cutting_for", (twin.cutting, cut))
     except (AttributeError, TypeError):
         pass
-    return cut
 
 
 def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False, loop_effects=()):
@@ -96,7 +107,7 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
         speed = r["spindle"] if program.spindle_scale is None else r["spindle"] * program.spindle_scale[seg["rec"]]
         spin_cmd[:] = r["spindle_dir"] * np.minimum(speed, m.spindle.max_speed)
         hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
-    cut = _program_cutting(twin, program) if enabled else twin.cutting
+    cut = program_cutting(twin, program) if enabled else twin.cutting
     curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
@@ -149,7 +160,7 @@ def _tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffec
         return ToolEffects(np.zeros((0, 6)), None, None)
     kc = np.zeros(6)
     if twin is not None and program is not None:
-        mat = _program_cutting(twin, program).material
+        mat = program_cutting(twin, program).material
         kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     steps = StepInfo.from_engagement(eng, plan, program, kc=kc, start=start)
     scale = np.ones((len(eng.q), 6))
@@ -385,7 +396,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     if eng is not None:
         from ..cutting.library import tools_used
 
-        cutting_part = _program_cutting(twin, program)
+        cutting_part = program_cutting(twin, program)
         cut_time = cstats[RK.CS_CUT_TIME]
         feed_moves = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
         # (feed moves that meet the stock with the spindle stopped were named above: the stock
@@ -458,7 +469,7 @@ def chatter_table(twin, program, plan, eng) -> dict:
     depth, limit, speed and chatter frequency there; empty when no tool has dynamics."""
     from ..chatter.margin import step_arcs, step_limits, tool_dynamics
 
-    cut = _program_cutting(twin, program)
+    cut = program_cutting(twin, program)
     rec = program.records
     tools, dyn = tool_dynamics(cut, rec["tool"])
     if not any(dyn.values()) or not eng.steps:

@@ -51,9 +51,9 @@ def chatter_tables(twin, program, model, eng, segs, prob, speed_range, margin: f
                    method: str = "auto") -> ChatterTables | None:
     """The segments' stability tables, or None when no cutting tool has dynamics."""
     from ..chatter.margin import limit_tables, step_arcs, tool_dynamics
-    from ..motion.simulate import _program_cutting
+    from ..motion.simulate import program_cutting
 
-    cut = _program_cutting(twin, program)
+    cut = program_cutting(twin, program)
     tools, dyn = tool_dynamics(cut, prob.seg_tool[~prob.seg_air])
     if not any(dyn.values()):
         return None

@@ -331,7 +331,7 @@ def proven_clear(program, cutting) -> np.ndarray:
     rec = program.records
     n = len(rec)
     out = np.zeros(n, bool)
-    rapid = (rec["kind"] == R.RAPID) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) > 1e-6)
+    rapid = (rec["kind"] == R.RAPID) & (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) > 1e-6) & placed(rec)
     feed = R.is_feed_kind(rec["kind"])
     if not rapid.any() or not feed.any():
         return out
@@ -372,6 +372,20 @@ def proven_clear(program, cutting) -> np.ndarray:
     arc = (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
     out &= ~(arc & (rec["plane"] != R.PLANE_XY))
     return out
+
+
+def placed(rec) -> np.ndarray:
+    """Per record: does it start where the program put the tool?  The interpreter starts from an
+    assumed point (the origin) while the machine stands wherever it was: a move before every axis
+    has moved once runs from an unknown point (a first ``G0 X Y`` at the assumed Z0 proves nothing
+    about Z0)."""
+    if not len(rec):
+        return np.zeros(0, bool)
+    moved = np.ones(len(rec), bool)
+    for a in ("x", "y", "z"):
+        m = np.maximum.accumulate(np.abs(rec[a] - rec["s" + a]) > 1e-9)
+        moved &= np.r_[False, m[:-1]]
+    return moved
 
 
 def _xy_samples(rec, mask, step: float, with_index: bool = False):
@@ -419,3 +433,108 @@ def feed_height(program) -> float:
     slows = (a["kind"] == R.LINEAR) & (b["kind"] == R.LINEAR) & (b["feed"] < a["feed"] * 0.999)
     pair = va & vb & (g0_then_g1 | slows)
     return float(a["z"][pair].min()) if pair.any() else math.inf
+
+
+#: mm above the highest material a plunge is proven to meet: where it slows to its own feed
+#: (the CAM systems' feed height is 1–5 mm over the stock; the servo's lag at a plunge feed is
+#: a tenth of a millimetre)
+ENTRY_CLEARANCE = 1.0
+ENTRY_MIN_AIR = 1.0  # mm of proven air a plunge must have before it is split (an extra line)
+
+
+@dataclass(frozen=True)
+class AirEntry:
+    """A plunge whose upper part is proven air: it may run there at the air feed."""
+
+    record: int
+    line: int
+    z_from: float  # the plunge's start height
+    z_air: float  # down to here it is air (its end: the whole move is air)
+    z_to: float  # its end height
+    proven_by: str  # "feed height" | "earlier cuts" | "stock top"
+    material: float  # the highest material it can meet (the feed height: at most there)
+
+    def as_dict(self) -> dict:
+        return {"line": self.line, "from_z": self.z_from, "air_to_z": self.z_air, "to_z": self.z_to,
+                "proven_by": self.proven_by, "material_z": self.material}
+
+
+def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: float,
+                stock_top: float | None) -> list[AirEntry]:
+    """Plunges (straight down at a feed) whose upper part is proven clear of material, and how far.
+
+    Three proofs, the lowest that holds wins: above the program's own feed height
+    (``feed_height``, where it descends fast); above a given stock's top plus ENTRY_CLEARANCE;
+    above the material the program's earlier moves left under the plunging tool plus
+    ENTRY_CLEARANCE — a tool that has been at height z over a point (any earlier move, rapid or
+    feed, of a described tool) removed everything above z (plus its nose: a ball or bull nose,
+    a vee's cone) there, whatever the real stock, so the highest of those heights over the
+    plunging tool's footprint is the highest material it can meet.  A footprint point no earlier
+    move covered gives no proof.  Segment samples are discrete, so a sweep is under-counted
+    between them: the proof errs on the side of material."""
+    from scipy.spatial import cKDTree
+
+    rec = program.records
+    idx = np.flatnonzero(plunges)
+    if not len(idx):
+        return []
+    tools = {int(t): cutting.tool(int(t)) for t in np.unique(rec["tool"]) if int(t) in described}
+    moves = (R.move_lengths(rec) > 0) & np.isin(rec["tool"], list(tools)) & placed(rec) & \
+        ((rec["kind"] == R.RAPID) | R.is_feed_kind(rec["kind"])) & \
+        ~(((rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & (rec["plane"] != R.PLANE_XY))
+    tree = None
+    if tools and moves.any():
+        r_min = min(t.radius for t in tools.values())
+        pts, zs, which = _xy_samples(rec, moves, max(0.25 * r_min, 0.02), with_index=True)
+        rad = np.array([tools[int(t)].radius for t in rec["tool"][which]])
+        rise = np.array([_rise(tools[int(t)]) for t in rec["tool"][which]])
+        tree = cKDTree(pts)
+        r_max = float(rad.max())
+    out = []
+    for r in idx:
+        z0, z1 = float(rec["sz"][r]), float(rec["z"][r])
+        cands = []
+        if math.isfinite(clear_z) and z0 > clear_z:
+            cands.append((clear_z, "feed height", clear_z))
+        if stock_top is not None:
+            cands.append((stock_top + ENTRY_CLEARANCE, "stock top", stock_top))
+        t = int(rec["tool"][r])
+        if tree is not None and t in tools:
+            c = np.array([rec["x"][r], rec["y"][r]])
+            near = np.asarray(tree.query_ball_point(c, tools[t].radius + r_max), dtype=np.int64)
+            near = near[which[near] < r] if len(near) else near
+            if len(near):
+                disc = _footprint(c, tools[t].radius)
+                d = np.hypot(disc[:, None, 0] - pts[near, 0][None, :], disc[:, None, 1] - pts[near, 1][None, :])
+                cover = d <= rad[near][None, :] + 1e-9
+                low = np.where(cover, (zs[near] + rise[near])[None, :], np.inf).min(axis=1)
+                top = float(low.max())
+                if math.isfinite(top):
+                    cands.append((top + ENTRY_CLEARANCE, "earlier cuts", top))
+        if not cands:
+            continue
+        z_air, why, material = min(cands)
+        z_air = max(z_air, z1)
+        if z0 - z_air < ENTRY_MIN_AIR:
+            continue
+        out.append(AirEntry(int(r), int(rec["line"][r]), z0, z_air, z1, why, material))
+    return out
+
+
+def _rise(tool) -> float:
+    """Height above its tip at which a tool's bottom reaches its full radius."""
+    if tool.type == "vee":
+        return (tool.radius - tool.tip_radius) * tool.cot_half_angle
+    return tool.nose_radius
+
+
+def _footprint(c: np.ndarray, radius: float) -> np.ndarray:
+    """Points covering a tool's disc: a grid (at most 0.5 mm, a fifth of the radius apart) and its rim."""
+    h = max(min(0.2 * radius, 0.5), 1e-3)
+    k = int(math.ceil(radius / h))
+    g = np.arange(-k, k + 1) * h
+    xx, yy = np.meshgrid(g, g)
+    inside = xx * xx + yy * yy <= radius * radius
+    ang = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
+    rim = np.stack([radius * np.cos(ang), radius * np.sin(ang)], axis=1)
+    return c + np.concatenate([np.stack([xx[inside], yy[inside]], axis=1), rim])

@@ -55,7 +55,7 @@ class PathModel:
 def path_model(twin, program, plan, eng, kstep=None) -> PathModel:
     """The fast model of a program from its plan and (cached) engagement; ``kstep``: the
     cutting coefficients per step when effects change them along the path ((steps, 6))."""
-    from ..motion.simulate import _program_cutting
+    from ..motion.simulate import program_cutting
 
     seg = plan.seg
     count = eng.count
@@ -83,7 +83,7 @@ def path_model(twin, program, plan, eng, kstep=None) -> PathModel:
     length = seg_len[step_seg] / cnt
 
     S, q = eng.sums, eng.q  # (float32 step tables: only the columns used are widened)
-    mat = _program_cutting(twin, program).material
+    mat = program_cutting(twin, program).material
     k = (mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae)
     if kstep is not None and len(kstep):
         k = tuple(kstep[:, j] for j in range(6))  # (tool wear: the edge ones grow along the path)

@@ -20,8 +20,8 @@ from .problem import CostRates, Limits, Runups, build_problem
 from .chatter import chatter_tables, var_stable
 from .chatter import report as chatter_report
 from .search import GAOptions, bisect, fixed_spins, genetic
-from .guards import (FINISH_AE, SURFACE_SHARE, contour_error, final_surface_steps, finish_lines, inside_stock,
-                     feed_height, learned_levels, percentile_by_group, proven_clear, trusted_records)
+from .guards import (ENTRY_MIN_AIR, FINISH_AE, SURFACE_SHARE, air_entries, contour_error, final_surface_steps,
+                     finish_lines, inside_stock, feed_height, learned_levels, percentile_by_group, proven_clear, trusted_records)
 from .segment import locate, segment_path
 
 
@@ -233,6 +233,8 @@ class OptimizeResult:
     # the proof that the written program leaves the original's part (cutting.stockproof)
     layers: list = field(default_factory=list)
     stock_proof: object = None
+    # plunges that run their upper part in proven air at the air feed (guards.air_entries)
+    air_entries: list = field(default_factory=list)
 
     @property
     def tools(self) -> list:
@@ -268,7 +270,7 @@ class OptimizeResult:
                 **({"tool_wear": {str(k): v for k, v in self.tool_wear.items()}} if self.tool_wear else {}),
                 **({"chatter": self.chatter} if self.chatter else {}),
                 **({"layers": self.layers, "stock_proof": self.stock_proof.as_dict()} if self.layers else {}),
-                "slower_because": self.slower_because,
+                "slower_because": self.slower_because, "air_entries": self.air_entries,
                 "changes": [{"line": ln, "before": x, "after": y} for ln, x, y in self.changed_lines]}
 
 
@@ -408,7 +410,7 @@ class _Run(SimpleNamespace):
 def _baseline(run: _Run) -> OptimizeResult | None:
     """The program as written: its plan and simulation, the fast model, what the optimiser may set (trusted
     records, ramps), the feed range, the segments and the planner's move times at other feeds."""
-    from ..motion.simulate import _program_cutting, _tool_effects, simulate_plan
+    from ..motion.simulate import program_cutting, _tool_effects, simulate_plan
 
     opts, program, stage, stock, twin = run.take("opts program stage stock twin")
     t_start = time.perf_counter()
@@ -417,7 +419,7 @@ def _baseline(run: _Run) -> OptimizeResult | None:
     stage("simulating the program")
     plan = twin.plan(program, keep_geometry=True)  # (the plans at other feeds below reuse its geometry)
     rec = program.records
-    cut = _program_cutting(twin, program)
+    cut = program_cutting(twin, program)
     candidates = feed_records(program)
     ramps = entry_records(program) & candidates if opts.ramp_feed == "keep" else np.zeros(len(rec), bool)
     candidates &= ~ramps
@@ -754,6 +756,19 @@ def _guards(run: _Run) -> OptimizeResult | None:
     clear_z = feed_height(program)
     if stock_box is None or not clear_z > float(stock_box[5]):
         clear_z = math.inf
+    # the height above which a move cannot touch the part: the program's own feed height, or a
+    # given (not guessed) stock's top — a following error there moves the tool in air
+    clear_level = clear_z if stock_guessed or stock_box is None else min(clear_z, float(stock_box[5]))
+    # plunges whose upper part is proven air run it at the air feed, and their own feed from
+    # just above the material they can meet (guards.air_entries)
+    entries = _air_entries(run, clear_z, None if stock_guessed or stock_box is None else float(stock_box[5]))
+    if entries:
+        plunge_key = "plunges, canned cycles, parameter feeds (never set)"
+        split_lines = {e.line for e in entries.values()}
+        if plunge_key in kept:
+            kept[plunge_key] = [ln for ln in kept[plunge_key] if ln not in split_lines]
+            if not kept[plunge_key]:
+                del kept[plunge_key]
     if stock_guessed:
         # inside the guessed block, a move is air only because earlier cuts removed the material
         # there, which they also do on the machine, whatever the real stock's size — provided
@@ -816,7 +831,8 @@ def _guards(run: _Run) -> OptimizeResult | None:
     np.logical_or.at(surface_var, prob.seg_var, run.surface_seg)
     rough = max(ROUGH_TOLERANCE, opts.tolerance) if opts.rough_tolerance is None else opts.rough_tolerance
     tol_v = np.where(surface_var, opts.tolerance, rough)
-    run.put(clear_z=clear_z, feeds=feeds, fin_var=fin_var, keep=keep, kept=kept, rough=rough, surface_var=surface_var,
+    run.put(clear_level=clear_level, clear_z=clear_z, entries=entries, feeds=feeds, fin_var=fin_var, keep=keep,
+            kept=kept, rough=rough, surface_var=surface_var,
             tol_v=tol_v)
 
 
@@ -825,10 +841,18 @@ def _rounds(run: _Run) -> OptimizeResult | None:
     feed below the program's own only for a limit the program breaks there."""
     from ..gcode.verify import compare
     from ..gcode.writer import rewrite
-    (before, broken, cut, feed_range, feeds, floor, keep, kept, learned, limit_notes, limits, opts, prob, program,
-     rec, seg_given, segs, spindle_range, spins, stage, stock, t_start, tol_v, twin, warnings, worn) = \
-        run.take("before broken cut feed_range feeds floor keep kept learned limit_notes limits opts prob program rec "
-                 "seg_given segs spindle_range spins stage stock t_start tol_v twin warnings worn")
+    from ..motion.simulate import share_cutting
+    (before, broken, cut, entries, feed_range, feeds, floor, keep, kept, learned, limit_notes, limits, opts, prob,
+     program, rec, seg_given, segs, spindle_range, spins, stage, stock, t_start, tol_v, twin, warnings, worn) = \
+        run.take("before broken cut entries feed_range feeds floor keep kept learned limit_notes limits opts prob "
+                 "program rec seg_given segs spindle_range spins stage stock t_start tol_v twin warnings worn")
+    entries = dict(entries)
+    # per record, the height above which its following error moves the tool in air: the clear
+    # level, or the material a plunge in air all the way is proven to stay above
+    air_floor = np.full(len(rec), run.clear_level)
+    for r, e in entries.items():
+        if e.z_air <= e.z_to + 1e-9:
+            air_floor[r] = min(air_floor[r], e.material)
     # ---- write, verify, re-simulate: the limits and the accuracy are held on the full twin.
     # A guard lowers a feed below the program's own only for a limit the program itself breaks
     # there (its floor is gone); for anything else — a move after it entered faster, accuracy —
@@ -859,11 +883,12 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         f_try = _round_feeds(np.minimum(np.maximum(cur, floor), cap), f0, program, segs, prob)
         f_try = np.where(keep, f0, f_try)
         s_try = np.round(spins)
-        feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep)
+        feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep,
+                                               entries, feed_range[1])
         out = rewrite(program, feeds_rec, spins_rec, splits)
         new = twin.load(out, path=program.path)
         # the writer changed F and S words only: the tools the comments declare are the same
-        object.__setattr__(new, "_cutting_for", (tw_after.cutting, cut))
+        share_cutting(tw_after, new, program)
         diff = compare(program, new)  # the check of `mtwin verify`
         if diff is not None:
             raise VerifyError(f"internal error: the optimised program does not cut the same path: {diff}")
@@ -925,7 +950,10 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         # it loses accuracy to that one, which is slowed)
         c_ratio = contour_after / np.maximum(contour_before + tol_v, 1e-12)
         c_rec = _per_rec(ce_after, seg_after, rec_after, program)
-        c_worse = c_rec > contour_rec_before + opts.tolerance
+        # (a move that stays above the clear level by more than its error does not reach the
+        # part: a plunge's descent through air after a faster retract)
+        c_worse = (c_rec > contour_rec_before + opts.tolerance) & \
+            (np.minimum(rec["z"], rec["sz"]) - c_rec < air_floor - 1e-6)
         cblame = np.zeros(prob.nvar)
         if c_worse.any():
             excess = np.concatenate([c_rec / np.maximum(contour_rec_before + opts.tolerance, 1e-12),
@@ -936,6 +964,13 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         for v in np.flatnonzero(~raised & (c_ratio > 1.0)):
             if prev[v] >= 0:
                 cblame[prev[v]] = max(cblame[prev[v]], float(c_ratio[v]))
+        # a plunge entered faster through its air that is worse for it (load or contour) keeps
+        # its feed all the way: the air proof had too little margin for this machine
+        missed = [r for r in entries if worse[r] or c_worse[r]]
+        if missed:
+            for r in missed:
+                kept.setdefault("plunges, canned cycles, parameter feeds (never set)", []).append(entries.pop(r).line)
+            continue
         load_bad = over & ~at_floor
         chip_bad = (chip_v > chip_ok) & raised & ~load_bad
         blame_bad = (blame > 1.0) & raised
@@ -1010,7 +1045,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                 stuck = (acc_bad | cblame_bad) & ~load_bad
                 cap = np.where(stuck, np.minimum(cap, f0), cap)
         cur = _approach_feeds(prob, segs, new_f, program, keep, run.clear_z)
-    run.put(after=after, broken=broken, ce_after=ce_after, ce_before=ce_before,
+    run.put(after=after, broken=broken, entries=entries, ce_after=ce_after, ce_before=ce_before,
             contour_after=contour_after, contour_before=contour_before, f0=f0, f_try=f_try, keep=keep, kept=kept,
             loads_after=loads_after, loads_before=loads_before, lowered_for=lowered_for, new=new, out=out,
             prev=prev, round_=round_, s_try=s_try, seg_after=seg_after, seg_before=seg_before, tw_after=tw_after,
@@ -1156,7 +1191,9 @@ def _result(run: _Run) -> OptimizeResult | None:
         tool_wear=_wear_warnings(wear_plan(twin, after), warnings), chatter=chatter,
         chatter_curves={} if prob.chatter is None else {t: (prob.chatter.grid, c) for t, c in prob.chatter.curves.items()},
         slower_because=[{k: v for k, v in r.items() if k != "text"} for r in slower_because],
-        tradeoff_scale=tradeoff_scale)
+        tradeoff_scale=tradeoff_scale,
+        air_entries=[{**e.as_dict(), "air_feed": float(feed_range[1]), "feed": float(program.records["feed"][r])}
+                     for r, e in sorted(run.entries.items())])
 
 
 STAGES = (_baseline, _limits, _search, _guards, _rounds, _result)
@@ -1576,6 +1613,23 @@ def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray, machine: bool = True)
     return out
 
 
+def _air_entries(run: _Run, clear_z: float, stock_top: float | None) -> dict:
+    """Per record, the plunges that may run their upper part at the air feed (guards.air_entries):
+    straight down at a feed per minute, a line of their own the writer can split."""
+    from .segment import splittable
+
+    program, cut, trust, candidates = run.take("program cut trust candidates")
+    rec = program.records
+    plunges = R.is_feed_kind(rec["kind"]) & (rec["kind"] == R.LINEAR) & ~candidates & (rec["feed"] > 0) & \
+        (rec["feed_mode"] == R.FEED_PER_MIN) & ((rec["flags"] & (R.FL_SYNC | R.FL_PROBE)) == 0) & \
+        (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) < 1e-6) & (rec["sz"] - rec["z"] >= ENTRY_MIN_AIR) & \
+        splittable(program)
+    if not plunges.any():
+        return {}
+    described = set(np.unique(rec["tool"]).tolist()) - set(trust.undescribed)
+    return {e.record: e for e in air_entries(program, cut, plunges, described, clear_z, stock_top)}
+
+
 def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray, clear_z: float = math.inf) -> np.ndarray:
     """An air segment that runs straight into a cut, or into a feed move the optimiser does not
     set (a plunge), is an approach: it runs at most at that move's feed (or its own programmed
@@ -1641,9 +1695,11 @@ def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarr
     return np.where((np.abs(f - f0) < 0.5 * step) | ((f > f0) & (f < 1.01 * f0)), f0, out)
 
 
-def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndarray):
-    """Per-record feeds (NaN: keep), splits and spindle speeds of a candidate."""
-    from ..gcode.writer import Split
+def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndarray, entries: dict | None = None,
+            air_feed: float = 0.0):
+    """Per-record feeds (NaN: keep), splits and spindle speeds of a candidate; ``entries``: the
+    plunges whose upper part runs at ``air_feed`` (guards.AirEntry)."""
+    from ..gcode.writer import MIN_PIECE, Split
 
     rec = program.records
     n = len(rec)
@@ -1682,6 +1738,11 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
             splits[r] = Split(ts, [float(x) for x in fl])
         elif fl[0] != rec["feed"][r]:
             out[r] = fl[0]
+    for r, e in (entries or {}).items():
+        if e.z_air <= e.z_to + MIN_PIECE:
+            out[r] = air_feed  # all of it in air
+        else:
+            splits[r] = Split([(e.z_from - e.z_air) / (e.z_from - e.z_to)], [air_feed, float(rec["feed"][r])])
     if whole:
         # a line the program runs more than once (a loop, a subprogram) has one F word: kept
         # whole on one run, it is kept on every run
@@ -1924,7 +1985,7 @@ def _scale_tradeoff(run: _Run, est, fig_after) -> list:
         if len(program.records) <= TRADEOFF_MAX_RECORDS:
             fr = _round_feeds(f, prob.f0_var, program, segs, prob)
             feeds_rec, splits, spins_rec = _expand(program, segs, np.where(keep, prob.f0_var, fr), np.round(s_try),
-                                                   prob, False, keep)
+                                                   prob, False, keep, run.entries, run.feed_range[1])
             text = rewrite(program, feeds_rec, spins_rec, splits)
             resim = float(tw_after.simulate(twin.load(text, path=program.path), stock=stock,
                                             chatter=False).summary.cycle_time)
