@@ -277,6 +277,11 @@ def _print_optimize(res, prog) -> None:
                   highlight=False)
     for why, lines in res.kept.items():
         err.print(f"kept their feeds ({why}): {len(lines)} line(s)", highlight=False, soft_wrap=True)
+    if res.air_entries:
+        air = res.air_entries
+        err.print(f"plunges through proven air: {len(air)} run their upper part at the air feed and their own feed "
+                  f"from 1 mm over the material (lines {line_ranges([x['line'] for x in air])})",
+                  highlight=False, soft_wrap=True)
     if res.segments:
         from collections import Counter
 

@@ -1175,7 +1175,10 @@ def _result(run: _Run) -> OptimizeResult | None:
     if spindle_range is not None:
         for s in range(segs.count):
             spindle_chosen.setdefault(int(prob.seg_tool[s]), float(s_try[prob.seg_spin[s]]))
-    estimate = {"cycle_time": float(est["time"][0]), "cost": float(est["cost"][0]),
+    # (the fast model has the segments; a plunge's air at the air feed, L/F, is taken off its own)
+    air_saved = sum((e.z_from - e.z_air) * 60.0 * (1.0 / float(program.records["feed"][r]) -
+                                                     1.0 / float(feed_range[1])) for r, e in run.entries.items())
+    estimate = {"cycle_time": float(est["time"][0]) - air_saved, "cost": float(est["cost"][0]),
                 "peak_load": float(est["load"][0][~prob.seg_air].max(initial=0.0)),
                 "peak_power": float(est["power"][0][~prob.seg_air].max(initial=0.0))}
     return OptimizeResult(

@@ -77,6 +77,13 @@ def optimize_html(res, program: str) -> bytes:
         parts.append("<h2>Moves that kept their feeds</h2><ul>" + "".join(
             f"<li>{e(why)}: {len(lines)} line(s), {e(', '.join(str(x) for x in lines[:20]))}"
             f"{' …' if len(lines) > 20 else ''}</li>" for why, lines in res.kept.items()) + "</ul>")
+    if res.air_entries:
+        parts.append("<h2>Plunges through proven air</h2><p>Each runs its upper part at the air feed and its own "
+                     "feed from 1 mm above the highest material it can meet.</p><table><tr><th>line</th><th>from Z"
+                     "</th><th>air to Z</th><th>to Z</th><th>material at most at Z</th><th>proven by</th></tr>" +
+                     "".join(f"<tr><td>{x['line']}</td><td>{x['from_z']:.3f}</td><td>{x['air_to_z']:.3f}</td>"
+                             f"<td>{x['to_z']:.3f}</td><td>{x['material_z']:.3f}</td><td>{e(x['proven_by'])}</td></tr>"
+                             for x in res.air_entries) + "</table>")
     parts.append("<h2>Power and load over time</h2>")
     parts.append(_curves(plt, res))
     parts.append("<h2>Path feed over time</h2>")
