@@ -77,7 +77,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     from mtwin.gcode import records as R
     from mtwin.gcode.verify import compare
     from mtwin.motion.simulate import program_cutting
-    from mtwin.optimize.guards import contour_error
+    from mtwin.optimize.guards import contour_error, feed_height
     from mtwin.cutting.engagement import GUESSED_STOCK
     from mtwin.optimize.run import OptimizeOptions, _feed_samples, optimize
 
@@ -232,7 +232,15 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     # (where the tool cannot reach the part its following error is in air: the pieces of a plunge
     # in air all the way, while the command less the error stays above the material it is proven
     # to stay above — its load there is checked to be none above)
+    # nor above the program's own feed height (where it descends fast before it slows to plunge,
+    # when above the stock's top) or a given stock's top: a corner taken fast up there is in air
     reach = _feed_samples(after, new)
+    if c is not None and c.stock is not None:
+        clear = feed_height(prog)
+        clear = clear if clear > float(c.stock[5]) else np.inf
+        if c.stock_source != GUESSED_STOCK:
+            clear = min(clear, float(c.stock[5]))
+        reach &= after.cmd[:, 2] - ce_a < clear
     for i, ps in pieces.items():
         e = air.get(int(r_["line"][i]))
         if e is not None and e["air_to_z"] <= e["to_z"] + 1e-6:

@@ -905,8 +905,9 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             seg_before, rec_before = _segment_of_samples(before, program, program, segs)
             force_min = float(prob.seg_force.min()) if len(prob.seg_force) else 1.0
             base_outside = _outside_ratios(loads_before, seg_before, rec_before, len(rec), force_min)
-            contour_before = _per_var(ce_before, seg_before, prob)
-            contour_rec_before = _per_rec(ce_before, seg_before, rec_before, program)
+            cb = _reaching(ce_before, before, rec_before, air_floor)
+            contour_before = _per_var(cb, seg_before, prob)
+            contour_rec_before = _per_rec(cb, seg_before, rec_before, program)
             own = _ratios(loads_before, segs, prob, seg_before) * 1.001
             # the chip ceilings from physics cap a raise only: a segment may keep its own chip
             chip_ok = np.maximum(1.0, _chip_ratios(loads_before, prob, seg_before) * 1.001)
@@ -945,15 +946,13 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             blame = np.maximum(blame, _blame_previous(seg_after, rec_after, worse, prob,
                                                       out_now / np.maximum(1.0, base_outside)))
         # 2. accuracy: the contour error in a segment, and in the moves outside after it
-        contour_after = _per_var(ce_after, seg_after, prob)
+        ca = _reaching(ce_after, after, rec_after, air_floor)
+        contour_after = _per_var(ca, seg_after, prob)
         # (on every segment, kept ones too: a kept segment entered faster by a raised one before
         # it loses accuracy to that one, which is slowed)
         c_ratio = contour_after / np.maximum(contour_before + tol_v, 1e-12)
-        c_rec = _per_rec(ce_after, seg_after, rec_after, program)
-        # (a move that stays above the clear level by more than its error does not reach the
-        # part: a plunge's descent through air after a faster retract)
-        c_worse = (c_rec > contour_rec_before + opts.tolerance) & \
-            (np.minimum(rec["z"], rec["sz"]) - c_rec < air_floor - 1e-6)
+        c_rec = _per_rec(ca, seg_after, rec_after, program)
+        c_worse = c_rec > contour_rec_before + opts.tolerance
         cblame = np.zeros(prob.nvar)
         if c_worse.any():
             excess = np.concatenate([c_rec / np.maximum(contour_rec_before + opts.tolerance, 1e-12),
@@ -1341,6 +1340,15 @@ def _per_var(values: np.ndarray, seg_of: np.ndarray, prob) -> np.ndarray:
     m = seg_of >= 0
     _max_into(out, prob.seg_var[seg_of[m]], values[m])
     return out
+
+
+def _reaching(ce: np.ndarray, trace, rec_of: np.ndarray, air_floor: np.ndarray) -> np.ndarray:
+    """The contour error where it can reach the part: 0 on samples whose command, lowered by the
+    error, stays above their move's air floor (the feed height, a given stock's top, the material
+    a plunge in air is proven to stay above) — a corner taken fast in air moves the tool in air."""
+    r = np.asarray(rec_of, np.int64)
+    floor = np.where(r >= 0, air_floor[np.clip(r, 0, len(air_floor) - 1)], np.inf)
+    return np.where(trace.cmd[:, 2] - ce >= floor, 0.0, ce)
 
 
 def _per_rec(values: np.ndarray, seg_of: np.ndarray, rec_of: np.ndarray, program) -> np.ndarray:
