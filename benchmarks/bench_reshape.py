@@ -45,7 +45,7 @@ COLD = r"""
 import json, os
 os.environ["MTWIN_KERNELS"] = "compiled"
 import mtwin
-from mtwin import _jit
+from mtwin import jit as _jit
 tw = mtwin.Twin()
 tw.simulate(tw.load(open(os.path.join(os.environ["MTWIN_ROOT"], "samples", "contour.nc"), "rb").read(), path="c.nc"))
 print(json.dumps(sum(s for name, s in _jit.COMPILE_LOG if name.endswith("run_twin"))))

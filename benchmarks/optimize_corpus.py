@@ -271,7 +271,7 @@ def _physics_broken(prog, new, before, after, res) -> list:
         rec = trace.record
         ok = rec >= 0
         tool = np.where(ok, program.records["tool"][np.maximum(rec, 0)], -1)
-        h = trace.cut[:, 6].astype(float)
+        h = trace.signal("h_max")
         return {int(t): float(h[tool == t].max(initial=0.0)) for t in np.unique(tool[ok])}
 
     hb, ha = hmax(before, prog), hmax(after, new)

@@ -5,6 +5,7 @@ with ast, so the test needs nothing imported."""
 from __future__ import annotations
 
 import ast
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -55,7 +56,7 @@ def import_graph():
                 in_functions += 1
             for t in targets:
                 a, b = _node(name), _node(t)
-                if a != b and b != "mtwin":
+                if a != b:
                     edges[a][b].append(name)
     return edges, in_functions
 
@@ -97,6 +98,45 @@ def test_the_package_import_graph_has_no_cycle():
     detail = "; ".join(" ↔ ".join(c) + " (" + ", ".join(f"{a}→{b} in {sorted(set(edges[a][b]))[:3]}" for a in c
                                                        for b in edges[a] if b in c) + ")" for c in cycles)
     assert not cycles, f"import cycles between mtwin's packages: {detail}"
+
+
+DOC = ROOT / "docs" / "architecture.md"
+
+
+def documented_layers() -> list[list[str]]:
+    """The layers of ``docs/architecture.md``'s drawing, top first: each line of the drawing that
+    starts with a name (one space in) is a layer, its names two spaces apart, a description
+    after three or more."""
+    text = DOC.read_text(encoding="utf-8")
+    start = text.index("```", text.index("## Layers: imports run one way")) + 3
+    block = text[start:text.index("```", start)]
+    layers = []
+    for line in block.splitlines():
+        m = re.match(r"^ ([A-Za-z_]\w*/?(?:  [A-Za-z_]\w*/?)*)(?:\s{3,}|$)", line)
+        if m:
+            layers.append(["mtwin" if n == "mtwin" else "mtwin." + n.rstrip("/") for n in m.group(1).split("  ")])
+    return layers
+
+
+def test_imports_run_down_the_documented_layers():
+    layers = documented_layers()
+    level = {n: k for k, names in enumerate(layers) for n in names}
+    edges, _ = import_graph()
+    nodes = set(edges) | {b for a in edges for b in edges[a]}
+    nodes |= {_node(_module_name(p)[0]) for p in PKG.rglob("*.py")}
+    missing = sorted(nodes - set(level))
+    assert not missing, f"packages and modules the drawing in docs/architecture.md does not name: {missing}"
+    named_only = sorted(set(level) - nodes)
+    assert not named_only, f"the drawing names what the code does not have: {named_only}"
+    up = [f"{a} → {b} (in {sorted(set(edges[a][b]))[:2]})" for a in edges for b in edges[a] if level[b] < level[a]]
+    assert not up, f"imports upwards, against the layers of docs/architecture.md: {up}"
+
+
+def test_the_layers_are_read_as_drawn():
+    layers = documented_layers()
+    assert layers[0] == ["mtwin", "mtwin.__main__"] and layers[1] == ["mtwin.cli"]
+    assert ["mtwin.loop", "mtwin.optimize", "mtwin.grind", "mtwin.report"] in layers
+    assert "mtwin.layout" in layers[-1] and "mtwin.warmup" in sum(layers, [])
 
 
 def test_the_graph_is_read_as_it_is():
@@ -159,3 +199,89 @@ def test_the_cli_imports_nothing_private_and_builds_no_twin():
                 if name in ("Twin", "build", "from_toml"):
                     bad.append(f"{path.name}:{n.lineno} builds a twin ({name})")
     assert not bad, bad
+
+
+def private_imports() -> list[str]:
+    """``from <another package> import _name`` anywhere in mtwin (its own package's private names
+    are its own business)."""
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        name, package = _module_name(path)
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for n in ast.walk(tree):
+            if not isinstance(n, ast.ImportFrom):
+                continue
+            if n.level:
+                base = package.split(".")[:len(package.split(".")) - (n.level - 1)]
+                target = ".".join(base + ([n.module] if n.module else []))
+            else:
+                target = n.module or ""
+            if not target.startswith("mtwin"):
+                continue
+            names = [a.name for a in n.names] if n.module else []
+            parts = target.split(".")
+            private = [x for x in parts[1:] + names if x.startswith("_") and not (x.startswith("__") and x.endswith("__"))]
+            for a in ([] if n.module else [a.name for a in n.names]):
+                if _node(target + "." + a) != _node(name) and a.startswith("_") and not a.startswith("__"):
+                    private.append(a)
+            # (a kernel calls another package's kernel directly: numba types it as a global)
+            kernel_to_kernel = name.split(".")[-1].endswith("kernel") and all(x.endswith("kernel") for x in private)
+            if private and _node(target) != _node(name) and not kernel_to_kernel:
+                bad.append(f"{name}:{n.lineno} imports {', '.join(private)} from {target}")
+    return bad
+
+
+def test_no_module_imports_a_private_name_of_another_package():
+    bad = private_imports()
+    assert not bad, bad
+
+
+# ------------------------------------------------------------------ kernel arrays by name
+
+#: arrays that cross a kernel boundary, by the names the code gives them: the planner's
+#: profile, the loop's cut outputs and counters, the engagement's step scalars and sums; their
+#: columns are named once, in mtwin.layout
+KERNEL_NAMES = {"prof", "cut_out", "segp", "eng_q", "eng_sums"}
+KERNEL_ATTRS = {"prof", "cut", "seg", "q", "sums"}  # plan.prof, trace.cut, state.seg, engagement.q, .sums
+
+
+def literal_kernel_indices() -> list[str]:
+    """``prof[i, 3]``, ``trace.cut[:, 2]``, ``state.seg[5]``…: an integer literal in the index of
+    a kernel array, anywhere but ``layout.py`` (the run kernel's axis-state rows too)."""
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        if path.name == "layout.py":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for n in ast.walk(tree):
+            if not isinstance(n, ast.Subscript):
+                continue
+            v = n.value
+            named = (isinstance(v, ast.Name) and (v.id in KERNEL_NAMES or
+                                                  (v.id == "axes" and path.name == "_runkernel.py"))) or \
+                (isinstance(v, ast.Attribute) and v.attr in KERNEL_ATTRS)
+            if not named:
+                continue
+            parts = n.slice.elts if isinstance(n.slice, ast.Tuple) else [n.slice]
+            if any(isinstance(p, ast.Constant) and isinstance(p.value, int) and not isinstance(p.value, bool)
+                   for p in parts):
+                bad.append(f"{path.relative_to(SRC)}:{n.lineno} {ast.unparse(n)}")
+    return bad
+
+
+def test_no_literal_index_into_a_kernel_array():
+    bad = literal_kernel_indices()
+    assert not bad, f"index kernel arrays by the names of mtwin.layout: {bad}"
+
+
+def test_the_memory_guard_counts_the_widths_the_loop_allocates():
+    import numpy as np
+
+    from mtwin.motion import _runkernel as RK
+
+    n = 10
+    out = RK.allocate_outputs(n)
+    # a trace keeps the line and the record (int32) where the loop keeps the segment number
+    allocated = sum(a.nbytes for a in out) - out.segno.nbytes + 2 * n * np.dtype(np.int32).itemsize
+    assert RK.bytes_per_sample() * n == allocated
+    assert out.cut.shape[1] == len(__import__("mtwin.layout", fromlist=["x"]).CUT_SIGNALS)

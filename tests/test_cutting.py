@@ -11,6 +11,7 @@ from scipy.integrate import quad
 
 from mtwin.cutting.library import BUILTIN_MATERIALS as MATERIALS, cutting_from_dict
 from mtwin.errors import MtwinError
+from mtwin.layout import C_POWER, C_SPEED, C_TORQUE
 from mtwin.twin import Twin
 from mtwin.twin.machine import Machine
 
@@ -129,7 +130,7 @@ def test_power_equals_torque_times_omega():
     tw = twin_with()
     _, tr = run(tw, f"G21 G90 G94 S{S_RPM:g} M3\nG0 X-10 Y0 Z5\nG0 Z-{A_P}\nG1 X40 F{F_MM_MIN:g}\nG0 Z5\nM30\n"
                     "(MTWIN STOCK 0,-10,-10,50,10,0)\n")
-    speed, torque, power = tr.cut[:, 0].astype(float), tr.cut[:, 1].astype(float), tr.cut[:, 2].astype(float)
+    speed, torque, power = (tr.cut[:, c].astype(float) for c in (C_SPEED, C_TORQUE, C_POWER))
     assert np.allclose(power, torque * 2 * math.pi * np.abs(speed) / 60.0, rtol=1e-5, atol=1e-6)
     assert power.max() > 50.0
 

@@ -50,7 +50,7 @@ def test_labels_name_what_bound_each_segment():
     # F = 0.04 mm x 2 flutes x 8000 rpm = 640 at most; the rounds hold the re-simulated chip
     # under it (the axes overshoot the command at the slot's entry: a thicker chip there)
     assert 0.8 * 640.0 <= slot["feed_after"] <= 640.0
-    from mtwin.motion._runkernel import C_HMAX
+    from mtwin.layout import C_HMAX
 
     assert float(r.trace_after.cut[:, C_HMAX].max()) <= 0.04 * 1.001
 

@@ -5,7 +5,7 @@ so that ``import mtwin`` and ``mtwin --help`` stay fast.
 """
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from .version import __version__
 
 __all__ = ["load_program", "InterpreterSettings", "Program", "rewrite", "verify", "summarize", "scale_feeds",
            "Twin", "Machine", "TwinSetup", "Reading", "simulate", "scale", "optimize", "synthesize", "compare",

@@ -40,8 +40,35 @@ N_SUMS = 18
 ANGLE_BINS = 180
 #: columns of the engagement's tool table (``Engagement.tools``): radius, nose radius (mm), flutes
 T_RADIUS, T_NOSE, T_FLUTES = range(3)
-_CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")
+#: the cut's channels of every stored sample (the run kernel's ``cut_out``, ``Trace.cut``):
+#: spindle speed (rpm), torque (N·m), power (W), ae, ap (mm), material removal (mm³/s), the
+#: largest uncut chip (mm)
+CUT_SIGNALS = ("spindle_speed", "spindle_torque", "spindle_power", "ae", "ap", "mrr", "h_max")
+C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
+N_CUT = len(CUT_SIGNALS)
 #: every signal a trace can hold, in the measurement format's order
 SIGNALS = (tuple(a + s for s in ("", "_cmd", "_err", "_vel") for a in AXES) + ("feed",)
-           + tuple(a + s for s in ("_torque", "_current") for a in AXES) + _CUT_SIGNALS[:3]
-           + ("fx", "fy", "fz") + _CUT_SIGNALS[3:] + ("vb", "vib_x", "vib_y"))
+           + tuple(a + s for s in ("_torque", "_current") for a in AXES) + CUT_SIGNALS[:3]
+           + ("fx", "fy", "fz") + CUT_SIGNALS[3:] + ("vb", "vib_x", "vib_y"))
+
+#: the planner's S-curve profile of each segment (``Plan.prof``; ``_plankernel.segment_timing``
+#: writes it, the run kernel's interpolator reads it): speed in, peak and out (mm/s), the
+#: acceleration phase's jerk time, its whole time and its acceleration, the cruise time, then
+#: the deceleration's jerk time, whole time and deceleration
+P_VIN, P_VPEAK, P_VOUT, P_TJ_UP, P_TA_UP, P_A_UP, P_CRUISE, P_TJ_DN, P_TA_DN, P_A_DN = range(10)
+N_PROF = 10
+
+#: the servo loop's counters between runs (``LoopState.seg``): the current segment, the samples
+#: the raw command has stood still, the first and last sample at which the filtered command
+#: moved, the last stop passed in position, the status (``LOOP_*``), the samples run
+L_SEG, L_STILL, L_FIRST_MOVE, L_LAST_MOVE, L_STOPPED, L_STATUS, L_STEPS = range(7)
+N_LOOP = 7
+#: the loop's status: running, finished, the axes do not settle at an exact stop, the cutting
+#: force drove the tool more than its radius off the path (the last two reported by the caller)
+LOOP_RUNNING, LOOP_FINISHED, LOOP_UNSETTLED, LOOP_PUSHED = range(4)
+
+#: rows of the loop's per-axis state (``LoopState.axes``): the filter's expected output, the
+#: previous command, position, velocity, the velocity loop's integrator, the previous raw
+#: command, the last feed direction (unit)
+A_YEXP, A_PREV_CMD, A_POS, A_VEL, A_INTEG, A_PREV_RAW, A_DIR = range(7)
+N_AXSTATE = 7

@@ -1,7 +1,7 @@
 """Compile every kernel into the cache ahead of use (``mtwin cache warm``).
 
 A first run compiles only the kernels it needs and runs small work as plain Python
-(``_jit.Kernel.auto``), so it answers in seconds; a large program met later would then
+(``jit.Kernel.auto``), so it answers in seconds; a large program met later would then
 pay the compile.  A container image or an installer runs ``mtwin cache warm`` once to
 take that cost up front.  The kernels are compiled by running built-in programs through
 the same code paths the commands use, so the cached signatures are exactly theirs.
@@ -20,7 +20,7 @@ _LOCK = "warming.lock"
 
 
 def _lock_path() -> str:
-    from . import _jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
+    from . import jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
 
     return os.path.join(os.environ["NUMBA_CACHE_DIR"], _LOCK)
 
@@ -173,17 +173,10 @@ def warm(step: Callable[[str], None] = lambda what: None) -> None:
         step("optimiser")
         import numpy as np
 
-        from .optimize._segkernel import contour_samples, samples_to_pieces
-        from .optimize.run import OptimizeOptions, optimize
+        from .optimize.run import OptimizeOptions, optimize, warm_long_trace_kernels
 
         optimize(twin.with_tools({1: "flat:6:2", 2: "flat:6:2"}), fanuc, OptimizeOptions())
-        # the long-trace kernels (the optimiser runs them from 50,000 / 200,000 samples)
-        n = 4
-        contour_samples(np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n))
-        i64 = np.zeros(n, np.int64)
-        samples_to_pieces(i64, np.ones(n, bool), np.zeros(1, np.int64), np.ones(1), np.zeros(2), np.ones(1),
-                          np.zeros(2), np.ones(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
-                          np.zeros(1, np.int64), i64.copy(), i64.copy())
+        warm_long_trace_kernels()
         step("chatter: lobes and the time-domain model")
         from .api import simulate as simulate_api
         from .chatter.lobes import Cut, Dynamics, lobes
@@ -210,7 +203,7 @@ def warm(step: Callable[[str], None] = lambda what: None) -> None:
 
 def cache_dir() -> str:
     """Where the compiled kernels are cached (``NUMBA_CACHE_DIR``)."""
-    from . import _jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
+    from . import jit  # noqa: F401  (sets NUMBA_CACHE_DIR)
 
     return os.environ["NUMBA_CACHE_DIR"]
 
@@ -219,14 +212,14 @@ def set_notices(compile_notice=None, uncached_notice=None) -> None:
     """How a caller hears of kernel work: ``compile_notice(name)``, a context manager around
     each compile; ``uncached_notice(kernel)``, called when a kernel runs as Python because the
     cache lacks it.  None: silent (the library's default)."""
-    from . import _jit
+    from . import jit
 
-    _jit.compile_notice = compile_notice or _jit._no_notice
-    _jit.uncached_notice = uncached_notice or _jit._no_uncached
+    jit.compile_notice = compile_notice or jit.no_notice
+    jit.uncached_notice = uncached_notice or jit.no_uncached
 
 
 def compiled_count() -> int:
     """Kernels compiled in this process."""
-    from . import _jit
+    from . import jit
 
-    return len(_jit.COMPILE_LOG)
+    return len(jit.COMPILE_LOG)

@@ -7,7 +7,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Optional
 
-from .. import __version__
+from ..version import __version__
 from ..effects import Effect, parse_effect_spec
 from ..errors import MtwinError
 from ..io import write_bytes

@@ -7,7 +7,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..errors import MtwinError, warning_text
 from ..gcode.writer import scale_feeds, scaled_feeds
 from ..motion.simulate import simulate_plan

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
 
 
 @njit

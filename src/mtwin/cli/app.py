@@ -63,7 +63,7 @@ state = {"traceback": False}
 
 def _version(value: bool):
     if value:
-        from .. import __version__
+        from ..version import __version__
 
         sys.stdout.write(f"mtwin {__version__}\n")
         raise typer.Exit(0)

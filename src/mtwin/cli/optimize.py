@@ -180,10 +180,10 @@ def _check_outputs(output: str, report, json_out: bool) -> None:
 def _run_with_progress(tw, stock, prog, opts, generations: int):
     """Run the optimiser with a transient progress display on a terminal's stderr (the stage,
     and the GA's generations), shown once the run has taken a second; plain otherwise."""
-    import mtwin
+    from ..optimize import optimize
 
     if not err.is_terminal:
-        return mtwin.optimize(tw, prog, opts, stock=stock)
+        return optimize(tw, prog, opts, stock=stock)
     import threading
 
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -211,7 +211,7 @@ def _run_with_progress(tw, stock, prog, opts, generations: int):
 
     timer.start()
     try:
-        return mtwin.optimize(tw, prog, opts, stock=stock, progress=ga if generations else None, stage=stage)
+        return optimize(tw, prog, opts, stock=stock, progress=ga if generations else None, stage=stage)
     finally:
         timer.cancel()
         with lock:

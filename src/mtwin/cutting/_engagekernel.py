@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
 
 # force-sum and per-step columns (mtwin.layout: the run kernel, the optimiser and the effects
 # read them by the same names)

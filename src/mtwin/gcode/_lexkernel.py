@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
 
 # Line flags
 LF_BLOCK_DELETE = 1

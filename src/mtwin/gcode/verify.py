@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
 from .records import ARC_CCW, DWELL, LINEAR, RAPID
 
 OK, MISSING, EXTRA, KIND, TOOL, OFF_PATH, BACKWARDS, CENTER, OVERSHOOT, ROTARY = range(10)

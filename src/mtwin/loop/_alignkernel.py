@@ -1,7 +1,7 @@
 """numba kernel of position alignment: measured samples to the simulated path, forward only."""
 from __future__ import annotations
 
-from .._jit import njit
+from ..jit import njit
 
 _EPS = 1e-9  # mm² per sample²: among equally near points, the one the elapsed time predicts
 

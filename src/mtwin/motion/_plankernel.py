@@ -14,7 +14,9 @@ import math
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
+from ..layout import (N_PROF, P_A_DN, P_A_UP, P_CRUISE, P_TA_DN, P_TA_UP, P_TJ_DN, P_TJ_UP, P_VIN, P_VOUT,
+                      P_VPEAK)
 
 # segments up to which the planner's kernels run as Python rather than loading (or compiling)
 # their compiled code: ~1,000 segments take ~0.1 s in Python
@@ -171,17 +173,18 @@ def lookahead(vj, length, acc, tb, window):
 def segment_timing(length, vmax, acc, tb, ve, hold, duration):
     """Per segment: start speed, peak speed, end speed, ramp shapes and phase times.
 
-    Returns an (n, 10) array: v_in, v_peak, v_out, tj_up, ta_up, a_up, t_cruise, tj_dn, ta_dn,
-    a_dn, and an (n,) array of segment durations (motion + hold, or the pause time)."""
+    Returns an (n, N_PROF) array (``layout.P_*``: v_in, v_peak, v_out, tj_up, ta_up, a_up,
+    t_cruise, tj_dn, ta_dn, a_dn) and an (n,) array of segment durations (motion + hold, or the
+    pause time)."""
     n = len(length)
-    prof = np.zeros((n, 10))
+    prof = np.zeros((n, N_PROF))
     dur = np.zeros(n)
     vin = 0.0
     for i in range(n):
         L = length[i]
         if duration[i] > 0.0 or L <= 0.0:
-            prof[i, 0] = vin
-            prof[i, 2] = vin
+            prof[i, P_VIN] = vin
+            prof[i, P_VOUT] = vin
             dur[i] = duration[i] + hold[i]
             continue
         vout = ve[i]
@@ -203,16 +206,16 @@ def segment_timing(length, vmax, acc, tb, ve, hold, duration):
         d_up = 0.5 * (vin + vp) * (2 * tju + tau)
         d_dn = 0.5 * (vp + vout) * (2 * tjd + tad)
         cruise = max(0.0, L - d_up - d_dn) / vp if vp > 0.0 else 0.0
-        prof[i, 0] = vin
-        prof[i, 1] = vp
-        prof[i, 2] = vout
-        prof[i, 3] = tju
-        prof[i, 4] = tau
-        prof[i, 5] = au
-        prof[i, 6] = cruise
-        prof[i, 7] = tjd
-        prof[i, 8] = tad
-        prof[i, 9] = ad
+        prof[i, P_VIN] = vin
+        prof[i, P_VPEAK] = vp
+        prof[i, P_VOUT] = vout
+        prof[i, P_TJ_UP] = tju
+        prof[i, P_TA_UP] = tau
+        prof[i, P_A_UP] = au
+        prof[i, P_CRUISE] = cruise
+        prof[i, P_TJ_DN] = tjd
+        prof[i, P_TA_DN] = tad
+        prof[i, P_A_DN] = ad
         dur[i] = 2 * tju + tau + cruise + 2 * tjd + tad + hold[i]
         vin = vout
     return prof, dur

@@ -15,8 +15,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
 from ..cutting._engagekernel import tooth_forces
+from ..layout import (A_DIR, A_INTEG, A_POS, A_PREV_CMD, A_PREV_RAW, A_VEL, A_YEXP, C_AE, C_AP, C_HMAX, C_MRR,
+                      C_POWER, C_SPEED, C_TORQUE, L_FIRST_MOVE, L_LAST_MOVE, L_SEG, L_STATUS, L_STEPS, L_STILL,
+                      L_STOPPED, LOOP_FINISHED, LOOP_PUSHED, LOOP_RUNNING, LOOP_UNSETTLED, N_AXSTATE, N_CUT, N_LOOP,
+                      P_A_DN, P_A_UP, P_CRUISE, P_TA_DN, P_TA_UP, P_TJ_DN, P_TJ_UP, P_VIN, P_VOUT, P_VPEAK)
 from ..layout import (Q_AE, Q_AP, Q_AREA, Q_DX, Q_DY, Q_UH, Q_UZ, Q_WMAX, ST_TC, ST_TE, SX_AC, SX_AE, SX_RC, SX_RE,
                       SX_TC, SX_TE, SY_AC, SY_AE, SY_RC, SY_RE, SY_TC, SY_TE, SZ_AC, SZ_AE, SZ_RC, SZ_RE, T_FLUTES,
                       T_RADIUS)
@@ -33,25 +37,25 @@ _V_STICK = 1e-9  # mm/s: below this an axis is at rest for the friction model
 @njit
 def segment_distance(prof, i, tau):
     """Distance along segment i and path speed, ``tau`` seconds after its start."""
-    vin = prof[i, 0]
-    vp = prof[i, 1]
-    tju = prof[i, 3]
-    tau_u = prof[i, 4]
+    vin = prof[i, P_VIN]
+    vp = prof[i, P_VPEAK]
+    tju = prof[i, P_TJ_UP]
+    tau_u = prof[i, P_TA_UP]
     t_up = 2.0 * tju + tau_u
     if tau <= t_up:
-        return ramp_eval(vin, 1.0, tju, tau_u, prof[i, 5], tau)
+        return ramp_eval(vin, 1.0, tju, tau_u, prof[i, P_A_UP], tau)
     d_up = 0.5 * (vin + vp) * t_up
     tau -= t_up
-    cruise = prof[i, 6]
+    cruise = prof[i, P_CRUISE]
     if tau <= cruise:
         return d_up + vp * tau, vp
-    tjd = prof[i, 7]
-    tad = prof[i, 8]
+    tjd = prof[i, P_TJ_DN]
+    tad = prof[i, P_TA_DN]
     t_dn = 2.0 * tjd + tad
     tau -= cruise
     if tau >= t_dn:
-        return d_up + vp * cruise + 0.5 * (vp + prof[i, 2]) * t_dn, prof[i, 2]
-    s, v = ramp_eval(vp, -1.0, tjd, tad, prof[i, 9], tau)
+        return d_up + vp * cruise + 0.5 * (vp + prof[i, P_VOUT]) * t_dn, prof[i, P_VOUT]
+    s, v = ramp_eval(vp, -1.0, tjd, tad, prof[i, P_A_DN], tau)
     return d_up + vp * cruise + s, v
 
 
@@ -201,22 +205,28 @@ def new_state(nbuf: int, x0: np.ndarray, sv: np.ndarray, nseg: int) -> LoopState
     sums = np.zeros((2, 3))
     sums[0] = x0 * nbuf
     sums[1] = x0 * nbuf
-    # yexp, xc_prev, x, v, integ, previous raw command, last feed direction (unit)
-    axes = np.zeros((7, 3))
-    axes[0] = x0
-    axes[1] = x0
-    axes[2] = x0
-    axes[5] = x0
+    axes = np.zeros((N_AXSTATE, 3))  # layout.A_*
+    axes[A_YEXP] = x0
+    axes[A_PREV_CMD] = x0
+    axes[A_POS] = x0
+    axes[A_PREV_RAW] = x0
     for k in range(3):
         # an axis holding a weight at the start already has it in its integrator
         gain = sv[k, SV_MASS] * sv[k, SV_WV] * sv[k, SV_WI] * 1e-3
         if gain > 0.0:
-            axes[4, k] = sv[k, SV_FG] / gain
-    # current segment, samples the raw command stood still, first and last sample at which
-    # the (filtered) command moved, last stop passed in position, finished flag, samples run
-    seg = np.array([0, 0, -1, -1, -1, 0, 0], np.int64)
+            axes[A_INTEG, k] = sv[k, SV_FG] / gain
+    seg = np.zeros(N_LOOP, np.int64)  # layout.L_*
+    seg[L_FIRST_MOVE] = seg[L_LAST_MOVE] = seg[L_STOPPED] = -1
+    seg[L_STATUS] = LOOP_RUNNING
     return LoopState(ring1, ring1.copy(), sums, axes, seg, np.zeros(1), np.zeros(max(nseg, 1)), np.zeros(3),
                      np.zeros(3))
+
+
+def bytes_per_sample() -> int:
+    """Bytes a stored sample takes: the loop's outputs, widths as allocated, and the line and
+    record (int32 each) a Trace keeps where the loop stores the segment number."""
+    one = allocate_outputs(1)
+    return sum(a.itemsize * a.size for a in one) - one.segno.itemsize + 2 * np.dtype(np.int32).itemsize
 
 
 def allocate_outputs(n_out: int, cutting: bool = True) -> Outputs:
@@ -225,11 +235,10 @@ def allocate_outputs(n_out: int, cutting: bool = True) -> Outputs:
     return Outputs(np.empty(n_out), np.empty(n_out, np.int32), np.empty((n_out, 3)),
             np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32), np.empty((n_out, 3), np.float32),
             np.empty((n_out, 3), np.float32), np.empty(n_out, np.float32),
-            np.zeros((n_out if cutting else 1, 3), np.float32), np.zeros((n_out if cutting else 1, 7), np.float32))
+            np.zeros((n_out if cutting else 1, 3), np.float32), np.zeros((n_out if cutting else 1, N_CUT), np.float32))
 
 
-# cut_out columns
-C_SPEED, C_TORQUE, C_POWER, C_AE, C_AP, C_MRR, C_HMAX = range(7)
+# cut_out columns: layout.C_* (imported above)
 # below 1 rpm the spindle counts as stopped: a chip per tooth of feed / (teeth x speed) would
 # grow without bound as a spindle runs down
 _N_STOPPED = 1.0 / 60.0  # rev/s
@@ -284,14 +293,14 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
     nbuf = ring1.shape[0]
     sum1 = sums[0]
     sum2 = sums[1]
-    yexp = axes[0]
-    xc_prev = axes[1]
-    x = axes[2]
-    v = axes[3]
-    integ = axes[4]
-    cdir = axes[6]  # kept between periods: the feed direction while the command stands still
+    yexp = axes[A_YEXP]
+    xc_prev = axes[A_PREV_CMD]
+    x = axes[A_POS]
+    v = axes[A_VEL]
+    integ = axes[A_INTEG]
+    cdir = axes[A_DIR]  # kept between periods: the feed direction while the command stands still
     edir = np.zeros(3)  # the engagement step's own feed direction
-    rawprev = axes[5]
+    rawprev = axes[A_PREV_RAW]
     # samples after which a standing command has passed through the filter completely
     settle = nbuf if filt == 1 else 2 * nbuf
     alpha = 1.0 - math.exp(-dt / tfilt) if tfilt > 0.0 else 1.0
@@ -313,7 +322,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
     ha = 0.0
     m_ = 0
     t_end = t_start[nseg - 1] + dur[nseg - 1]
-    i = segp[0]
+    i = segp[L_SEG]
     kstep = k0
     while kstep < k1:
         ti = clock[0]
@@ -330,7 +339,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
             if raw[k] != rawprev[k]:
                 moved = True
             rawprev[k] = raw[k]
-        segp[1] = 0 if moved else segp[1] + 1
+        segp[L_STILL] = 0 if moved else segp[L_STILL] + 1
         # ---- acc/dec after interpolation, per axis
         pos = kstep % nbuf
         if filt == 1 or filt == 2:
@@ -366,7 +375,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
                 xc[k] = raw[k]
         # a command that has stood still long enough has left the filter exactly (a running
         # sum or an exponential never returns the input value to the last bit by itself)
-        if filt != 0 and segp[1] >= settle:
+        if filt != 0 and segp[L_STILL] >= settle:
             done = True
             if filt == 3:
                 for k in range(3):
@@ -380,7 +389,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
         last = i == nseg - 1
         end_i = t_start[i] + dur[i]
         next_ti = ti + dt
-        if stop_end[i] and segp[4] < i and ti + dt > end_i:
+        if stop_end[i] and segp[L_STOPPED] < i and ti + dt > end_i:
             if ti < end_i:
                 # arrive exactly on the stop point next period; the rest of this one is idle
                 next_ti = end_i
@@ -392,20 +401,20 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
                         if abs(raw[k] - x[k]) > in_position or xc[k] != raw[k]:
                             ok = False
                 if ok:
-                    segp[4] = i
+                    segp[L_STOPPED] = i
                 else:
                     next_ti = end_i
                     wait[i] += dt
                     if wait[i] > max_wait:
-                        segp[5] = 2  # the axes do not settle: reported by the caller
-        finished = last and ti >= end_i and (segp[4] >= i or not stop_end[i])
-        store = kstep % every == 0 or finished or segp[5] >= 2
+                        segp[L_STATUS] = LOOP_UNSETTLED  # reported by the caller
+        finished = last and ti >= end_i and (segp[L_STOPPED] >= i or not stop_end[i])
+        store = kstep % every == 0 or finished or segp[L_STATUS] >= LOOP_UNSETTLED
         o = (kstep + every - 1) // every if not kstep % every == 0 else kstep // every
         for k in range(3):
             if xc[k] != xc_prev[k]:
-                if segp[2] < 0:
-                    segp[2] = kstep
-                segp[3] = kstep
+                if segp[L_FIRST_MOVE] < 0:
+                    segp[L_FIRST_MOVE] = kstep
+                segp[L_LAST_MOVE] = kstep
                 break
         # ---- spindle and cutting load (forces act on the tool; the drives feel them)
         target = spin_cmd[i]
@@ -573,7 +582,7 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
             rt = tools[seg_tool[i], T_RADIUS]
             if dev2 - along * along > rt * rt and (fz_ > 0.0 or fb[0] != 0.0 or fb[1] != 0.0):
                 cstats[CS_PUSHED_LINE] = line[i]
-                segp[5] = 3  # reported by the caller
+                segp[L_STATUS] = LOOP_PUSHED  # reported by the caller
             torque_sp = fz_ * ta + tb
             p_cut = torque_sp * 2.0 * math.pi * nrps
             mrr = va * eng_q[m_, Q_AREA]
@@ -607,13 +616,13 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
         if store and has_cut:
             for k in range(3):
                 force_out[o, k] = ftool[k]
-            cut_out[o, 0] = spin[0]
-            cut_out[o, 1] = torque_sp
-            cut_out[o, 2] = p_sp
-            cut_out[o, 3] = ae
-            cut_out[o, 4] = ap
-            cut_out[o, 5] = mrr
-            cut_out[o, 6] = hmax
+            cut_out[o, C_SPEED] = spin[0]
+            cut_out[o, C_TORQUE] = torque_sp
+            cut_out[o, C_POWER] = p_sp
+            cut_out[o, C_AE] = ae
+            cut_out[o, C_AP] = ap
+            cut_out[o, C_MRR] = mrr
+            cut_out[o, C_HMAX] = hmax
         # ---- servo loop and feed-drive plant, per axis
         for k in range(3):
             m = sv[k, SV_MP]
@@ -659,11 +668,11 @@ def run_twin(path, profile, servo, k0, k1, state, cut, cut_state, out):
             pathv[o] = vp
         clock[0] = next_ti
         kstep += 1
-        if finished or segp[5] >= 2:
-            segp[5] = max(segp[5], 1)
+        if finished or segp[L_STATUS] >= LOOP_UNSETTLED:
+            segp[L_STATUS] = max(segp[L_STATUS], LOOP_FINISHED)
             break
-    segp[0] = i
-    segp[6] = kstep
+    segp[L_SEG] = i
+    segp[L_STEPS] = kstep
     return kstep
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..layout import P_VPEAK
 from .path import ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, PAUSE
 
 # reasons, by code (0: none — the line runs at its nominal time)
@@ -79,7 +80,7 @@ def line_times(plan, wait: np.ndarray) -> LineTimes:
                            np.where(speed > 0, length / speed, 0.0))
     nominal = np.where(np.isfinite(nominal), nominal, 0.0)
     reason = np.full(n, R_ENDS, np.int8)
-    peak = plan.prof[:, 1]
+    peak = plan.prof[:, P_VPEAK]
     limit = np.where(rapid, seg["vmax"], np.minimum(seg["vmax"], np.where(seg["feed"] > 0, seg["feed"], np.inf)))
     below_f = ~rapid & ~pause & (seg["vmax"] < seg["feed"] * (1 - 1e-6))
     reason[below_f] = R_VLIMIT

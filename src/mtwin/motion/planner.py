@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..gcode import records as R
+from ..layout import N_PROF
 from . import _plankernel as K
 from .path import (ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, CATEGORY_NAMES, LINE, PAUSE, SEG_DTYPE,
                    check_feeds, check_travel, motion_segments)
@@ -540,7 +541,7 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
     else:
         start = np.zeros(3)
     if not len(seg):
-        return Plan(seg, np.zeros((0, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), start,
+        return Plan(seg, np.zeros((0, N_PROF)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), start,
                     warnings, shift)
     style = STYLE_CODES[c.style]
     if seg["kind"].size:

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MtwinError, warning_text
+from ..layout import (C_MRR, C_POWER, L_FIRST_MOVE, L_LAST_MOVE, L_SEG, L_STATUS, LOOP_PUSHED, LOOP_RUNNING,
+                      LOOP_UNSETTLED, N_PROF, N_Q, N_SUMS)
 from . import _runkernel as RK
 from .path import CAT_CUT, CAT_RAPID, PAUSE
 from .linetime import line_times
@@ -112,7 +114,7 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
         z1 = np.zeros(1)
-        return None, RK.CuttingInputs(z, z, np.zeros((0, 18), np.float32), np.zeros((0, 8), np.float32), z,
+        return None, RK.CuttingInputs(z, z, np.zeros((0, N_SUMS), np.float32), np.zeros((0, N_Q), np.float32), z,
                                       np.zeros((1, 3)), np.zeros(6), np.zeros((0, 6)), hand, spin_cmd,
                                       float(m.spindle.acceleration), np.zeros(3), curve,
                                       np.zeros((0, 1, 1), np.float32), np.zeros(2, np.int64), np.zeros(1, np.int64),
@@ -128,7 +130,7 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
-    tfx = _tool_effects(eng, plan, loop_effects, program, twin)
+    tfx = tool_effects(eng, plan, loop_effects, program, twin)
     return eng, RK.CuttingInputs(eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, tfx.coefficients,
                                  hand, spin_cmd, float(m.spindle.acceleration), np.array(cut.spindle_loss), curve,
                                  prof, *eng.slices, eng.helix), tfx
@@ -146,7 +148,7 @@ class ToolEffects:
     steps: object
 
 
-def _tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffects:
+def tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffects:
     """The cutting coefficients per engagement step — the material's times the in-loop effects'
     factors (``cutting_scale``) plus their increments (``cutting_add``) — and the wear land of
     the effect that models one."""
@@ -249,9 +251,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     n_est = n_plan + int(n_stops * wait_guess / dt)
     if n_plan > 500_000_000:
         raise MtwinError(f"program runs {total / 3600:.1f} h: more than 500 million servo samples")
-    # t, cmd (float64); line, record (int32); act, err, vel, torque, force (3 x float32 each),
-    # path speed, the 7 cutting channels (float32): what a trace keeps per sample
-    bytes_per_sample = 132
+    bytes_per_sample = RK.bytes_per_sample()  # what a trace keeps per sample
     need = (n_plan // every + 1) * bytes_per_sample
     if need > 4e9:
         suggest = int(math.ceil(need / 1e9)) * every
@@ -298,7 +298,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         z = np.zeros(1)
         path = RK.PathArrays(np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z,
                              np.zeros(1, np.int32))
-        profile = RK.Profile(z, np.zeros((1, 10)), np.zeros(1), np.zeros(1, np.bool_))
+        profile = RK.Profile(z, np.zeros((1, N_PROF)), np.zeros(1), np.zeros(1, np.bool_))
     eng, cut_args, tfx = _cutting_args(twin, program, plan, stock, cutting, tooth, loop_effects)
     cut_state = RK.CutState(np.zeros(2), np.zeros(16))  # spindle speed (rpm) and angle (rad); statistics
     cstats = cut_state.cstats
@@ -310,7 +310,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     chunk = max(_CHUNK, every) if progress is not None else max(n_est, every)
     chunk -= chunk % every  # chunks start on stored samples
     k = 0
-    while state.seg[5] == 0:
+    while state.seg[L_STATUS] == LOOP_RUNNING:
         k1 = k + chunk
         need_slots = k1 // every + 2
         if need_slots > cap:  # the waits took longer than estimated: grow the outputs
@@ -320,15 +320,15 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         k = RK.run_twin(path, profile, servo, k, k1, state, cut_args, cut_state, outs)
         if progress is not None:
             progress(min(k, n_est), n_est)
-    if state.seg[5] == 3:
+    if state.seg[L_STATUS] == LOOP_PUSHED:
         thrust = float(sv[:, RK.SV_FMAX].min())
         pushed = int(seg["line"][int(cstats[RK.CS_PUSHED_LINE]) - 1]) if cstats[RK.CS_PUSHED_LINE] else 0
         raise MtwinError(f"{program.path}:{pushed}:1: the cutting force (up to "
                          f"{float(cstats[RK.CS_LOAD]):.0f} N, the drives push {thrust:.0f} N) drives the tool more "
                          f"than its radius off the commanded path: the machine cannot hold this cut and the twin "
                          f"cannot predict it; lower the feed or the depth of cut, or raise the spindle speed")
-    if state.seg[5] == 2:
-        i = int(state.seg[0])
+    if state.seg[L_STATUS] == LOOP_UNSETTLED:
+        i = int(state.seg[L_SEG])
         thrust = float(sv[:, RK.SV_FMAX].min())
         peak = float(cstats[RK.CS_LOAD])
         if eng is not None and peak > 0.5 * thrust:
@@ -370,7 +370,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         warnings.append(warning_text(program.path, int(cstats[RK.CS_POWER_LINE]),
                                      f"spindle power reaches {cstats[RK.CS_POWER]:,.0f} W, above the spindle's "
                                      f"rated {rated:,.0f} W"))
-    first, last = int(state.seg[2]), int(state.seg[3])
+    first, last = int(state.seg[L_FIRST_MOVE]), int(state.seg[L_LAST_MOVE])
     # first to last sample at which the command moved (LinuxCNC's recorder counts the same way)
     motion_time = float((last - first + 1) * dt) if first >= 0 else 0.0
     summary = Summary(
@@ -520,9 +520,9 @@ def _summary_from_trace(trace: Trace, changed: set[str]) -> None:
     if c is None or trace.cut is None:
         return
     dt = np.diff(trace.t, append=trace.t[-1] + s.servo_period * trace.every)
-    cutting = trace.cut[:, 5] > 0  # material removed in this sample
+    cutting = trace.cut[:, C_MRR] > 0  # material removed in this sample
     if "spindle_power" in changed:
-        pw = trace.cut[:, 2].astype(np.float64)
+        pw = trace.cut[:, C_POWER].astype(np.float64)
         i = int(np.argmax(pw))
         c.peak_power, c.peak_power_line = float(pw[i]), int(trace.line[i])
         c.cutting_energy = float(np.sum(np.where(cutting, pw * dt, 0.0)))

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layout import _CUT_SIGNALS, AXES, SIGNALS  # noqa: F401  (the layouts, shared with effects)
+from ..layout import CUT_SIGNALS, AXES, SIGNALS  # noqa: F401  (the layouts, shared with effects)
 
 
 @dataclass
@@ -118,8 +118,8 @@ def _source(name: str) -> tuple[str, int]:
         return "vb", -1
     if name in ("vib_x", "vib_y"):
         return "vib", "xy".index(name[-1])
-    if name in _CUT_SIGNALS:
-        return "cut", _CUT_SIGNALS.index(name)
+    if name in CUT_SIGNALS:
+        return "cut", CUT_SIGNALS.index(name)
     if name in ("fx", "fy", "fz"):
         return "force", AXES.index(name[1])
     if name[:1] in AXES and name[1:] in _AXIS_SIGNALS:

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from .._jit import njit
+from ..jit import njit
 
 
 @njit(python_limit=300_000, python_fast=30_000)

@@ -410,7 +410,7 @@ class _Run(SimpleNamespace):
 def _baseline(run: _Run) -> OptimizeResult | None:
     """The program as written: its plan and simulation, the fast model, what the optimiser may set (trusted
     records, ramps), the feed range, the segments and the planner's move times at other feeds."""
-    from ..motion.simulate import program_cutting, _tool_effects, simulate_plan
+    from ..motion.simulate import program_cutting, tool_effects, simulate_plan
 
     opts, program, stage, stock, twin = run.take("opts program stage stock twin")
     t_start = time.perf_counter()
@@ -449,7 +449,7 @@ def _baseline(run: _Run) -> OptimizeResult | None:
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that change the cutting coefficients along the path (tool wear) act on the estimate too
     resolved = [(e, e.resolved()) for e in twin.effects if e.stage == "loop"]
-    kstep = _tool_effects(eng, plan, resolved, program, twin).coefficients
+    kstep = tool_effects(eng, plan, resolved, program, twin).coefficients
     model = path_model(twin, program, plan, eng, kstep)
     # the program's own simulation's warnings (a spindle speed clamped to the machine's, a
     # travel limit…) hold for the optimiser's figures too
@@ -500,7 +500,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
     """The limits each segment is held to (given per tool, or learned), the problem on the fast model, the
     floor (the program's own feed where it breaks no limit), the refusal of a program over a given limit at
     the lowest feed, and the smoothing target."""
-    from ..motion.simulate import _tool_effects
+    from ..motion.simulate import tool_effects
     (before, candidates, cut, eng, feed_range, fz0, m, model, ok, opts, plan, power0, program, rec, resolved, segs,
      spindle_range, stage, times, twin, warnings) = \
         run.take("before candidates cut eng feed_range fz0 m model ok opts plan power0 program rec resolved segs "
@@ -541,7 +541,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
     worn = any(h.sliding > 0 for h in twin.tool_state.values())
     if learned and worn:
         fresh = twin.replace(tool_state={})
-        new_tool = path_model(fresh, program, plan, eng, _tool_effects(eng, plan, resolved, program, fresh).coefficients)
+        new_tool = path_model(fresh, program, plan, eng, tool_effects(eng, plan, resolved, program, fresh).coefficients)
     # (learned for every tool: a tool without a given load limit takes its learned one, and the
     # learned chip thickness holds with a given load limit too — a 300 N limit meant for a face
     # mill does not give a 2.4 mm end mill a chip it never ran at)
@@ -1594,7 +1594,7 @@ class _Loads:
 
     @classmethod
     def of(cls, trace, limits) -> "_Loads":
-        from ..motion._runkernel import C_HMAX
+        from ..layout import C_HMAX
 
         chip = trace.cut[:, C_HMAX].astype(np.float64) if trace.cut is not None else np.zeros(len(trace.t))
         return cls(np.hypot(trace.signal("fx"), trace.signal("fy")), _sample_ratio(trace, limits), chip)
@@ -1686,6 +1686,19 @@ def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray, cl
         # (never below the air move's own programmed feed: that entry the program already had)
         feeds[v] = min(feeds[v], max(cap, prob.f0_var[v]))
     return feeds
+
+
+def warm_long_trace_kernels() -> None:
+    """Compile the kernels the optimiser runs only on long traces (from 50,000 / 200,000 samples:
+    the sample-to-piece map, the contour error), on tiny inputs: ``mtwin cache warm``."""
+    from ._segkernel import contour_samples, samples_to_pieces
+
+    n = 4
+    contour_samples(np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n))
+    i64 = np.zeros(n, np.int64)
+    samples_to_pieces(i64, np.ones(n, bool), np.zeros(1, np.int64), np.ones(1), np.zeros(2), np.ones(1),
+                      np.zeros(2), np.ones(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                      np.zeros(1, np.int64), i64.copy(), i64.copy())
 
 
 def _fresh(twin):

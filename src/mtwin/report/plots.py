@@ -5,6 +5,7 @@ import io
 
 import numpy as np
 
+from ..layout import C_POWER
 
 FORMATS = ("svg", "png", "pdf")
 
@@ -34,7 +35,7 @@ def power_svg(trace, title: str = "", fmt: str = "svg") -> bytes:
 
         raise MtwinError("--plot needs the cutting model (do not combine it with --no-cutting)")
     t = np.asarray(trace.t)
-    power = np.asarray(trace.cut[:, 2], dtype=float)
+    power = np.asarray(trace.cut[:, C_POWER], dtype=float)
     fig, ax = plt.subplots(figsize=(10, 4), dpi=100)
     ax.plot(t, power, lw=0.8, color="#1f5fa8", label="spindle power")
     ax.set_xlabel("time [s]")

@@ -50,22 +50,22 @@ MODE_ENV = "MTWIN_KERNELS"
 
 
 @contextlib.contextmanager
-def _no_notice(name: str):
+def no_notice(name: str):
     yield
 
 
-def _no_uncached(kernel: "Kernel") -> None:
+def no_uncached(kernel: "Kernel") -> None:
     return None
 
 
 #: ``uncached_notice(kernel)`` is called when a kernel runs as Python because its compiled
 #: code is not in the cache (route 4 above).  The CLI starts a background compile there, so
 #: that the next run finds the cache warm.
-uncached_notice = _no_uncached
+uncached_notice = no_uncached
 
 #: ``compile_notice(kernel_name)`` is entered around every compile that :meth:`Kernel.auto`
 #: or a direct call starts.  The CLI replaces it with a status line on stderr.
-compile_notice = _no_notice
+compile_notice = no_notice
 
 # Python mode is per thread: a kernel running as plain Python calls its helper kernels
 # as plain Python too, while another thread may be running compiled code.
