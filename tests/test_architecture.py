@@ -285,3 +285,48 @@ def test_the_memory_guard_counts_the_widths_the_loop_allocates():
     allocated = sum(a.nbytes for a in out) - out.segno.nbytes + 2 * n * np.dtype(np.int32).itemsize
     assert RK.bytes_per_sample() * n == allocated
     assert out.cut.shape[1] == len(__import__("mtwin.layout", fromlist=["x"]).CUT_SIGNALS)
+
+
+def test_no_module_sets_attributes_on_another_modules_objects_behind_their_back():
+    # (the program's cutting set-up was cached by object.__setattr__ on the Program, and the
+    # optimiser wrote that hidden cache itself: now the twin owns the cache)
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        for n in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute) and n.func.attr == "__setattr__" and \
+                    isinstance(n.func.value, ast.Name) and n.func.value.id == "object":
+                bad.append(f"{path.relative_to(SRC)}:{n.lineno}")
+    assert not bad, bad
+
+
+def test_a_programs_cutting_set_up_is_read_once_per_twin_and_lives_with_the_program():
+    import gc
+
+    import mtwin
+    from mtwin.motion.simulate import program_cutting
+
+    tw = mtwin.Twin()
+    prog = tw.load(b"G21 G90\n(T1 D=3 CR=0 - flat end mill)\nT1 M6\nS9000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F100\nM30\n",
+                   path="c.nc")
+    a = program_cutting(tw, prog)
+    assert program_cutting(tw, prog) is a and program_cutting(tw.replace(), prog) is a
+    assert a.tool(1).diameter == 3.0
+    other = tw.with_material("1045")  # another cutting part: read again
+    b = program_cutting(other, prog)
+    assert b is not a and program_cutting(tw, prog) is a and program_cutting(other, prog) is b
+    n = len(tw.cutting_cache._entries)
+    del prog
+    gc.collect()
+    assert len(tw.cutting_cache._entries) == n - 1
+
+
+def test_one_door_to_a_simulation():
+    # motion.simulate.simulate_plan runs the kernels; only the Twin calls it (Twin.simulate, and
+    # Twin.simulate_batch for parts in a row) — the use cases and the optimiser go through the twin
+    callers = []
+    for path in sorted(PKG.rglob("*.py")):
+        name, _ = _module_name(path)
+        for n in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(n, ast.ImportFrom) and any(a.name == "simulate_plan" for a in n.names):
+                callers.append(name)
+    assert callers and set(callers) == {"mtwin.twin"}, callers

@@ -10,7 +10,6 @@ import numpy as np
 from ..version import __version__
 from ..errors import MtwinError, warning_text
 from ..gcode.writer import scale_feeds, scaled_feeds
-from ..motion.simulate import simulate_plan
 from ..twin.setup import Messages, load_part, open_twin
 from ..units import SI_UNITS
 
@@ -107,8 +106,8 @@ def simulate(twin=None, program=None, *, stock=None, cutting: bool = True, every
     plan = tw.plan(prog)
     if progress is not None and plan.total_time / tw.machine.controller.servo_period + 1 <= progress_from:
         progress = None  # (reported progress runs the servo loop in pieces)
-    trace = simulate_plan(tw, prog, plan, every=every, progress=progress, cutting=cutting, stock=stock,
-                          tooth=tooth_resolution)
+    trace = tw.simulate(prog, plan=plan, every=every, progress=progress, cutting=cutting, stock=stock,
+                        tooth_resolution=tooth_resolution)
     for w in trace.summary.warnings:
         msgs.warn(w)
     dyn = None

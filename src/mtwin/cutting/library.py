@@ -301,6 +301,31 @@ def _scan(data: bytes):
     return scan_tool_comments(data)
 
 
+class ProgramCuttings:
+    """Each program's cutting set-up (``for_program``), per cutting part it was made from: a
+    twin owns one (``Twin.cutting_cache``), so a program loaded once is read for its tools once.
+    An entry lives as long as its program."""
+
+    def __init__(self):
+        self._entries: dict = {}
+
+    def get(self, program, cutting: Cutting) -> Cutting | None:
+        e = self._entries.get(id(program))
+        if e is None or e[0]() is not program:
+            return None
+        hit = e[1].get(id(cutting))
+        return hit[1] if hit is not None and hit[0] is cutting else None
+
+    def put(self, program, cutting: Cutting, cut: Cutting) -> None:
+        import weakref
+
+        key, entries = id(program), self._entries
+        e = entries.get(key)
+        if e is None or e[0]() is not program:
+            e = entries[key] = (weakref.ref(program, lambda _ref: entries.pop(key, None)), {})
+        e[1][id(cutting)] = (cutting, cut)  # (the cutting part held: its id stays its own)
+
+
 def for_program(cutting: Cutting, program) -> Cutting:
     """The cutting part for one program: a twin file's tool table stands; without one, the
     tools the program's comments declare (CAM post-processors write them: Fusion 360's

@@ -71,29 +71,23 @@ def program_engagement(twin, program, box=None):
 
 def program_cutting(twin, program):
     """The twin's cutting part with the tools this program declares (its comments, the twin's
-    table): computed once per program and twin cutting set-up, and kept with the program."""
+    table), from the twin's cache (``Twin.cutting_cache``) when it has read this program."""
     from ..cutting.library import for_program
 
-    hit = getattr(program, "_cutting_for", None)
-    # the Cutting object itself, held: an id() of a freed one can come back for another
-    if hit is not None and hit[0] is twin.cutting:
-        return hit[1]
+    cache = getattr(twin, "cutting_cache", None)
+    hit = cache.get(program, twin.cutting) if cache is not None else None
+    if hit is not None:
+        return hit
     cut = for_program(twin.cutting, program)
-    _keep_cutting(program, twin, cut)
+    if cache is not None:
+        cache.put(program, twin.cutting, cut)
     return cut
 
 
 def share_cutting(twin, program, like) -> None:
     """Give ``program`` the cutting set-up of ``like`` on this twin: a rewrite of ``like`` that
     changed F and S words only declares the same tools (the optimiser's rounds)."""
-    _keep_cutting(program, twin, program_cutting(twin, like))
-
-
-def _keep_cutting(program, twin, cut) -> None:
-    try:
-        object.__setattr__(program, "_cutting_for", (twin.cutting, cut))
-    except (AttributeError, TypeError):
-        pass
+    twin.cutting_cache.put(program, twin.cutting, program_cutting(twin, like))
 
 
 def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False, loop_effects=()):
@@ -267,7 +261,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     sv = servo_table(machine)
     # the twin's effects, in their order: in the loop they change what the kernel reads,
     # on observation they change the finished trace
-    resolved = [(e, e.resolved()) for e in getattr(twin, "effects", ())]
+    resolved = [(e, e.resolved()) for e in twin.effects]
     loop_effects = [(e, p) for e, p in resolved if e.stage == "loop"]
     for e, p in loop_effects:
         e.servo(sv, p)

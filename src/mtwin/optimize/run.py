@@ -410,7 +410,7 @@ class _Run(SimpleNamespace):
 def _baseline(run: _Run) -> OptimizeResult | None:
     """The program as written: its plan and simulation, the fast model, what the optimiser may set (trusted
     records, ramps), the feed range, the segments and the planner's move times at other feeds."""
-    from ..motion.simulate import program_cutting, tool_effects, simulate_plan
+    from ..motion.simulate import program_cutting, tool_effects
 
     opts, program, stage, stock, twin = run.take("opts program stage stock twin")
     t_start = time.perf_counter()
@@ -445,7 +445,7 @@ def _baseline(run: _Run) -> OptimizeResult | None:
         times_job = pool.submit(lambda: move_times(program, plan, [
             (float(F), twin.plan(program, feeds=np.where(ok, F, rec["feed"]), like=plan)) for F in levels_f]))
         pool.shutdown(wait=False)  # (the job runs on; the executor takes no more)
-    before = simulate_plan(twin, program, plan, stock=stock, chatter=False)
+    before = twin.simulate(program, plan=plan, stock=stock, chatter=False)
     eng = before.engagement  # the one the simulation cut with (computed once, cached on the twin)
     # effects that change the cutting coefficients along the path (tool wear) act on the estimate too
     resolved = [(e, e.resolved()) for e in twin.effects if e.stage == "loop"]

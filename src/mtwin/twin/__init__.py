@@ -37,6 +37,10 @@ class Twin:
 
         # engagement depends only on the path: kept between simulations of this twin
         self.engagement_cache = EngagementCache()
+        from ..cutting.library import ProgramCuttings
+
+        # each program's tools as it declares them, per cutting part (motion.simulate.program_cutting)
+        self.cutting_cache = ProgramCuttings()
 
     def replace(self, *, share_cache: bool = True, **changes) -> "Twin":
         """A copy with some of ``machine``, ``interpreter``, ``path``, ``cutting``, ``effects``
@@ -51,6 +55,7 @@ class Twin:
         tw = Twin(**values)
         if share_cache:
             tw.engagement_cache = self.engagement_cache
+        tw.cutting_cache = self.cutting_cache  # (keyed by the cutting part: right for any change)
         return tw
 
     @classmethod
@@ -188,7 +193,7 @@ class Twin:
 
     def simulate(self, program, *, every: int = 1, disturbance: np.ndarray | None = None, progress=None,
                  cutting: bool = True, stock=None, tooth_resolution: bool = False, feeds=None, spindles=None,
-                 chatter: bool = True):
+                 chatter: bool = True, plan=None):
         """Run a program through the controller, feed drives and cutting process; returns a Trace.
 
         ``every``: keep every n-th servo sample in the trace (statistics use all of them).
@@ -200,11 +205,17 @@ class Twin:
         in the twin file to resolve the tooth frequency finely.
         ``disturbance``: an extra (samples, 3) force in N against each axis, by servo sample.
         ``feeds`` / ``spindles``: per-record overrides, as for :meth:`plan`.
-        ``chatter``: the cutting lines' stability margins, for tools with dynamics (docs/chatter.md)."""
+        ``chatter``: the cutting lines' stability margins, for tools with dynamics (docs/chatter.md).
+        ``plan``: this program's plan by this twin (:meth:`plan`), when the caller has made it.
+
+        This is the one door to a simulation (``mtwin.simulate`` is the use case over it,
+        :meth:`simulate_batch` the one for parts in a row)."""
         from ..motion.simulate import simulate_plan
 
         program = _with_overrides(program, feeds, spindles)
-        return simulate_plan(self, program, self.plan(program), every=every, disturbance=disturbance,
+        if plan is None or feeds is not None or spindles is not None:
+            plan = self.plan(program)
+        return simulate_plan(self, program, plan, every=every, disturbance=disturbance,
                              progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution,
                              chatter=chatter)
 
