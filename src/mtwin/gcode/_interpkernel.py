@@ -111,6 +111,61 @@ _AT, _CARET = 26, 27  # polar words '@' (distance) and '^' (angle, degrees)
 _CMA, _CMC, _CMR = 28, 29, 30  # Fanuc ',A' (angle), ',C' (corner chamfer), ',R' (corner radius)
 NWORDS = 31
 
+# ---- the G codes' modal groups: one table (LinuxCNC's _gees[] is the model) ----
+# Each code (x10: G38.2 is 382) has, per dialect (row 0 Fanuc, row 1 LinuxCNC), its modal group
+# (RS274NGC 3.4 and LinuxCNC's numbers; Fanuc's for its own codes) and what it sets (its slot).
+# A block may hold one code of a group ("two G-codes from the same modal group" is an error);
+# group -1: no conflict (G80 beside G0, as Fanuc posts write it; G9; cancel codes the twin
+# passes over).  Slot -1: not a code the twin reads.
+(GS_MOTION, GS_DWELL, GS_EXACT_ONCE, GS_PLANE, GS_UNITS, GS_COMP, GS_TLO, GS_WCS, GS_PATH, GS_DIST, GS_IJK,
+ GS_FEEDMODE, GS_RETRACT, GS_NONMODAL, GS_ROT68, GS_CSS, GS_MIRROR, GS_POLAR, GS_DIAM, GS_CANCEL, GS_HARMLESS,
+ GS_LOOKAHEAD, GS_GEOMETRY) = range(23)
+N_GROUPS = 32
+
+
+def _g_table() -> np.ndarray:
+    """(2 dialects, 1000 codes, [slot, group]); the first rule for a code stands."""
+    t = np.full((2, 1000, 2), -1, np.int8)
+
+    def put(slot, group, codes, rows=(0, 1)):
+        for r in rows:
+            for c in codes:
+                if t[r, c, 0] < 0:
+                    t[r, c] = (slot, group)
+
+    put(GS_CANCEL, -1, (800,))
+    put(GS_MOTION, 1, (0, 10, 20, 30, 810, 820, 830, 730, 850, 890, 840, 860, 330, 331, 382, 383, 384, 385, 760))
+    put(GS_MOTION, 1, (50, 51), rows=(1,))  # LinuxCNC G5 / G5.1 splines
+    put(GS_DWELL, 0, (40,))
+    put(GS_EXACT_ONCE, -1, (90,))  # Fanuc G09: one block's exact stop, beside any code
+    put(GS_PLANE, 2, (170, 180, 190))
+    put(GS_DIST, 3, (900, 910))
+    put(GS_IJK, 4, (901, 911))
+    put(GS_FEEDMODE, 5, (930, 940, 950))
+    put(GS_UNITS, 6, (200, 210))
+    put(GS_COMP, 7, (400, 410, 420, 411, 421))
+    put(GS_TLO, 8, (430, 490, 431, 432))
+    put(GS_RETRACT, 10, (980, 990))
+    put(GS_WCS, 12, (540, 550, 560, 570, 580, 590, 591, 592, 593))
+    put(GS_PATH, 13, (610, 611, 640))
+    put(GS_NONMODAL, 0, (100, 280, 300, 530, 920, 921, 922, 923, 281, 301, 520))
+    put(GS_CSS, 14, (960, 970))  # G96 constant surface speed / G97 rpm
+    put(GS_ROT68, 16, (680, 690), rows=(0,))  # Fanuc G68 X Y R rotation / G69
+    put(GS_POLAR, 17, (160, 150), rows=(0,))  # Fanuc G16 polar coordinates / G15
+    put(GS_MIRROR, 22, (511, 501), rows=(0,))  # Fanuc G51.1 programmable mirror image / G50.1
+    put(GS_HARMLESS, -1, (150, 500, 690, 501, 670))  # G15/G50/G69/G50.1/G67 cancel codes
+    # Fanuc G08 P1/P0 look-ahead, G05.1 Q1/Q0 AI contour control, G05 P10000 high-speed
+    # machining: the control's planning mode, not the path (the twin's planner is configured)
+    put(GS_LOOKAHEAD, -1, (80, 51, 50), rows=(0,))
+    put(GS_DIAM, 15, (70, 80), rows=(1,))  # LinuxCNC lathe G7 diameter / G8 radius mode
+    # cutter compensation variants, rotation, scaling, mirror, polar, macros: would change the path
+    put(GS_GEOMETRY, -1, (680, 510, 511, 160, 120, 130, 70, 681, 650, 660, 661))
+    return t
+
+
+#: per dialect row (0 Fanuc, 1 the others) and G code (x10): its slot and its modal group
+G_TABLE = _g_table()
+
 # state indices (float)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
 SF_A, SF_B, SF_C = 8, 9, 10  # rotary axis positions, degrees (not scaled by G20/G21)
@@ -536,6 +591,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     val = np.zeros(NWORDS)
     widx = np.zeros(NWORDS, np.int64)
     gcodes = np.zeros(16, np.int64)
+    g_seen = np.zeros(N_GROUPS, np.bool_)  # the block's modal groups taken (G_TABLE)
     gword = np.zeros(16, np.int64)
     mcodes = np.zeros(16, np.int64)
     mword = np.zeros(16, np.int64)
@@ -639,142 +695,16 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_dwell = False
         g_cancel = False
         g_exact_stop_once = False
+        g_seen[:] = False
+        drow = 0 if dialect == 0 else 1
         for q in range(ng):
             code = gcodes[q]
             kw = gword[q]
-            grp = -1
-            if code == 800:
-                # G80 cancels the cycle; Fanuc posts write it beside G0 (G0G80)
-                g_cancel = True
-                grp = 9
-            elif code == 0 or code == 10 or code == 20 or code == 30 \
-                    or code == 810 or code == 820 or code == 830 or code == 730 \
-                    or code == 850 or code == 890 or code == 840 or code == 860 or code == 330 or code == 331 \
-                    or ((code == 50 or code == 51) and dialect != 0) \
-                    or code == 382 or code == 383 or code == 384 or code == 385 or code == 760:
-                if g_motion >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_motion = code
-                g_motion_w = kw
-                grp = 1
-            elif code == 40:
-                if g_dwell:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_dwell = True
-                grp = 0
-            elif code == 90:
-                g_exact_stop_once = True
-                grp = 0
-            elif code == 170 or code == 180 or code == 190:
-                if g_plane >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_plane = (code - 170) // 10
-                grp = 2
-            elif code == 200 or code == 210:
-                if g_units >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_units = 1 if code == 200 else 0
-                grp = 6
-            elif code == 400 or code == 410 or code == 420 or code == 411 or code == 421:
-                if g_comp >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_comp = code
-                g_comp_w = kw
-                grp = 7
-            elif code == 430 or code == 490 or code == 431 or code == 432:
-                if g_tlo >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_tlo = code
-                grp = 8
-            elif (code >= 540 and code <= 590 and code % 10 == 0) or code == 591 or code == 592 \
-                    or code == 593:
-                if g_wcs >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_wcs = (code - 540) // 10 if code % 10 == 0 else 5 + code - 590
-                grp = 12
-            elif code == 610 or code == 611 or code == 640:
-                if g_path >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_path = code
-                grp = 13
-            elif code == 900 or code == 910:
-                if g_dist >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_dist = 1 if code == 910 else 0
-                grp = 3
-            elif code == 901 or code == 911:
-                if g_ijk >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_ijk = 1 if code == 901 else 0
-                grp = 4
-            elif code == 930 or code == 940 or code == 950:
-                if g_feedmode >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_feedmode = 2 if code == 930 else (0 if code == 940 else 1)
-                grp = 5
-            elif code == 980 or code == 990:
-                if g_retract >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_retract = code
-                grp = 10
-            elif code == 100 or code == 280 or code == 300 or code == 530 or code == 920 or code == 921 \
-                    or code == 922 or code == 923 or code == 281 or code == 301 or code == 520:
-                if g_nonmodal >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_nonmodal_code = code
-                if code == 281 or code == 301:
-                    code = code - 1
-                g_nonmodal = code
-                g_nonmodal_w = kw
-                grp = 0
-            elif (code == 680 or code == 690) and dialect == 0:
-                # Fanuc G68 X Y R coordinate rotation / G69 cancel
-                if g_rot68 >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_rot68 = 1 if code == 680 else 0
-                g_rot68_w = kw
-                grp = 16
-            elif code == 960 or code == 970:
-                # G96 constant surface speed (S in m/min or ft/min, D the rpm limit) / G97 rpm
-                if g_css >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_css = 1 if code == 960 else 0
-                grp = 99
-            elif (code == 511 or code == 501) and dialect == 0:
-                # Fanuc G51.1 programmable mirror image about the given axis positions / G50.1 off
-                if g_mirror >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_mirror = 1 if code == 511 else 0
-                g_mirror_w = kw
-                grp = 99
-            elif (code == 160 or code == 150) and dialect == 0:
-                # Fanuc G16 polar coordinate command (G17: X the radius, Y the angle) / G15 off
-                if g_polar >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_polar = 1 if code == 160 else 0
-                grp = 99
-            elif code == 150 or code == 500 or code == 690 or code == 501 or code == 670:
-                # G15/G50/G69/G50.1/G67 cancel codes: harmless
-                grp = 99
-            elif (code == 80 or code == 51 or code == 50) and dialect == 0:
-                # Fanuc G08 P1/P0 look-ahead control, G05.1 Q1/Q0 AI contour control and G05 P10000/P0
-                # high-speed machining (LinuxCNC reads G5/G5.1 as splines) switch
-                # the control's planning mode, not the path (the twin's planner is configured)
-                g_lookahead = True
-                grp = 99
-            elif (code == 70 or code == 80) and dialect != 0:
-                # LinuxCNC lathe G7 diameter / G8 radius mode
-                if g_diam >= 0:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_diam = 1 if code == 70 else 0
-                grp = 15
-            elif code == 680 \
-                    or code == 510 or code == 511 or code == 160 \
-                    or code == 120 or code == 130 \
-                    or code == 70 or code == 681 \
-                    or code == 650 or code == 660 or code == 661:
+            slot = G_TABLE[drow, code, 0] if code < 1000 else -1
+            group = G_TABLE[drow, code, 1] if code < 1000 else -1
+            if slot == GS_GEOMETRY:
                 return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
-            if grp < 0:
+            if slot < 0:
                 # --lenient passes over an unknown code only on a block without axis words: with
                 # them it may be a motion of its own (a lathe cycle, a probe, a macro call)
                 if lenient and not (has[_X] or has[_Y] or has[_Z] or has[_AT] or has[_CARET]):
@@ -782,8 +712,64 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         warn_code[nwarn] = W_IGNORED_G
                         warn_word[nwarn] = kw
                     nwarn += 1
-                else:
-                    return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
+                    continue
+                return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
+            # the one conflict check: two codes of one modal group in a block
+            if group >= 0:
+                if g_seen[group]:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                g_seen[group] = True
+            # what each group's code sets
+            if slot == GS_CANCEL:
+                g_cancel = True
+            elif slot == GS_MOTION:
+                g_motion = code
+                g_motion_w = kw
+            elif slot == GS_DWELL:
+                g_dwell = True
+            elif slot == GS_EXACT_ONCE:
+                g_exact_stop_once = True
+            elif slot == GS_PLANE:
+                g_plane = (code - 170) // 10
+            elif slot == GS_UNITS:
+                g_units = 1 if code == 200 else 0
+            elif slot == GS_COMP:
+                g_comp = code
+                g_comp_w = kw
+            elif slot == GS_TLO:
+                g_tlo = code
+            elif slot == GS_WCS:
+                g_wcs = (code - 540) // 10 if code % 10 == 0 else 5 + code - 590
+            elif slot == GS_PATH:
+                g_path = code
+            elif slot == GS_DIST:
+                g_dist = 1 if code == 910 else 0
+            elif slot == GS_IJK:
+                g_ijk = 1 if code == 901 else 0
+            elif slot == GS_FEEDMODE:
+                g_feedmode = 2 if code == 930 else (0 if code == 940 else 1)
+            elif slot == GS_RETRACT:
+                g_retract = code
+            elif slot == GS_NONMODAL:
+                g_nonmodal_code = code
+                if code == 281 or code == 301:
+                    code = code - 1
+                g_nonmodal = code
+                g_nonmodal_w = kw
+            elif slot == GS_ROT68:
+                g_rot68 = 1 if code == 680 else 0
+                g_rot68_w = kw
+            elif slot == GS_CSS:
+                g_css = 1 if code == 960 else 0
+            elif slot == GS_MIRROR:
+                g_mirror = 1 if code == 511 else 0
+                g_mirror_w = kw
+            elif slot == GS_POLAR:
+                g_polar = 1 if code == 160 else 0
+            elif slot == GS_LOOKAHEAD:
+                g_lookahead = True
+            elif slot == GS_DIAM:
+                g_diam = 1 if code == 70 else 0
 
         # ---- classify M codes ----
         m_tc = False
