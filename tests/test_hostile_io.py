@@ -52,6 +52,9 @@ def test_no_output_replaces_an_input(files, case):
         assert {k: v for k, v in _snapshot(d).items() if k != "r.html"} == before
         return
     assert code == 2 and "refusing to overwrite" in err and "Traceback" not in err, err
+    # the way out offered is one the command has: --in-place (optimize's and scale's) allows only
+    # the program itself as the output
+    assert "--in-place" not in err, err
     assert _snapshot(d) == before
 
 

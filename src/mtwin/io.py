@@ -111,8 +111,9 @@ def _read_within(fh, limit: int) -> bytes:
 
 
 @contextlib.contextmanager
-def atomic_output(out: str | os.PathLike, binary: bool = False, inputs: tuple = (), in_place: bool = False):
-    """Context manager yielding a file handle for ``out`` ("-" = stdout)."""
+def atomic_output(out: str | os.PathLike, binary: bool = False, inputs: tuple = (), in_place: bool | None = None):
+    """Context manager yielding a file handle for ``out`` ("-" = stdout).  ``in_place``: may ``out``
+    be one of the ``inputs`` (None: the command has no ``--in-place``, so no message offers it)."""
     out = os.fspath(out)
     if out == "-":
         fh = sys.stdout.buffer if binary else sys.stdout
@@ -127,7 +128,8 @@ def atomic_output(out: str | os.PathLike, binary: bool = False, inputs: tuple = 
     for src in inputs:
         if src != "-" and Path(src).exists() and target.exists() and os.path.samefile(src, target):
             if not in_place:
-                raise MtwinError(f"refusing to overwrite the input {src} (use --in-place)")
+                raise MtwinError(f"refusing to overwrite the input {src}" +
+                                 (" (use --in-place)" if in_place is not None else ": name another output file"))
             named = True
     try:
         lst = os.lstat(target)
@@ -183,6 +185,6 @@ def _umask() -> int:
     return mask
 
 
-def write_bytes(data: bytes, out: str, inputs: list[str] = (), in_place: bool = False) -> None:
+def write_bytes(data: bytes, out: str, inputs: list[str] = (), in_place: bool | None = None) -> None:
     with atomic_output(out, binary=True, inputs=tuple(inputs), in_place=in_place) as fh:
         fh.write(data)

@@ -376,7 +376,7 @@ class Calibration:
         """As ``mtwin calibrate --json`` prints it (less the file written)."""
         return {**self.result.as_dict(), "validation": self.validation}
 
-    def write(self, path: str, in_place: bool = False) -> None:
+    def write(self, path: str, in_place: bool | None = None) -> None:
         """Write the calibrated twin file (atomically)."""
         write_bytes(self.twin_text.encode(), path, self.inputs, in_place)
 

@@ -67,8 +67,9 @@ def check_report(report: Optional[str], *others: Optional[str], stdout_ok: bool 
         raise MtwinError(f"--report {report}: use an .html file name")
 
 
-def write_output(data: bytes, out: str, inputs: list, in_place: bool = False) -> None:
-    """Write ``data`` to ``out`` atomically (temporary file + rename), or to stdout for ``-``."""
+def write_output(data: bytes, out: str, inputs: list, in_place: bool | None = None) -> None:
+    """Write ``data`` to ``out`` atomically (temporary file + rename), or to stdout for ``-``;
+    ``in_place`` as the command's ``--in-place`` (None: it has none)."""
     from ..io import write_bytes
 
     write_bytes(data, out, [str(p) for p in inputs], in_place)
