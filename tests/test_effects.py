@@ -216,6 +216,8 @@ def test_a_user_effect_from_a_file_is_listed_and_used_like_a_built_in(tmp_path, 
     bad.write_text("x = 1\n")
     r = run_cli("effects", "--effect-file", str(bad))
     assert r.returncode == 2 and "defines no subclass" in r.stderr.decode()
+    r = run_cli("effects", "--effect-file", str(tmp_path))  # (a folder: said so, not "no such file")
+    assert r.returncode == 2 and "a directory" in r.stderr.decode() and "no such file" not in r.stderr.decode()
 
 
 def test_an_installed_package_s_entry_point_registers_its_effect(effect_package):

@@ -262,3 +262,18 @@ def test_a_value_that_is_not_finite_is_written_as_missing(tmp_path):
     assert (tmp_path / "d.csv").read_text().splitlines()[-2:] == ["0.002000000,2,", "0.003000000,2,"]
     m = read_measurement(str(tmp_path / "d.csv"))
     assert m.signals["vib_x"][:2].tolist() == [0.0, 1e-3] and np.isnan(m.signals["vib_x"][2:]).all()
+
+
+def test_a_trace_too_large_for_memory_names_the_programs_length_in_its_own_units():
+    # (a short program at a tiny servo period: "a trace of 0.0 h" told the user nothing)
+    from dataclasses import replace
+
+    import mtwin
+    from mtwin.errors import MtwinError
+
+    tw = mtwin.Twin()
+    tw = tw.replace(machine=replace(tw.machine, controller=replace(tw.machine.controller, servo_period=1e-6)))  # (the shortest a twin file takes)
+    prog = tw.load(b"G21 G90 G94\nG1 X200 F200\nM30\n", path="short.nc")
+    with pytest.raises(MtwinError) as exc:
+        tw.simulate(prog, cutting=False)
+    assert "a trace of 1.0 min at every 1 servo sample" in str(exc.value) and "0.0 h" not in str(exc.value), str(exc.value)

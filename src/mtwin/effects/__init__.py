@@ -94,7 +94,8 @@ def get(name: str) -> type[Effect]:
 def load_file(path: str) -> list[type[Effect]]:
     """Import a Python file and register every Effect subclass defined in it."""
     if not os.path.isfile(path):
-        raise ConfigError(f"--effect-file {path}: no such file")
+        raise ConfigError(f"--effect-file {path}: " + ("a directory: name the .py file in it" if os.path.isdir(path)
+                                                       else "no such file"))
     from ..io import check_input
 
     check_input(path, "effects")  # (Python code, run as a plugin is: docs/effects.md)

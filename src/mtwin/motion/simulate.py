@@ -222,6 +222,13 @@ def _land_by_sample(eng, plan, program, land: np.ndarray, record: np.ndarray) ->
     return rec_land[np.clip(record, 0, max(nrec - 1, 0))] if nrec else np.zeros(len(record))
 
 
+def _duration(seconds: float) -> str:
+    """A program's length as a person reads it: hours, minutes or seconds (not "0.0 h")."""
+    if seconds >= 360.0:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 60:.1f} min" if seconds >= 60.0 else f"{seconds:.3g} s"
+
+
 def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
                   stock=None, tooth: bool = False, chatter: bool = True) -> Trace:
     machine = twin.machine
@@ -244,12 +251,12 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     wait_guess = 0.25 if c.in_position > 0 else 0.0
     n_est = n_plan + int(n_stops * wait_guess / dt)
     if n_plan > 500_000_000:
-        raise MtwinError(f"program runs {total / 3600:.1f} h: more than 500 million servo samples")
+        raise MtwinError(f"program runs {_duration(total)}: more than 500 million servo samples")
     bytes_per_sample = RK.bytes_per_sample()  # what a trace keeps per sample
     need = (n_plan // every + 1) * bytes_per_sample
     if need > 4e9:
         suggest = int(math.ceil(need / 1e9)) * every
-        raise MtwinError(f"a trace of {total / 3600:.1f} h at every {every} servo sample(s) needs {need / 1e9:.1f} GB; "
+        raise MtwinError(f"a trace of {_duration(total)} at every {every} servo sample(s) needs {need / 1e9:.1f} GB; "
                          f"keep fewer samples (--every {suggest} or --decimate)")
     if disturbance is None:
         fd = np.zeros((0, 3))
@@ -273,7 +280,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         every = 1
         need = (n_plan + 1) * bytes_per_sample
         if need > 4e9:
-            raise MtwinError(f"a program of {total / 3600:.1f} h with effects on observation ("
+            raise MtwinError(f"a program of {_duration(total)} with effects on observation ("
                              f"{', '.join(e.name for e, _ in observed)}) needs the full-rate trace: "
                              f"{need / 1e9:.1f} GB; simulate a shorter program or section")
     if len(seg):
