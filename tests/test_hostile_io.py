@@ -187,8 +187,9 @@ def test_sigterm_leaves_no_temporary_file(files, signame):
         p.kill()
         pytest.skip("the run ended before its output was being written: nothing to interrupt")
     p.send_signal(getattr(signal, signame))
-    p.communicate(timeout=60)
+    _, err = p.communicate(timeout=60)
     assert p.returncode == 130
+    assert f"interrupted ({signame}" in err.decode() and "Ctrl-C" not in err.decode()  # (named as it came)
     left = [x.name for x in d.iterdir() if x.name not in {"p.nc", "t.toml", "big.nc"}]
     assert left == [], left  # (no temporary file, and no half-written trace.csv)
 

@@ -19,7 +19,7 @@ import sys
 
 # (imported in the order their commands are listed in --help)
 from . import program, simulate, optimize, batch, loop, chatter, tools, admin, grind  # noqa: F401,I001  (register their commands)
-from .app import INTERRUPTED, app, err, state
+from .app import app, err, interrupted, state
 
 __all__ = ["app", "main", "run_command"]
 
@@ -67,7 +67,8 @@ def main() -> None:
 
     def _terminated(signum, frame):
         # SIGTERM (a job's end) and SIGHUP (the terminal closed) unwind like Ctrl-C: every
-        # output's temporary file is removed on the way out
+        # output's temporary file is removed on the way out; the message names the signal
+        state["signal"] = "SIGTERM" if signum == signal.SIGTERM else "SIGHUP, the terminal closed"
         raise KeyboardInterrupt
 
     with contextlib.suppress(ValueError):  # (not in the main thread: an embedding program's business)
@@ -77,5 +78,5 @@ def main() -> None:
     try:
         app()
     except KeyboardInterrupt:  # pragma: no cover (an interrupt before a command started)
-        err.print(INTERRUPTED, highlight=False)
+        err.print(interrupted(), highlight=False)
         sys.exit(130)

@@ -58,7 +58,7 @@ app = typer.Typer(
 err = Console(stderr=True, highlight=False, width=None if sys.stderr.isatty() else 240)
 EXIT_INTERNAL = 3
 
-state = {"traceback": False}
+state = {"traceback": False, "signal": "Ctrl-C"}  # (the signal that interrupts a run: its name)
 
 
 def _version(value: bool):
@@ -136,8 +136,10 @@ def fail(exc: BaseException) -> None:
     raise typer.Exit(EXIT_INTERNAL)
 
 
-INTERRUPTED = ("interrupted (Ctrl-C): no output is left half-written (an output not yet complete was not "
-               "written; one written before the interrupt is whole)")
+def interrupted() -> str:
+    """What an interrupted run says: by which signal, and that no output is left half-written."""
+    return (f"interrupted ({state['signal']}): no output is left half-written (an output not yet complete was not "
+            "written; one written before the interrupt is whole)")
 
 
 @contextlib.contextmanager
@@ -184,7 +186,7 @@ def reports_errors(command):
             raise
         except KeyboardInterrupt:
             # every output is written atomically: an interrupted run leaves none half-written
-            err.print(INTERRUPTED, highlight=False)
+            err.print(interrupted(), highlight=False)
             raise typer.Exit(130) from None
         except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
             fail(exc)
