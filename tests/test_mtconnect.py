@@ -193,3 +193,14 @@ def test_per_block_timing_on_plate_13_shows_where_the_default_twin_is_wrong():
     assert kinds["rapid"]["error"] > 5
     # (groups reported out of order, re-reports, are left out: a few seconds at most)
     assert b.measured.sum() == pytest.approx(m.end_time - m.t[0], abs=5.0)
+
+
+def test_a_malformed_xml_stream_is_named_at_its_line_and_column(tmp_path):
+    from mtwin.loop.mtconnect import read_streams
+
+    bad = tmp_path / "bad.xml"
+    bad.write_text('<?xml version="1.0"?>\n<MTConnectStreams>\n  <Streams>\n    <Bad attr=>\n</MTConnectStreams>\n')
+    with pytest.raises(MeasurementError) as exc:
+        read_streams(str(bad))
+    # (it said line 0, column 0)
+    assert str(exc.value).startswith(f"{bad}:4:15: cannot read the MTConnect XML: not well-formed"), str(exc.value)

@@ -211,8 +211,15 @@ def read_streams(path: str) -> list:
 
     try:
         root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise MeasurementError(f"cannot read the MTConnect XML: {exc}", SourceLocation(path, 0, 0)) from None
+    except ET.ParseError as exc:
+        # (the parser's own position, 1-based line and column; its message repeats it)
+        line, col = getattr(exc, "position", (1, 0))
+        why = str(exc).split(":", 1)[0]
+        raise MeasurementError(f"cannot read the MTConnect XML: {why}", SourceLocation(path, max(line, 1),
+                                                                                      col + 1)) from None
+    except OSError as exc:
+        raise MeasurementError(f"cannot read the MTConnect XML: {exc.strerror or exc}", SourceLocation(path, 1, 1)) \
+            from None
     out = []
     for el in root.iter():
         ts = el.attrib.get("timestamp")
