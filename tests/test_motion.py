@@ -379,3 +379,21 @@ def test_twin_replace_by_name_shares_the_engagement_cache_unless_told():
     # the with_* copies go through it: effects and tools keep the cache, a planner change does not
     assert tw.with_effects("gravity:mass=1").engagement_cache is tw.engagement_cache
     assert tw.with_controller(style="grbl").engagement_cache is not tw.engagement_cache
+
+
+def test_a_run_in_pieces_is_the_run_in_one(monkeypatch):
+    # the loop returns to Python every _INTERRUPT_CHUNK periods (so that Ctrl-C is taken in a
+    # long run): the pieces must join into exactly the one-piece run
+    import mtwin
+    import mtwin.motion.simulate as MS
+    from conftest import SAMPLES
+
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / "pocket.nc"))
+    whole = tw.simulate(prog)
+    monkeypatch.setattr(MS, "_INTERRUPT_CHUNK", 7_001)
+    pieces = tw.simulate(prog)
+    assert len(whole.t) == len(pieces.t)
+    for name in ("cmd", "act", "err", "force", "cut"):
+        np.testing.assert_array_equal(getattr(whole, name), getattr(pieces, name))
+    assert whole.summary.cycle_time == pieces.summary.cycle_time

@@ -17,6 +17,10 @@ from .trace import AXES, CuttingSummary, Summary, Trace
 _G = 9.80665
 # Samples per kernel call when a progress callback is given (about 20 s of machining)
 _CHUNK = 20_000
+# servo periods run per call of the loop's kernel when no progress is reported: a compiled
+# kernel does not see Ctrl-C, so a long program returns to Python every second or two of wall
+# time (about 2,000 s of machine time) and an interrupt is taken there
+_INTERRUPT_CHUNK = 2_000_000
 # longest in-position wait at one exact stop before the simulation gives up, s
 _MAX_WAIT = 10.0
 
@@ -308,7 +312,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                            float(_MAX_WAIT), sv, fd)
     cap = n_est // every + 3
     outs = RK.allocate_outputs(cap, eng is not None)
-    chunk = max(_CHUNK, every) if progress is not None else max(n_est, every)
+    chunk = max(_CHUNK, every) if progress is not None else max(_INTERRUPT_CHUNK, every)
     chunk -= chunk % every  # chunks start on stored samples
     k = 0
     while state.seg[L_STATUS] == LOOP_RUNNING:
