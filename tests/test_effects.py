@@ -412,3 +412,15 @@ def test_block_time_and_corner_slowdown_slow_short_blocks_and_corners():
     # 50 blocks at no less than 50 ms each
     assert slow.total_time >= 50 * 0.05 > base
     assert tw.with_effects("corner-slowdown:corner_velocity=50").plan(prog).total_time > base
+
+
+def test_an_effects_dotted_parameter_name_is_built_and_split_in_one_place():
+    from mtwin.errors import ConfigError
+    from mtwin.params import effect_param, is_effect_param, split_effect_param
+
+    name = effect_param("spindle-runup", "power_speed")
+    assert name == "effects.spindle-runup.power_speed" and is_effect_param(name)
+    assert split_effect_param(name) == ("spindle-runup", "power_speed")
+    assert not is_effect_param("x.servo.kpp")
+    with pytest.raises(ConfigError):
+        split_effect_param("x.servo.kpp")

@@ -117,3 +117,28 @@ class Param:
             raise ConfigError(f"{key}: must be within [{self.lower:g}, {self.upper:g}]"
                               f"{' ' + self.unit if self.unit else ''}, got {value!r}")
         return float(x)
+
+
+# ---- dotted parameter names: the one place they are built and taken apart
+#
+# A fitted or calibrated value is named by where it lives in the twin file: an effect's
+# parameter ``effects.NAME.PARAM`` (effect names hold '-', never '.'), a machine parameter
+# ``x.servo.kpp``, a cutting one ``cutting.<material>.ktc`` or ``tools.<N>.<field>``.
+EFFECTS = "effects"
+
+
+def effect_param(effect: str, param: str) -> str:
+    """``effects.NAME.PARAM``: the dotted name of an effect's parameter."""
+    return f"{EFFECTS}.{effect}.{param}"
+
+
+def is_effect_param(name: str) -> bool:
+    return name.startswith(EFFECTS + ".")
+
+
+def split_effect_param(name: str) -> tuple[str, str]:
+    """(effect, parameter) of ``effects.NAME.PARAM``."""
+    if not is_effect_param(name) or name.count(".") < 2:
+        raise ConfigError(f"{name}: not an effect's parameter (effects.NAME.PARAM)")
+    param = name.rsplit(".", 1)[-1]
+    return name[len(EFFECTS) + 1:-(len(param) + 1)], param

@@ -47,6 +47,35 @@ class UnitError(ValueError):
     pass
 
 
+#: millimetres in an inch (exact: the international inch of 1959)
+MM_PER_INCH = 25.4
+
+
+def per_second(per_minute):
+    """A rate per minute as per second: mm/min → mm/s, rpm → rev/s."""
+    return per_minute / 60.0
+
+
+def per_minute(per_second_):
+    """A rate per second as per minute: mm/s → mm/min, rev/s → rpm."""
+    return per_second_ * 60.0
+
+
+def rad_per_second(rpm):
+    """A rotational speed in rpm as rad/s."""
+    return rpm * (2.0 * math.pi / 60.0)
+
+
+def feed_per_tooth(feed_mm_min, rpm, flutes):
+    """The feed per tooth (mm) of a feed (mm/min) at a spindle speed (rpm) with so many flutes:
+    f_z = v_f / (z·n); 0 where the spindle stands (arrays or numbers)."""
+    import numpy as np
+
+    n = np.asarray(rpm, dtype=float) * np.asarray(flutes, dtype=float)
+    out = np.where(n > 0, np.asarray(feed_mm_min, dtype=float) / np.where(n > 0, n, 1.0), 0.0)
+    return float(out) if np.ndim(out) == 0 else out
+
+
 def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
     """Factor to SI and dimension of a unit expression like ``N*s/m`` or ``mm/s^2``."""
     text = text.replace("·", "*").replace("²", "^2").replace("³", "^3").replace(" ", "")

@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Optional
 
 from ..version import __version__
 from ..effects import Effect, parse_effect_spec
 from ..errors import MtwinError
+from ..params import is_effect_param
 from ..io import write_bytes
 from ..loop.asrun import as_run
 from ..loop.compare import compare as run_compare
@@ -435,7 +437,7 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
         logs = [meas]
     fitted = {e.name: e for e in res.effects}
     effects = [fitted.pop(e.name, e) for e in tw.effects] + list(fitted.values())
-    base = {k: v for k, v in res.params.items() if not k.startswith("effects.")}
+    base = {k: v for k, v in res.params.items() if not is_effect_param(k)}
     validation = None
     if validate:
         fitted_base = tw.with_params(base) if base else tw
@@ -443,7 +445,7 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
         validation = _validation(tw2, program, validate, how, reading, align, sig, stock, msgs)
     path = tw.path
     previous = read_journal(path) if path else []
-    source = open(path, encoding="utf-8").read() if path else ""
+    source = Path(path).read_text(encoding="utf-8") if path else ""
     label = "; ".join(os.path.basename(str(m)) for _, m in pairs) if len(pairs) > 1 else str(measurement)
     # a control's log that did not log its overrides: the values fitted to it are effective ones
     notes = [f"{os.path.basename(m.path)}: overrides {m.meta['overrides']}; the fitted values are effective (they "

@@ -4,7 +4,7 @@ compliance to the measured FRF (real and imaginary parts, every frequency).
 Start: in each direction the peaks of |Φ| (local maxima above a fifth of the largest, at
 least 3 half-power bandwidths apart, ``modes`` per direction at most); per peak fn at the
 peak, ζ from the half-power bandwidth, k from the peak height (|Φ|max = 1/(2kζ)).  Then
-scipy's ``least_squares`` on log fn, log ζ, log k of all modes of a direction at once,
+``mtwin.fitting.solve`` on log fn, log ζ, log k of all modes of a direction at once,
 residuals relative to the FRF's largest magnitude.  The parameters' standard deviations come
 from the Jacobian and the residual scatter.
 """
@@ -62,7 +62,7 @@ def _peaks(f: np.ndarray, h: np.ndarray, most: int) -> list[tuple[float, float, 
 
 
 def fit_frf(frf: FRF, modes_per_direction: int = 2) -> TapFit:
-    from scipy.optimize import least_squares
+    from ..fitting import solve
 
     modes: list[Mode] = []
     sigmas: list = []
@@ -90,15 +90,13 @@ def fit_frf(frf: FRF, modes_per_direction: int = 2) -> TapFit:
             e = (model(x) - h) / scale
             return np.concatenate([e.real, e.imag])
 
-        sol = least_squares(resid, x0, method="lm", x_scale="jac")
+        # the one fitting core (mtwin.fitting), unbounded in the logs: its uncertainty is one
+        # standard deviation of each log, i.e. a relative one of fn, ζ and k
+        n = len(x0)
+        sol = solve(resid, x0, np.full(n, -np.inf), np.full(n, np.inf), np.ones(n), max_evaluations=200 * (n + 1),
+                    xtol=1e-12, ftol=1e-12, blind_check=False)
         r = sol.fun
-        dof = max(len(r) - len(sol.x), 1)
-        s2 = float(r @ r) / dof
-        try:
-            cov = np.linalg.inv(sol.jac.T @ sol.jac) * s2
-            sd_log = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        except np.linalg.LinAlgError:
-            sd_log = np.full(len(sol.x), np.nan)
+        sd_log = np.array([np.nan if u is None else u for u in sol.uncertainty])
         rms[d] = float(np.sqrt(np.mean(r * r)))
         for j in range(len(sol.x) // 3):
             fn, z, k = np.exp(sol.x[3 * j:3 * j + 3])

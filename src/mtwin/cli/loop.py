@@ -43,8 +43,6 @@ def import_mtconnect(
     """Data items logged on change become a time series sampled at every change: t, line,
     feed (mm/min; MTConnect reports mm/s), spindle_speed, and tool and overrides where logged.
     Runs, feed holds and assumptions are listed on stderr and in the file's metadata."""
-    from pathlib import Path
-
     from ..loop.mtconnect import read_mtconnect
 
     check_outputs(output)

@@ -6,6 +6,7 @@ from typing import Optional
 import typer
 
 from ..errors import EXIT_CHECK_FAILED, MtwinError
+from ..units import MM_PER_INCH
 from .app import app, err, reports_errors
 from .argtypes import check_outputs, write_output
 from .options import JSON, PART, PROGRAM, groups, twin_options
@@ -53,17 +54,17 @@ def _print_summary(s) -> None:
 
     def own(mm: float, fmt: str, unit: str = "in") -> str:
         # an inch program's own numbers beside the SI ones
-        return f" ({mm / 25.4:{fmt}} {unit})" if inch else ""
+        return f" ({mm / MM_PER_INCH:{fmt}} {unit})" if inch else ""
 
-    t.add_row("feed range", (f"{s.feed_range[0] / 25.4:g} – {s.feed_range[1] / 25.4:g} in/min "
+    t.add_row("feed range", (f"{s.feed_range[0] / MM_PER_INCH:g} – {s.feed_range[1] / MM_PER_INCH:g} in/min "
                              f"({s.feed_range[0]:g} – {s.feed_range[1]:g} mm/min)") if inch else
               f"{s.feed_range[0]:g} – {s.feed_range[1]:g} mm/min")
     t.add_row("spindle range", f"{s.spindle_range[0]:g} – {s.spindle_range[1]:g} rpm")
     lo, hi = s.bbox["min"], s.bbox["max"]
     t.add_row("bounding box", f"X {lo[0]:.3f}…{hi[0]:.3f}  Y {lo[1]:.3f}…{hi[1]:.3f}  Z {lo[2]:.3f}…{hi[2]:.3f} mm")
     if inch:
-        t.add_row("", f"X {lo[0] / 25.4:.4f}…{hi[0] / 25.4:.4f}  Y {lo[1] / 25.4:.4f}…{hi[1] / 25.4:.4f}  "
-                      f"Z {lo[2] / 25.4:.4f}…{hi[2] / 25.4:.4f} in")
+        lo_in, hi_in = [v / MM_PER_INCH for v in lo], [v / MM_PER_INCH for v in hi]
+        t.add_row("", f"X {lo_in[0]:.4f}…{hi_in[0]:.4f}  Y {lo_in[1]:.4f}…{hi_in[1]:.4f}  Z {lo_in[2]:.4f}…{hi_in[2]:.4f} in")
     t.add_row("cutting length", f"{s.cutting_length:,.1f} mm" + own(s.cutting_length, ",.2f"))
     t.add_row("rapid length", f"{s.rapid_length:,.1f} mm" + own(s.rapid_length, ",.2f"))
     t.add_row("nominal time", f"{s.nominal_time:,.1f} s  (length/feed; rapids at 30 m/min; dwell {s.dwell_time:g} s)")

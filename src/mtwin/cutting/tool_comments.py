@@ -93,9 +93,8 @@ import re
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
+from ..units import MM_PER_INCH
 from .library import Tool
-
-MM_PER_INCH = 25.4
 
 KINDS = ("flat", "ball", "bull", "face", "unspecified", "drill", "tap", "reamer", "chamfer", "engrave", "other")
 """flat/ball/bull/face (and, on request, unspecified) map onto the library's tool shapes;

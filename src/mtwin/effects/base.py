@@ -26,6 +26,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import ConfigError
+from ..units import feed_per_tooth, per_minute
 from ..layout import ANGLE_BINS, Q_AE, Q_AP, Q_AREA, Q_WMAX, ST_TE, T_FLUTES, T_RADIUS
 from ..params import Param
 
@@ -194,7 +195,7 @@ class StepInfo:
                 rpm = abs(float(program.records["spindle"][r]))
                 flutes = float(eng.tools[eng.tool_index[i], T_FLUTES])
                 if rpm > 0 and flutes > 0:
-                    fz[a:a + c] = seg["feed"][i] / (flutes * rpm / 60.0)  # mm per tooth
+                    fz[a:a + c] = feed_per_tooth(per_minute(seg["feed"][i]), rpm, flutes)  # (seg feed: mm/s)
         area = np.asarray(eng.q[:, Q_AREA], dtype=np.float64)
         inside = area > 0
         d = np.where(inside, ds, 0.0)

@@ -14,13 +14,13 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..units import MM_PER_INCH
 from ._lexkernel import LF_BLOCK_DELETE, LF_PERCENT
 from .records import (
     ARC_CCW, ARC_CW, DWELL, FL_CANNED, FL_FIRST_IN_LINE, FL_IJK_ABSOLUTE, FL_INCH, FL_INCREMENTAL,
     FL_DIAMETER, FL_MACHINE, FL_MIRROR, FL_POLAR, FL_PROBE, FL_R_ARC, FL_ROTARY, FL_SPLINE, FL_SUB, FL_SYNC, FL_F_INCH, LINEAR, RAPID,
 )
 
-MM_PER_INCH = 25.4
 # LinuxCNC's arc tolerances (interp_internal.hh), mm.
 RADIUS_TOL_MM = 0.00127
 CENTER_TOL_MM = 2 * 0.01 * math.sqrt(2.0)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import WriteError
+from ..units import MM_PER_INCH
 from ._lexkernel import LF_BLOCK_DELETE
 from .interpreter import Program, interpret
 from .lexer import lex
@@ -168,7 +169,7 @@ class _Writer:
 def _feed_word(r, feed, spindle, length, own_line=True):
     # an F on the record's own line is read in the units before that line's G20/G21;
     # on a line inserted after it, in the units in force for the move
-    scale = 25.4 if r["flags"] & (FL_F_INCH if own_line else FL_INCH) else 1.0
+    scale = MM_PER_INCH if r["flags"] & (FL_F_INCH if own_line else FL_INCH) else 1.0
     if r["feed_mode"] == FEED_PER_REV:
         if spindle <= 0:
             raise WriteError(f"line {r['line']}: feed per revolution (G95) with the spindle at 0 rpm")
@@ -187,7 +188,7 @@ def _feed_targets(prog, st, rec, candidates, line0, new_feed, new_spindle, lengt
         return {}
     r = rec[candidates]
     inch = (r["flags"] & FL_F_INCH) != 0
-    vals = np.where(inch, new_feed[candidates] / 25.4, new_feed[candidates]).astype(np.float64)
+    vals = np.where(inch, new_feed[candidates] / MM_PER_INCH, new_feed[candidates]).astype(np.float64)
     special = np.flatnonzero((r["feed_mode"] == FEED_PER_REV) | (r["feed_mode"] == FEED_INVERSE_TIME))
     for k in special:
         i = int(candidates[k])
@@ -494,7 +495,7 @@ def _write_split(w: _Writer, r, li: int, sp: Split, spindle: float, length: floa
     lx = w.lx
     st = w.style
     inch = bool(r["flags"] & FL_INCH)
-    scale = 25.4 if inch else 1.0
+    scale = MM_PER_INCH if inch else 1.0
     dec = max(st.coord_decimals, 5 if inch else 4)
     incremental = bool(r["flags"] & FL_INCREMENTAL)
     is_arc = r["kind"] != LINEAR
@@ -595,7 +596,7 @@ def _self_check(prog: Program, out: bytes, new_feed, new_spindle, splits):
     # tolerance: F is written to within 0.1 % of the feed asked for (NumberStyle.feed adds
     # decimals for that), or half a unit of its sixth decimal for a vanishing feed
     inch_f = (nr["flags"] & (FL_F_INCH | FL_INCH)) != 0
-    res = np.where(inch_f, 0.5e-6 * 25.4, 0.5e-6)
+    res = np.where(inch_f, 0.5e-6 * MM_PER_INCH, 0.5e-6)
     res = np.where(nr["feed_mode"] == FEED_PER_REV, res * nr["spindle"], res)
     tol = res * 1.0001 + 1.0001e-3 * np.abs(exp_f)
     tol = np.where(nr["feed_mode"] == FEED_INVERSE_TIME, np.inf, tol)

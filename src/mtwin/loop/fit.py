@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MtwinError, SourceLocation
+from ..params import effect_param, is_effect_param
 from ..fitting import FIT_FACTOR, STRONG_EVIDENCE, default_scale, delta_bic, solve, verdict
 from .compare import _STAT, _has, compare, simulate_measured
 from .measurement import STATS, MeasurementError, no_unknown_statistics, summary_base
@@ -298,8 +299,8 @@ def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
         for d in e.params:
             if d.name not in moved:
                 continue
-            start = (starts or {}).get(f"effects.{e.name}.{d.name}", p[d.name])
-            free.append((f"effects.{e.name}.{d.name}", d.lower, d.upper, float(start)))
+            start = (starts or {}).get(effect_param(e.name, d.name), p[d.name])
+            free.append((effect_param(e.name, d.name), d.lower, d.upper, float(start)))
     for name in base_params:
         v = _base_value(twin, name)
         free.append((name, 0.0 if v >= 0 else -math.inf, math.inf, v))
@@ -316,9 +317,9 @@ def free_parameters(twin, effects, base_params=(), starts: dict | None = None):
 def build_fitted(twin, effects, keys, x):
     """(twin with the base values of ``x``, ``effects`` re-made with theirs)."""
     values = dict(zip(keys, x))
-    fitted = [e.with_values(**{d.name: values[f"effects.{e.name}.{d.name}"] for d in e.params
-                               if f"effects.{e.name}.{d.name}" in values}) for e in effects]
-    base = {k: v for k, v in values.items() if not k.startswith("effects.")}
+    fitted = [e.with_values(**{d.name: values[effect_param(e.name, d.name)] for d in e.params
+                               if effect_param(e.name, d.name) in values}) for e in effects]
+    base = {k: v for k, v in values.items() if not is_effect_param(k)}
     return (twin.with_params(base) if base else twin), fitted
 
 
@@ -403,7 +404,7 @@ def _wear_evidence(tg: Target, s: str, name: str, fr) -> str:
     first, last = float(np.mean(share[:tenth])), float(np.mean(share[-tenth:]))
     text = (f"; {s} per cut grows with the tool's cumulative cut: the wear's share rises from {first:.3g} "
             f"over the first tenth of the {n} cuts to {last:.3g} over the last")
-    if "effects." + name + ".break_in" in fr.params:
+    if effect_param(name, "break_in") in fr.params:
         w = max(n // 20, 2)
         slope = np.convolve(np.diff(share), np.ones(w) / w, mode="valid")
         steady = float(np.mean(slope[-max(len(slope) // 3, 1):]))

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConfigError, MtwinError
+from ..params import effect_param, is_effect_param
 from ..fitting import delta_bic, solve, verdict
 from .blocks import (NOISE_FLOOR, Groups, measurement_groups, set_apart_stops, simulated_as_logged,
                      simulated_durations)
@@ -379,7 +380,7 @@ def _plan_starts(twin, effects) -> dict:
         for d in e.params:
             key = f"{e.name}.{d.name}"
             if d.name not in e.values and key in own:
-                out[f"effects.{key}"] = float(own[key])
+                out[effect_param(e.name, d.name)] = float(own[key])
     return out
 
 
@@ -397,7 +398,7 @@ def _scan(fun_x, x, lo, hi, keys, points: int = 9) -> np.ndarray:
     for i in range(len(x)):
         lo_i = lo[i] if math.isfinite(lo[i]) else -abs(x[i]) * 4
         hi_i = hi[i] if math.isfinite(hi[i]) else max(abs(x[i]) * 4, 1.0)
-        if not keys[i].startswith("effects.") and lo_i == 0 and x[i] > 0:
+        if not is_effect_param(keys[i]) and lo_i == 0 and x[i] > 0:
             lo_i = x[i] / 8  # a base parameter: around its value (0 is no machine)
         if lo_i > 0:
             grid = np.geomspace(lo_i, hi_i, points)

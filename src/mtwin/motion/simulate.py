@@ -312,11 +312,13 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
                            float(_MAX_WAIT), sv, fd)
     cap = n_est // every + 3
     outs = RK.allocate_outputs(cap, eng is not None)
-    chunk = max(_CHUNK, every) if progress is not None else max(_INTERRUPT_CHUNK, every)
+    chunk = max(_CHUNK, every) if progress is not None else max(min(_INTERRUPT_CHUNK, n_est), every)
     chunk -= chunk % every  # chunks start on stored samples
     k = 0
     while state.seg[L_STATUS] == LOOP_RUNNING:
         k1 = k + chunk
+        if k < n_est < k1:  # (the chunk that passes the estimate ends there: no outputs grown for nothing)
+            k1 = max(k + every, n_est + every - n_est % every)
         need_slots = k1 // every + 2
         if need_slots > cap:  # the waits took longer than estimated: grow the outputs
             cap = max(need_slots, int(cap * 1.25))

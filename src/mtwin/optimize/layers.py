@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gcode import records as R
+from ..units import MM_PER_INCH
 
 MAX_LAYERS = 8  # --layers auto tries up to this many
 _NOT_PLAIN = (R.FL_INCREMENTAL | R.FL_CANNED | R.FL_MACHINE | R.FL_SUB | R.FL_COMP | R.FL_POLAR | R.FL_ROTARY
@@ -181,7 +182,7 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
 
     style = detect_style(program.lexed)
     inch = bool(program.inch)
-    k = 25.4 if inch else 1.0
+    k = MM_PER_INCH if inch else 1.0
     data = program.data
     eol = b"\r\n" if b"\r\n" in data[:4096] else b"\n"
     src = data.split(b"\n")

@@ -15,13 +15,15 @@ from ..errors import MtwinError
 from ..gcode import records as R
 from ..cutting.engagement import GUESSED_STOCK
 from ..motion.path import PAUSE
+from ..units import rad_per_second
 from .model import cutting_speed, entry_records, feed_records, move_times, path_model
 from .problem import CostRates, Limits, Runups, build_problem
 from .chatter import chatter_tables, var_stable
 from .chatter import report as chatter_report
 from .search import GAOptions, bisect, fixed_spins, genetic
-from .guards import (ENTRY_MIN_AIR, FINISH_AE, SURFACE_SHARE, air_entries, contour_error, final_surface_steps,
-                     finish_lines, inside_stock, feed_height, learned_levels, percentile_by_group, proven_clear, trusted_records)
+from .guards import (ENTRY_MIN_AIR, FINISH_AE, SURFACE_SHARE, air_entries, contour_error, feed_height,
+                     final_surface_steps, finish_lines, inside_stock, learned_levels, percentile_by_group, proven_clear,
+                     trusted_records)
 from .segment import locate, segment_path
 
 
@@ -484,8 +486,8 @@ def _baseline(run: _Run) -> OptimizeResult | None:
     if opts.spindle_per == "segment" and spindle_range is not None and not opts.allow_s_changes:
         raise MtwinError("--spindle-per segment changes S in mid-tool: add --allow-s-changes")
     n_step = np.minimum(rec["spindle"][model.rec], m.spindle.max_speed)
-    fz0 = rec["feed"][model.rec] / (model.flutes * np.maximum(n_step, 1e-9))
-    power0 = model.torque(fz0) * 2 * math.pi * n_step / 60.0
+    fz0 = rec["feed"][model.rec] / (model.flutes * np.maximum(n_step, 1e-9))  # (units.feed_per_tooth, n > 0)
+    power0 = model.torque(fz0) * rad_per_second(n_step)
     # a split move has one speed: with a speed per segment, boundaries stay on move ends
     per_segment_s = opts.spindle_per == "segment" and spindle_range is not None
     segs = segment_path(program, model, power0, ok, min_length=opts.min_segment, method=opts.segmentation,

@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..params import is_effect_param, split_effect_param
 from .machine import Machine
 
 
@@ -151,14 +152,13 @@ class Twin:
         def is_cutting(k):
             return k.startswith(("cutting.", "tools."))
 
-        machine_values = {k: v for k, v in values.items() if not k.startswith("effects.") and not is_cutting(k)}
+        machine_values = {k: v for k, v in values.items() if not is_effect_param(k) and not is_cutting(k)}
         cutting = with_cutting_params(self.cutting, {k: v for k, v in values.items() if is_cutting(k)})
         effects = list(self.effects)
         for key, value in values.items():
-            if not key.startswith("effects."):
+            if not is_effect_param(key):
                 continue
-            param = key.rsplit(".", 1)[-1]  # effects.<name>.<param>; names hold '-', not '.'
-            name = key[len("effects."):-(len(param) + 1)]
+            name, param = split_effect_param(key)
             idx = [i for i, e in enumerate(effects) if e.name == name]
             if not idx:
                 from ..errors import ConfigError
