@@ -482,6 +482,22 @@ def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: 
     moves = (R.move_lengths(rec) > 0) & np.isin(rec["tool"], list(tools)) & placed(rec) & \
         ((rec["kind"] == R.RAPID) | R.is_feed_kind(rec["kind"])) & \
         ~(((rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & (rec["plane"] != R.PLANE_XY))
+    # only moves before the last plunge whose sweep can reach a plunge's footprint are sampled
+    # (a 100,000-move raster with one plunge at its start samples none)
+    moves &= np.arange(len(rec)) < int(idx.max())
+    if tools and moves.any():
+        reach = max(t.radius for t in tools.values()) * 2.0
+        arc = (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)
+        rad_arc = np.where(arc, np.hypot(rec["sx"] - rec["cx"], rec["sy"] - rec["cy"]), 0.0)
+        lo_x = np.where(arc, rec["cx"] - rad_arc, np.minimum(rec["sx"], rec["x"])) - reach
+        hi_x = np.where(arc, rec["cx"] + rad_arc, np.maximum(rec["sx"], rec["x"])) + reach
+        lo_y = np.where(arc, rec["cy"] - rad_arc, np.minimum(rec["sy"], rec["y"])) - reach
+        hi_y = np.where(arc, rec["cy"] + rad_arc, np.maximum(rec["sy"], rec["y"])) + reach
+        near_any = np.zeros(len(rec), bool)
+        for r in idx:
+            px, py = rec["x"][r], rec["y"][r]
+            near_any |= (lo_x <= px) & (px <= hi_x) & (lo_y <= py) & (py <= hi_y)
+        moves &= near_any
     tree = None
     if tools and moves.any():
         r_min = min(t.radius for t in tools.values())
