@@ -825,7 +825,7 @@ def _guards(run: _Run) -> OptimizeResult | None:
             feeds = np.where(fin_var, prob.f0_var * np.round(spins)[vs] / np.maximum(prob.n0_spin[vs], 1e-9), feeds)
             if spindle_range is None:
                 keep |= fin_var
-    feeds = _approach_feeds(prob, segs, feeds, program, keep, clear_z, entries)
+    feeds = _approach_feeds(prob, segs, feeds, program, keep, clear_z)
 
     # accuracy where it reaches the part: the tolerance on segments that leave a final surface,
     # the roughing allowance on the others
@@ -1045,7 +1045,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                 # accuracy that slowing has not brought back: the program's own feed
                 stuck = (acc_bad | cblame_bad) & ~load_bad
                 cap = np.where(stuck, np.minimum(cap, f0), cap)
-        cur = _approach_feeds(prob, segs, new_f, program, keep, run.clear_z, entries)
+        cur = _approach_feeds(prob, segs, new_f, program, keep, run.clear_z)
     run.put(after=after, broken=broken, entries=entries, ce_after=ce_after, ce_before=ce_before,
             contour_after=contour_after, contour_before=contour_before, f0=f0, f_try=f_try, keep=keep, kept=kept,
             loads_after=loads_after, loads_before=loads_before, lowered_for=lowered_for, new=new, out=out,
@@ -1142,7 +1142,7 @@ def _result(run: _Run) -> OptimizeResult | None:
     lines = segs.seg_lines(program)
     keep_why = _keep_reasons(program, segs, prob, keep, kept)
     approach_cap = _approach_feeds(prob, segs, np.full(prob.nvar, feed_range[1]), program, keep,
-                                   run.clear_z, run.entries) < feed_range[1] - 1
+                                   run.clear_z) < feed_range[1] - 1
     limited = _limited_by(prob, f_try, s_try, feed_range, times, segs, keep, keep_why, lowered_for, approach_cap)
     fin_seg = fin_var[prob.seg_var]
     ev_before = prob.evaluate(prob.f0_var[None, :], fixed_spins(prob)[None, :])
@@ -1643,8 +1643,7 @@ def _air_entries(run: _Run, clear_z: float, stock_top: float | None) -> dict:
     return {e.record: e for e in air_entries(program, cut, plunges, described, clear_z, stock_top)}
 
 
-def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray, clear_z: float = math.inf,
-                    entries: dict | None = None) -> np.ndarray:
+def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray, clear_z: float = math.inf) -> np.ndarray:
     """An air segment that runs straight into a cut, or into a feed move the optimiser does not
     set (a plunge), is an approach: it runs at most at that move's feed (or its own programmed
     one).  At a higher feed the
@@ -1679,8 +1678,6 @@ def _approach_feeds(prob, segs, feeds: np.ndarray, program, keep: np.ndarray, cl
             if rec["sz"][r2] >= clear_z - 1e-6 and rec["z"][r2] < rec["sz"][r2] and \
                     np.hypot(rec["x"][r2] - rec["sx"][r2], rec["y"][r2] - rec["sy"][r2]) < 1e-6:
                 continue  # a plunge from the height the program treats as clear: it starts in air
-            if entries and r2 in entries:
-                continue  # a plunge whose first piece is proven air (guards.air_entries)
             if r2 in piece_of_rec:
                 nxt = segs.piece_seg[piece_of_rec[r2]]
                 if prob.seg_air[nxt]:
