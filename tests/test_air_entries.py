@@ -91,3 +91,41 @@ def test_a_move_from_the_assumed_start_proves_nothing():
     assert not ok[0] and not ok[1] and ok[2]
     plunge = (prog.records["line"] == 7)
     assert air_entries(prog, program_cutting(tw, prog), plunge, {1}, float("inf"), None) == []
+
+
+def _entries(src: bytes, line_text: str):
+    tw = mtwin.Twin()
+    prog = tw.load(src, path="p.nc")
+    rec = prog.records
+    plunge = np.zeros(len(rec), bool)
+    plunge[int(np.flatnonzero(rec["line"] == _line(src, line_text))[-1])] = True
+    cut = program_cutting(tw, prog)
+    from mtwin.cutting.library import describes
+
+    described = {int(t) for t in np.unique(rec["tool"]) if describes(cut, int(t))}
+    return air_entries(prog, cut, plunge, described, float("inf"), None)
+
+
+def test_a_second_fixtures_plunge_is_not_proven_by_the_firsts_cuts():
+    # the same code on G54 and G55: the coordinates agree, the places do not (a review found
+    # the G55 plunge "proven" 9 mm into uncut stock)
+    part = "G0 X20 Y20\nG0 Z5\nG1 Z-5 F100\nG1 X40 F300\nG0 Z5\n"
+    src = ("G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\nT1 M6\nS8000 M3\nG54\n" + part + "G55\n" + part
+           .replace("G1 Z-5 F100", "G1 Z-5. F100") + "M30\n").encode()
+    assert _entries(src, "G1 Z-5. F100") == []
+
+
+def test_a_thin_wall_between_two_slots_is_not_taken_for_air():
+    # slots at Y0 and Y6.4 with a 6 mm end mill leave a 0.4 mm wall at Y3-3.4
+    src = ("G21 G90 G17 G94\n(T1 D=6 CR=0 - flat end mill)\nT1 M6\nS8000 M3\nG0 X0 Y0\nG0 Z5\n"
+           "G1 Z-4 F100\nG1 X40 F300\nG0 Z5\nG0 X0 Y6.4\nG1 Z-4 F100\nG1 X40 F300\nG0 Z5\nG0 X20 Y3.45\n"
+           "G1 Z-5 F100\nM30\n").encode()
+    assert _entries(src, "G1 Z-5 F100") == []
+
+
+def test_a_drills_hole_proves_nothing_for_an_end_mill():
+    # a 3 mm drill's hole (canned cycle) is no 6 mm end mill's sweep
+    src = ("G21 G90 G17 G94\n(T1 D=3 CR=0 - drill)\n(T2 D=6 CR=0 - flat end mill)\nT1 M6\nS3000 M3\nG0 X20 Y20 Z5\n"
+           "G81 X20 Y20 Z-10 R2 F100\nG80\nG0 Z5\nT2 M6\nS8000 M3\nG0 X20 Y20\nG0 Z5\nG1 Z-8 F100\nG1 X40 F300\n"
+           "M30\n").encode()
+    assert _entries(src, "G1 Z-8 F100") == []

@@ -280,7 +280,7 @@ def _print_optimize(res, prog) -> None:
     if res.air_entries:
         air = res.air_entries
         err.print(f"plunges through proven air: {len(air)} run their upper part at the air feed and their own feed "
-                  f"from 1 mm over the material (lines {line_ranges([x['line'] for x in air])})",
+                  f"from just above the material (lines {line_ranges([x['line'] for x in air])})",
                   highlight=False, soft_wrap=True)
     if res.segments:
         from collections import Counter

@@ -374,18 +374,25 @@ def proven_clear(program, cutting) -> np.ndarray:
     return out
 
 
-def placed(rec) -> np.ndarray:
+def placed(rec, axes: tuple = ("x", "y", "z")) -> np.ndarray:
     """Per record: does it start where the program put the tool?  The interpreter starts from an
     assumed point (the origin) while the machine stands wherever it was: a move before every axis
     has moved once runs from an unknown point (a first ``G0 X Y`` at the assumed Z0 proves nothing
     about Z0)."""
     if not len(rec):
         return np.zeros(0, bool)
-    moved = np.ones(len(rec), bool)
-    for a in ("x", "y", "z"):
-        m = np.maximum.accumulate(np.abs(rec[a] - rec["s" + a]) > 1e-9)
-        moved &= np.r_[False, m[:-1]]
-    return moved
+    # (a G28/G30/G53 move goes to a machine position the twin can only assume — home is not the
+    # work origin: after one, every axis must move again in work coordinates)
+    n = len(rec)
+    i = np.arange(n)
+    mach = (rec["flags"] & R.FL_MACHINE) != 0
+    last_mach = np.r_[-1, np.maximum.accumulate(np.where(mach, i, -1))[:-1]]
+    out = ~mach
+    for a in axes:
+        moved = (np.abs(rec[a] - rec["s" + a]) > 1e-9) & ~mach
+        last_moved = np.r_[-1, np.maximum.accumulate(np.where(moved, i, -1))[:-1]]
+        out &= last_moved > last_mach
+    return out
 
 
 def _xy_samples(rec, mask, step: float, with_index: bool = False):
@@ -440,6 +447,7 @@ def feed_height(program) -> float:
 #: a tenth of a millimetre)
 ENTRY_CLEARANCE = 1.0
 ENTRY_MIN_AIR = 1.0  # mm of proven air a plunge must have before it is split (an extra line)
+ENTRY_MIN_PIECE = 0.01  # mm: a cutting piece shorter than this is not written (the writer's MIN_PIECE)
 
 
 @dataclass(frozen=True)
@@ -475,13 +483,22 @@ def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: 
     from scipy.spatial import cKDTree
 
     rec = program.records
-    idx = np.flatnonzero(plunges)
+    where = placed(rec)
+    # (a plunge from an assumed height proves nothing; its XY may be assumed: then every move
+    # compared with it stands at the same assumed XY)
+    idx = np.flatnonzero(plunges & placed(rec, ("z",)))
     if not len(idx):
         return []
     tools = {int(t): cutting.tool(int(t)) for t in np.unique(rec["tool"]) if int(t) in described}
-    moves = (R.move_lengths(rec) > 0) & np.isin(rec["tool"], list(tools)) & placed(rec) & \
-        ((rec["kind"] == R.RAPID) | R.is_feed_kind(rec["kind"])) & \
+    # the moves that prove: of a described tool, from a known start, not under cutter
+    # compensation (the tool's centre is not the path), in XY (an arc in another plane dips)
+    moves = (R.move_lengths(rec) > 0) & np.isin(rec["tool"], list(tools)) & where & \
+        ((rec["flags"] & R.FL_COMP) == 0) & ((rec["kind"] == R.RAPID) | R.is_feed_kind(rec["kind"])) & \
         ~(((rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & (rec["plane"] != R.PLANE_XY))
+    # coordinates compare only within one frame: the work offset (G54…, G92, G52), its origin
+    # and rotation (two fixtures run the same code at the same coordinates)
+    frame_key = np.stack([rec["wcs"].astype(float), rec["ox"], rec["oy"], rec["oz"], rec["rot"]], axis=1)
+    frame = np.unique(np.round(frame_key, 9), axis=0, return_inverse=True)[1].reshape(-1)
     # only moves before the last plunge whose sweep can reach a plunge's footprint are sampled
     # (a 100,000-move raster with one plunge at its start samples none)
     moves &= np.arange(len(rec)) < int(idx.max())
@@ -506,6 +523,7 @@ def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: 
         rise = np.array([_rise(tools[int(t)]) for t in rec["tool"][which]])
         tree = cKDTree(pts)
         r_max = float(rad.max())
+        frame_of = frame[which]
     out = []
     for r in idx:
         z0, z1 = float(rec["sz"][r]), float(rec["z"][r])
@@ -518,23 +536,37 @@ def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: 
         if tree is not None and t in tools:
             c = np.array([rec["x"][r], rec["y"][r]])
             near = np.asarray(tree.query_ball_point(c, tools[t].radius + r_max), dtype=np.int64)
-            near = near[which[near] < r] if len(near) else near
+            near = near[(which[near] < r) & (frame_of[near] == frame[r])] if len(near) else near
             if len(near):
-                disc = _footprint(c, tools[t].radius)
-                d = np.hypot(disc[:, None, 0] - pts[near, 0][None, :], disc[:, None, 1] - pts[near, 1][None, :])
-                cover = d <= rad[near][None, :] + 1e-9
-                low = np.where(cover, (zs[near] + rise[near])[None, :], np.inf).min(axis=1)
-                top = float(low.max())
+                top = _highest_left(c, tools[t].radius, pts[near], zs[near] + rise[near], rad[near])
                 if math.isfinite(top):
                     cands.append((top + ENTRY_CLEARANCE, "earlier cuts", top))
         if not cands:
             continue
         z_air, why, material = min(cands)
-        z_air = max(z_air, z1)
+        z_air = z1 if z_air < z1 + ENTRY_MIN_PIECE else z_air  # (a piece too short to write: all air)
         if z0 - z_air < ENTRY_MIN_AIR:
             continue
         out.append(AirEntry(int(r), int(rec["line"][r]), z0, z_air, z1, why, material))
     return out
+
+
+def _highest_left(c: np.ndarray, radius: float, pts: np.ndarray, tops: np.ndarray, rad: np.ndarray) -> float:
+    """The highest material earlier sweeps can have left under a tool of ``radius`` at ``c``:
+    over every point of its footprint, the lowest top of a sweep covering it; inf where one is
+    not covered.  Inner grid points must be covered with the grid's half-diagonal to spare (so
+    no uncut wall thinner than the grid hides between them); the rim, exactly.  In blocks of
+    sweep samples (memory stays bounded near a dense raster)."""
+    disc, h = _footprint(c, radius)
+    margin = np.where(np.hypot(disc[:, 0] - c[0], disc[:, 1] - c[1]) < radius - 1e-9, h / math.sqrt(2.0), -1e-9)
+    low = np.full(len(disc), np.inf)
+    block = max(1, 4_000_000 // max(len(disc), 1))
+    for k in range(0, len(pts), block):
+        p, tp, rd = pts[k:k + block], tops[k:k + block], rad[k:k + block]
+        d = np.hypot(disc[:, None, 0] - p[None, :, 0], disc[:, None, 1] - p[None, :, 1])
+        cover = d <= rd[None, :] - margin[:, None]
+        low = np.minimum(low, np.where(cover, tp[None, :], np.inf).min(axis=1))
+    return float(low.max())
 
 
 def _rise(tool) -> float:
@@ -544,13 +576,14 @@ def _rise(tool) -> float:
     return tool.nose_radius
 
 
-def _footprint(c: np.ndarray, radius: float) -> np.ndarray:
-    """Points covering a tool's disc: a grid (at most 0.5 mm, a fifth of the radius apart) and its rim."""
+def _footprint(c: np.ndarray, radius: float) -> tuple[np.ndarray, float]:
+    """Points covering a tool's disc, and their spacing: a grid (at most 0.5 mm, a fifth of the
+    radius apart) of the cells wholly inside the disc, and its rim (64 points)."""
     h = max(min(0.2 * radius, 0.5), 1e-3)
     k = int(math.ceil(radius / h))
     g = np.arange(-k, k + 1) * h
     xx, yy = np.meshgrid(g, g)
-    inside = xx * xx + yy * yy <= radius * radius
-    ang = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
+    inside = np.hypot(xx, yy) <= radius - h / math.sqrt(2.0)
+    ang = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
     rim = np.stack([radius * np.cos(ang), radius * np.sin(ang)], axis=1)
-    return c + np.concatenate([np.stack([xx[inside], yy[inside]], axis=1), rim])
+    return c + np.concatenate([np.stack([xx[inside], yy[inside]], axis=1), rim]), h

@@ -967,7 +967,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
                 cblame[prev[v]] = max(cblame[prev[v]], float(c_ratio[v]))
         # a plunge entered faster through its air that is worse for it (load or contour) keeps
         # its feed all the way: the air proof had too little margin for this machine
-        missed = [r for r in entries if worse[r] or c_worse[r]]
+        missed = [r for r in entries if worse[r] or worse[len(rec) + r] or c_worse[r]]
         if missed:
             for r in missed:
                 kept.setdefault("plunges, canned cycles, parameter feeds (never set)", []).append(entries.pop(r).line)
@@ -1631,15 +1631,23 @@ def _air_entries(run: _Run, clear_z: float, stock_top: float | None) -> dict:
     straight down at a feed per minute, a line of their own the writer can split."""
     from .segment import splittable
 
-    program, cut, trust, candidates = run.take("program cut trust candidates")
+    from ..cutting.library import describes
+
+    program, cut, candidates, feed_range, opts = run.take("program cut candidates feed_range opts")
+    if opts.objective == "smooth":
+        return {}  # (the smoothing objective keeps air at its own feed)
     rec = program.records
+    # (the air feed, the top of the range, must be a raise: a range below the plunge's feed is not)
     plunges = R.is_feed_kind(rec["kind"]) & (rec["kind"] == R.LINEAR) & ~candidates & (rec["feed"] > 0) & \
+        (rec["feed"] * 1.01 < feed_range[1]) & \
         (rec["feed_mode"] == R.FEED_PER_MIN) & ((rec["flags"] & (R.FL_SYNC | R.FL_PROBE)) == 0) & \
         (np.hypot(rec["x"] - rec["sx"], rec["y"] - rec["sy"]) < 1e-6) & (rec["sz"] - rec["z"] >= ENTRY_MIN_AIR) & \
         splittable(program)
     if not plunges.any():
         return {}
-    described = set(np.unique(rec["tool"]).tolist()) - set(trust.undescribed)
+    # (every tool the twin knows — not only those with feeds to set: a drill that ran only
+    # canned cycles is no 6 mm end mill, and its hole proves nothing of the sweep it would have)
+    described = {int(t) for t in np.unique(rec["tool"]) if describes(cut, int(t))}
     return {e.record: e for e in air_entries(program, cut, plunges, described, clear_z, stock_top)}
 
 

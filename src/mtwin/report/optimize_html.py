@@ -79,7 +79,7 @@ def optimize_html(res, program: str) -> bytes:
             f"{' …' if len(lines) > 20 else ''}</li>" for why, lines in res.kept.items()) + "</ul>")
     if res.air_entries:
         parts.append("<h2>Plunges through proven air</h2><p>Each runs its upper part at the air feed and its own "
-                     "feed from 1 mm above the highest material it can meet.</p><table><tr><th>line</th><th>from Z"
+                     "feed from just above the highest material it can meet (1 mm, or the program's own feed height).</p><table><tr><th>line</th><th>from Z"
                      "</th><th>air to Z</th><th>to Z</th><th>material at most at Z</th><th>proven by</th></tr>" +
                      "".join(f"<tr><td>{x['line']}</td><td>{x['from_z']:.3f}</td><td>{x['air_to_z']:.3f}</td>"
                              f"<td>{x['to_z']:.3f}</td><td>{x['material_z']:.3f}</td><td>{e(x['proven_by'])}</td></tr>"
