@@ -187,6 +187,7 @@ def reports_errors(command):
         except KeyboardInterrupt:
             # every output is written atomically: an interrupted run leaves none half-written
             err.print(interrupted(), highlight=False)
+            state["signal"] = "Ctrl-C"  # (a command run again in this process starts afresh)
             raise typer.Exit(130) from None
         except Exception as exc:  # noqa: BLE001 - every error becomes a message and an exit code
             fail(exc)
