@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import layout as EK
+from ..units import feed_per_tooth
 from . import _lobekernel as LK
 from .lobes import dynamics_of
 from .margin import step_arcs
@@ -101,7 +102,7 @@ def trace_dynamics(cut, program, plan, trace) -> Dynamics:
     t = np.asarray(trace.t, float)
     dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if n > 1 else 0.001))
     rpm = np.abs(np.asarray(trace.signal("spindle_speed")))
-    feed = np.asarray(trace.feed) / 60.0  # mm/s
+    feed = np.asarray(trace.feed)  # mm/min
     mat = cut.material
     for tn in sorted(set(int(x) for x in np.unique(tool_of) if x >= 0)):
         if not (tn in cut.tools or tn in cut.declared):
@@ -119,7 +120,7 @@ def trace_dynamics(cut, program, plan, trace) -> Dynamics:
         has = s >= 0
         st = np.clip(s, 0, None)
         active = has & arcs.cutting[st] & (rpm > 0)
-        fz = np.where(rpm > 0, feed / np.maximum(tl.flutes * rpm / 60.0, 1e-9), 0.0) * 1e-3
+        fz = feed_per_tooth(feed, rpm, tl.flutes) * 1e-3  # m
         fang = np.arctan2(eng.q[st, EK.Q_DY], eng.q[st, EK.Q_DX]).astype(float)
         hand = np.where(rec["spindle_dir"][r] < 0, -1, 1).astype(np.int64)
         mfn, mz, mk, mdir = dyn.mode_arrays()

@@ -447,7 +447,6 @@ def feed_height(program) -> float:
 #: a tenth of a millimetre)
 ENTRY_CLEARANCE = 1.0
 ENTRY_MIN_AIR = 1.0  # mm of proven air a plunge must have before it is split (an extra line)
-ENTRY_MIN_PIECE = 0.01  # mm: a cutting piece shorter than this is not written (the writer's MIN_PIECE)
 
 
 @dataclass(frozen=True)
@@ -461,6 +460,11 @@ class AirEntry:
     z_to: float  # its end height
     proven_by: str  # "feed height" | "earlier cuts" | "stock top"
     material: float  # the highest material it can meet (the feed height: at most there)
+
+    @property
+    def whole(self) -> bool:
+        """All of the move is air (no cutting piece is left to write)."""
+        return self.z_air <= self.z_to
 
     def as_dict(self) -> dict:
         return {"line": self.line, "from_z": self.z_from, "air_to_z": self.z_air, "to_z": self.z_to,
@@ -481,6 +485,8 @@ def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: 
     move covered gives no proof.  Segment samples are discrete, so a sweep is under-counted
     between them: the proof errs on the side of material."""
     from scipy.spatial import cKDTree
+
+    from ..gcode.writer import MIN_PIECE
 
     rec = program.records
     where = placed(rec)
@@ -544,7 +550,7 @@ def air_entries(program, cutting, plunges: np.ndarray, described: set, clear_z: 
         if not cands:
             continue
         z_air, why, material = min(cands)
-        z_air = z1 if z_air < z1 + ENTRY_MIN_PIECE else z_air  # (a piece too short to write: all air)
+        z_air = z1 if z_air < z1 + MIN_PIECE else z_air  # (a cutting piece too short to write: all air)
         if z0 - z_air < ENTRY_MIN_AIR:
             continue
         out.append(AirEntry(int(r), int(rec["line"][r]), z0, z_air, z1, why, material))

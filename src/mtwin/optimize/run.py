@@ -853,7 +853,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
     # level, or the material a plunge in air all the way is proven to stay above
     air_floor = np.full(len(rec), run.clear_level)
     for r, e in entries.items():
-        if e.z_air <= e.z_to + 1e-9:
+        if e.whole:
             air_floor[r] = min(air_floor[r], e.material)
     # ---- write, verify, re-simulate: the limits and the accuracy are held on the full twin.
     # A guard lowers a feed below the program's own only for a limit the program itself breaks
@@ -1733,7 +1733,7 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
             air_feed: float = 0.0):
     """Per-record feeds (NaN: keep), splits and spindle speeds of a candidate; ``entries``: the
     plunges whose upper part runs at ``air_feed`` (guards.AirEntry)."""
-    from ..gcode.writer import MIN_PIECE, Split
+    from ..gcode.writer import Split
 
     rec = program.records
     n = len(rec)
@@ -1773,7 +1773,7 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
         elif fl[0] != rec["feed"][r]:
             out[r] = fl[0]
     for r, e in (entries or {}).items():
-        if e.z_air <= e.z_to + MIN_PIECE:
+        if e.whole:
             out[r] = air_feed  # all of it in air
         else:
             splits[r] = Split([(e.z_from - e.z_air) / (e.z_from - e.z_to)], [air_feed, float(rec["feed"][r])])
