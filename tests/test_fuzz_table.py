@@ -66,6 +66,11 @@ TWINS = {
 MEASUREMENTS = {
     "meas_inf": ("t,line,spindle_power\n0,1,100\n0.1,1,inf\n0.2,1,100\n", "m.csv:3:"),
     "meas_huge_t": ("t,line,spindle_power\n0,1,100\n1e308,1,100\n", "m.csv:3:"),
+    # finite, under the format's magnitude cap, and still no machine's: a bound per column's unit
+    "meas_t_1e99": ("t,line,spindle_power\n0,1,100\n1e99,1,100\n", "m.csv:3:1:"),
+    "meas_power_1e99": ("t,line,spindle_power\n0,1,100\n0.1,1,1e99\n", "m.csv:3:3:"),
+    "meas_unit_scaled": ("t,line,x[m]\n0,1,0.1\n0.1,1,1e4\n", "m.csv:3:3:"),
+    "meas_summary_1e99": ("first_line,last_line,spindle_power_mean\n40,45,1e99\n", "m.csv:2:3:"),
     "meas_text": ("t,line,spindle_power\n0,1,100\n0.1,1,lots\n", "m.csv:3:"),
     "meas_backwards": ("t,line,spindle_power\n0,1,100\n0.2,1,100\n0.1,1,100\n", "m.csv:4:"),
     "meas_no_header": ("0,1,100\n0.1,1,100\n", "m.csv"),

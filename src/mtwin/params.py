@@ -27,7 +27,7 @@ from .units import UnitError, convert
 UNIT_MAX = {"mm/min": 1e6, "mm/s": 1e5, "mm/s^2": 1e6, "mm/s^3": 1e9, "1/s": 1e4, "rad/s": 1e5, "N": 1e6,
             "N*m": 1e5, "N*m/A": 1e3, "N*s/m": 1e8, "N/mm": 1e5, "N/mm^2": 1e5, "W": 1e7, "kg": 1e6,
             "kg*m^2": 1e3, "m/min": 1e5, "mm": 1e6, "rpm": 1e6, "rpm/s": 1e7, "s": 1e6, "1/h": 1e6, "": 1e6, "1": 1e6,
-            "int": 1e6}
+            "int": 1e6, "A": 1e5, "%": 1e4, "mm^3/s": 1e9}
 
 
 def P(default, unit: str, doc: str, check: str = "positive", choices: tuple = (), lo: float | None = None,

@@ -227,7 +227,8 @@ def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
                and not (summary and c == "run")
                and summary_base(c) is None and c not in LOG_COLUMNS]
     # a column the twin does not know is kept out of the numbers: whatever it holds is fine
-    data = _numbers(rows, header, name, first_row, [c not in ignored for c in names])
+    data = _numbers(rows, header, name, first_row, [c not in ignored for c in names],
+                    [_bound(c, k) for c, k in cols])
     if summary:
         return _summary(name, names, cols, data, meta, ignored, first_row)
     if len(data) == 0:
@@ -356,9 +357,31 @@ def _read_parquet(path: str):
 
 
 MAX_MAGNITUDE = 1e100  # (epoch nanoseconds are 1.7e18: a bound on magnitude only)
+# the largest time a recording's t may hold, s: epoch seconds (1.7e9) pass, 1e99 does not
+MAX_TIME = 1e10
+# a line number, run number or tool number beyond this is not one
+MAX_COUNT = 1e9
 
 
-def _numbers(rows, header, path, first_row, read) -> np.ndarray:
+def _bound(column: str, scale: float) -> tuple[float, float, str]:
+    """The largest magnitude a column's cells may hold in the file's own units (its scale to the
+    format's unit taken out), and that unit: an instrument records no 1e99 W (the bounds are
+    the parameters' own, ``params.UNIT_MAX``), then that largest magnitude in the format's unit."""
+    from ..params import UNIT_MAX
+
+    if column == "t":
+        top, unit = MAX_TIME, "s"
+    elif column in ("line", "first_line", "last_line", "run", "tool"):
+        top, unit = MAX_COUNT, ""
+    elif column in LOG_COLUMNS:
+        top, unit = UNIT_MAX["%"], "%"
+    else:
+        unit = UNITS.get(column) or UNITS.get(summary_base(column) or "", "")
+        top = UNIT_MAX.get(unit, MAX_MAGNITUDE) if unit else MAX_MAGNITUDE
+    return (top / abs(scale) if scale else top), top, unit
+
+
+def _numbers(rows, header, path, first_row, read, bounds=None) -> np.ndarray:
     n, m = len(rows), len(header)
     out = np.full((n, m), np.nan)
     for i, r in enumerate(rows):
@@ -387,6 +410,11 @@ def _numbers(rows, header, path, first_row, read) -> np.ndarray:
             if not abs(v) <= MAX_MAGNITUDE:
                 raise MeasurementError(f"{cell!s} in column {header[j]!r} is not a finite measured value (at most "
                                        f"{MAX_MAGNITUDE:g} in magnitude; leave the cell empty for a missing value)",
+                                       SourceLocation(path, first_row + i, j + 1))
+            if bounds is not None and abs(v) > bounds[j][0]:
+                _, top, unit = bounds[j]
+                raise MeasurementError(f"{cell!s} in column {header[j]!r} is beyond what a machine records (at most "
+                                       f"{top:g}{' ' + unit if unit else ''}): a typo or a unit mistake?",
                                        SourceLocation(path, first_row + i, j + 1))
             out[i, j] = v
     keep = ~np.all(np.isnan(out), axis=1) if n else np.zeros(0, bool)
