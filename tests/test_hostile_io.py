@@ -278,3 +278,23 @@ def test_a_trace_too_large_for_memory_names_the_programs_length_in_its_own_units
     with pytest.raises(MtwinError) as exc:
         tw.simulate(prog, cutting=False)
     assert "a trace of 1.0 min at every 1 servo sample" in str(exc.value) and "0.0 h" not in str(exc.value), str(exc.value)
+
+
+def test_a_binary_file_is_refused_at_its_first_control_byte_without_a_whole_file_scan(monkeypatch):
+    # a 300-MB file of NULs took 13.9 s: the lexer stopped at byte 1, and the macro scan then ran
+    # eleven regular expressions over the whole file before the same error came out
+    from mtwin.errors import GCodeError
+    from mtwin.gcode import interpreter, macro
+
+    def scanned(data):
+        raise AssertionError("the whole-file macro scan ran on a binary file")
+
+    monkeypatch.setattr(macro, "looks_like_macro", scanned)
+    with pytest.raises(GCodeError, match="unexpected byte 0x00 outside a comment") as e:
+        interpreter.load_program(b"\x00" * 1_000_000, path="nul.nc")
+    assert str(e.value).startswith("nul.nc:1:1:")
+    # a control byte in a comment is no error, and a macro program still reaches the macro path
+    assert len(interpreter.load_program(b"G21 G90 (a \x01 here)\nG1 X1 F100\nM2\n").records) > 0
+    monkeypatch.undo()
+    with pytest.raises(GCodeError, match="3:12"):
+        interpreter.load_program(b"#1=1\nG21 G90\nG1 X#1 F100\x00\nM2\n", path="m.nc")

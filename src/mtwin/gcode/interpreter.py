@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import GCodeError, SourceLocation
 from . import _interpkernel as K
-from .lexer import Lexed, lex
+from .lexer import ControlByteError, Lexed, lex
 from .records import FL_SUB, MOVE_DTYPE
 
 DIALECTS = ("auto", "fanuc", "linuxcnc")
@@ -167,6 +167,8 @@ def load_program(source, settings: InterpreterSettings | None = None, *, path: s
     try:
         lexed = lex(clean, name)
         maybe_macro = bool(np.any((lexed.w_letter == ord("G")) & (lexed.w_value == 65.0)))
+    except ControlByteError:
+        raise
     except GCodeError:
         lexed = None
         maybe_macro = True

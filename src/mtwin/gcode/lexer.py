@@ -64,6 +64,12 @@ class Lexed:
         return self.data[int(self.line_start[li]):int(self.line_end[li])].decode("latin-1")
 
 
+class ControlByteError(GCodeError):
+    """A control byte outside a comment (a NUL, a binary file's bytes): no reading of the
+    program, macro or not, gets past it, so nothing else need scan the file (a 300-MB file of
+    NULs is refused in the time the lexer takes to reach its first byte)."""
+
+
 def lex(data: bytes, path: str = "<string>") -> Lexed:
     """Lex a whole program.  Raises :class:`GCodeError` with the first bad spot."""
     buf = np.frombuffer(data, dtype=np.uint8)
@@ -73,6 +79,8 @@ def lex(data: bytes, path: str = "<string>") -> Lexed:
         starts = np.concatenate(([0], np.flatnonzero(buf == 10) + 1)).astype(np.int64)
         tmp = Lexed(path, data, starts, starts, lw0, lnw, lfl, lins, wl, wv, ws, we, wd, wli)
         loc = tmp.location(int(epos))
+        if err == K.LEX_BAD_CHAR and (data[int(epos)] < 32 or data[int(epos)] == 127):
+            raise ControlByteError(_lex_message(err, data, int(epos)), loc)
         raise GCodeError(_lex_message(err, data, int(epos)), loc)
     return Lexed(path, data, ls, le, lw0, lnw, lfl, lins, wl[:nw], wv[:nw], ws[:nw], we[:nw],
                  wd[:nw], wli[:nw])
