@@ -143,6 +143,10 @@ def test_the_report_shows_the_layers_and_the_two_z_maps(layered):
     assert "same stock: 1,600,000 cells" in doc
     for title in ("the original leaves", "the optimised program leaves", "difference (largest 0 mm)"):
         assert title in doc
+    # the segment table marks each layer's segment; the others are plain cuts
+    marked = [s.get("layer") for s in layered.segments]
+    assert sorted(m for m in marked if m) == [[1, 2], [2, 2]] and marked.count(None) == len(marked) - 2
+    assert doc.count("cut, layer 1 of 2") == 1 and doc.count("cut, layer 2 of 2") == 1
 
 
 def test_the_link_goes_up_to_the_tools_own_retract_height_first():
@@ -201,3 +205,35 @@ def test_the_time_the_layers_add_is_each_cuts_own():
     lays = [Layering(find_cut(prog, *ly["lines"]), ly["layers"], ly["top"]) for ly in r.layers]
     whole = tw.plan(tw.load(layered_text(prog, lays)[0])).total_time - tw.plan(prog).total_time
     assert sum(added) == pytest.approx(whole, abs=1e-6)
+
+
+def test_the_ga_takes_the_number_of_layers_as_a_discrete_variable(monkeypatch):
+    """Bisection keeps the fewest layers that meet the limit (the reference's rule); the GA goes
+    on to N + 1 per cut while the optimised answer gets better — here a stand-in optimiser
+    whose answer is fastest in 4 layers and slower in 5: the search stops at 4."""
+    from mtwin.optimize import run as R
+
+    real = R._optimize
+    tried = []
+
+    def fake(twin, program, opts, progress, stock, stage):
+        res = real(twin, program, opts, progress, stock, stage)
+        n = program.data.count(b"(MTWIN LAYER")
+        tried.append(n)
+        if n >= 6:
+            raise InfeasibleError("stand-in: infeasible", reasons=[])
+        res.after.cycle_time = {2: 100.0, 3: 90.0, 4: 80.0, 5: 85.0}[n]
+        return res
+
+    def stand_in(twin, program, *rest):
+        if b"(MTWIN LAYER" not in program.data:  # the program as written: over the limit, refused
+            raise InfeasibleError("over", reasons=[{"lines": [17, 17], "value": 82.5, "limit_value": 60.0}])
+        return fake(twin, program, *rest)
+
+    monkeypatch.setattr(R, "_optimize", stand_in)
+    ga = optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**LIMIT, max_layers=8, method="ga"))
+    assert [ly["layers"] for ly in ga.layers] == [4] and ga.after.cycle_time == 80.0
+    assert tried == [2, 3, 4, 5]  # 5 was tried and was slower: the search stopped at 4
+    tried.clear()
+    bis = optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**LIMIT, max_layers=8))
+    assert [ly["layers"] for ly in bis.layers] == [2] and tried == [2]

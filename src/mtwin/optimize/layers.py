@@ -226,6 +226,25 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
     return b"\n".join(out), np.array(origin, np.int64)
 
 
+_LAYER_COMMENT = re.compile(rb"\(MTWIN LAYER (\d+)/(\d+) ")
+
+
+def layer_numbers(text: bytes, origin: np.ndarray, layerings: list[Layering]) -> np.ndarray:
+    """Per line of a layered program (``layered_text``'s), (layer k, of N) where it is part of a
+    layered cut — its plunge, its copy of the cut, its link — and (0, 0) elsewhere."""
+    out = np.zeros((len(origin), 2), np.int64)
+    k = (0, 0)
+    for i, ln in enumerate(text.split(b"\n")):
+        m = _LAYER_COMMENT.match(ln)
+        if m:
+            k = (int(m.group(1)), int(m.group(2)))
+        if any(ly.cut.plunge_line <= origin[i] <= ly.cut.last_line for ly in layerings):
+            out[i] = k
+        else:
+            k = (0, 0)
+    return out
+
+
 def _set_z(line: bytes, z: bytes) -> bytes:
     """``line`` with its Z word (outside comments) set to ``z``."""
     code = _COMMENT.sub(lambda m: b" " * len(m.group(0)), line)

@@ -321,7 +321,7 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     still over), optimised as any program, and proven to leave the original's part."""
     from ..cutting.stockproof import prove_same_stock
     from ..motion.simulate import program_engagement
-    from .layers import Layering, NotLayerable, find_cut, layered_text, material_top
+    from .layers import Layering, NotLayerable, find_cut, layer_numbers, layered_text, material_top
 
     stage = stage or (lambda text: None)
     stage("layering the cuts over the limit")
@@ -359,6 +359,9 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     else:
         raise InfeasibleError(f"{refused} — still over it in {opts.max_layers} layers (--max-layers)",
                               reasons=refused.reasons)
+    if opts.method == "ga":
+        res, layered, origin = _more_layers(twin, program, opts, progress, stock, stage, layerings,
+                                            (res, layered, origin))
     stage("proving the layered program leaves the same part")
     plan1, eng1 = program_engagement(twin, twin.load(res.output, path=program.path), eng0.stock.box)
     proof = prove_same_stock(eng0, plan0, eng1, plan1)
@@ -373,6 +376,12 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     def within(lines, dur, c):
         return float(dur[(lines >= c.plunge_line) & (lines <= c.last_line)].sum())
 
+    # each segment of the answer says which layer of which cut it is (the report marks it)
+    layer_of = layer_numbers(layered.data, origin, list(layerings.values()))
+    for seg in res.segments:
+        k, n = layer_of[seg["lines"][0] - 1]
+        if n:
+            seg["layer"] = [int(k), int(n)]
     res.layers = [ly.as_dict() | {"time_added_at_program_feeds":
                                   within(came_from, plan_l.dur, ly.cut) - within(plan0.seg["line"], plan0.dur, ly.cut)}
                   for ly in layerings.values()]
@@ -382,6 +391,44 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
                                     f"{ly.depth_per_layer:.3g} mm" for ly in layerings.values())
                         + f" ({proof.reason()})")
     return res
+
+
+def _more_layers(twin, program, opts: OptimizeOptions, progress, stock, stage, layerings: dict, best: tuple):
+    """N as a discrete variable of the GA's search: per layered cut, one layer more while the
+    optimised answer gets better by the objective (a shallower layer may run at a feed so much
+    higher that it pays for its link).  Bisection keeps the fewest layers that meet the limit,
+    the reference's rule (feed first, then N = 2, 3, …).  Returns (result, layered program,
+    origin of its lines) of the best."""
+    from .layers import layered_text
+
+    def score(r) -> float:
+        f = r.after
+        if opts.objective == "cost" and f.cost is not None:
+            return f.cost
+        if opts.objective == "smooth" and f.power_cv is not None:
+            return f.power_cv
+        return f.cycle_time
+
+    better = True
+    while better:
+        better = False
+        for ly in layerings.values():
+            if ly.layers >= opts.max_layers:
+                continue
+            ly.layers += 1
+            stage(f"trying lines {ly.cut.plunge_line}-{ly.cut.last_line} in {ly.layers} layers")
+            text, origin = layered_text(program, list(layerings.values()))
+            layered = twin.load(text, path=program.path)
+            try:
+                r = _optimize(twin, layered, opts, progress, stock, stage)
+            except InfeasibleError:
+                r = None
+            # (by more than the re-simulation's own spread: a layer more is moves more)
+            if r is not None and score(r) < score(best[0]) * (1 - 1e-3):
+                best, better = (r, layered, origin), True
+            else:
+                ly.layers -= 1
+    return best
 
 
 def _optimize(twin, program, opts: OptimizeOptions, progress, stock, stage) -> OptimizeResult:

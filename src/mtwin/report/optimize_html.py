@@ -291,13 +291,21 @@ def _segments_table(res) -> str:
         lines = f"{s['lines'][0]}" + (f"–{s['lines'][1]}" if s["lines"][1] != s["lines"][0] else "")
         color = "#bbbbbb" if s["air"] else _PALETTE[k % len(_PALETTE)]
         rows.append(f"<tr><td><span style='color:{color}'>&#9632;</span> {k}</td><td>{lines}</td>"
-                    f"<td>{'air' if s['air'] else 'cut'}</td><td>T{s['tool']}</td>"
+                    f"<td>{'air' if s['air'] else 'cut'}{_layer_mark(s)}</td><td>T{s['tool']}</td>"
                     f"<td>{s['feed_before']:g} → {s['feed_after']:g}</td><td>{s['spindle_after']:g}</td>"
                     f"<td>{s['mean_power_before']:.0f} → {s['mean_power_after']:.0f}</td>"
                     f"<td>{s['peak_load_estimate']:.1f}</td><td>{e(s['limited_by'])}</td></tr>")
     return ("<h2>Segments</h2><table><tr><th>segment</th><th>lines</th><th></th><th>tool</th>"
             "<th>feed mm/min</th><th>S rpm</th><th>mean power W (estimate)</th><th>peak load N (estimate)</th>"
             "<th>limited by</th></tr>" + "".join(rows) + "</table>")
+
+
+def _layer_mark(seg) -> str:
+    """', layer k of N' for a segment of a cut written in layers."""
+    if "layer" not in seg:
+        return ""
+    k, n = seg["layer"]
+    return f", layer {k} of {n}"
 
 
 def _changes_table(res) -> str:
