@@ -59,12 +59,44 @@ def test_layers_change_nothing_where_no_cut_is_over_the_limit():
     assert a.output == b.output and not b.layers
 
 
-def test_a_helical_entry_is_not_layered_and_says_why(tmp_path):
-    p = tmp_path / "helix.nc"
-    p.write_text(SLOTS.read_text().replace("G0 X0 Y30.\nG1 Z-6. F100\n",
-                                           "G0 X0 Y30.\nG1 Z0 F100\nG2 X0 Y30. Z-6. I3. J0\n"))
-    with pytest.raises(InfeasibleError, match="cannot be cut in layers: .*(plunge|ramp or a helix)"):
-        optimize(mtwin.Twin(), str(p), OptimizeOptions(**LIMIT, max_layers=8))
+def test_a_helical_entry_is_layered_each_copy_stopping_at_its_layer():
+    # the entry (a plunge to the stock's top, then one turn of helix down 6 mm): the upper
+    # layer's copy is the same helix, ending at the layer's Z, and the part is the same
+    src = SLOTS.read_text().replace("G0 X0 Y30.\nG1 Z-6. F100\n", "G0 X0 Y30.\nG1 Z0 F100\nG2 X0 Y30. Z-6. I3. J0\n")
+    r = optimize(mtwin.Twin(), src.encode(), OptimizeOptions(**LIMIT, max_layers=8))
+    (ly,) = r.layers
+    assert ly["lines"] == [16, 18] and ly["layers"] == 2 and ly["z"] == pytest.approx([-3.0, -6.0])
+    lines = r.output.decode().splitlines()
+    at = lines.index("(MTWIN LAYER 1/2 Z-3.)")
+    assert "G2 X0 Y30. Z-3. I3. J0" in lines[at + 1:at + 5]
+    assert r.stock_proof.same and r.after.peak_load <= 60.0 * 1.001
+
+
+def test_a_pass_over_holding_tabs_is_layered_the_tabs_kept_where_they_stand():
+    # a Fusion contour pass: down to the depth, up over a tab (G1 Z-3 at the cutting feed, the
+    # tab's top) and back down with the plunge feed, on to the end, then a feed-rate retract;
+    # the pass is one cut, from its plunge to its last move at the depth
+    from mtwin.optimize.layers import Layering, find_cut, layered_text
+
+    tw = mtwin.Twin().with_material("1045")
+    prog = tw.load(b"(T1 D=6 CR=0 - flat end mill)\nG21 G90 G17\nT1 M6\nS3000 M3\nG0 X0 Y0 Z10.\nG1 Z-6. F100\n"
+                   b"X20. F400\nZ-3.\nX26.\nZ-6. F100\nX50. F400\nG1 Z10. F400\nX0 Y20.\nM30\n", path="p.nc")
+    for seg in ((7, 7), (8, 9), (10, 11)):  # on the floor, on the tab (the pass below is the cut), back
+        cut = find_cut(prog, *seg, stock_top=0.0)
+        assert (cut.plunge_line, cut.first_line, cut.last_line, cut.depth, cut.safe) == (6, 6, 11, -6.0, 10.0)
+    lines = layered_text(prog, [Layering(cut, 3, 0.0)])[0].decode().splitlines()
+    at = lines.index("(MTWIN LAYER 2/3 Z-4.)")
+    # the tab's top (Z-3.) stands above layer 2 (Z-4.): kept as written; the floors are raised
+    assert lines[at + 1:at + 7] == ["G1 Z-4. F100", "X20. F400", "Z-3.", "X26.", "Z-4. F100", "X50. F400"]
+    at = lines.index("(MTWIN LAYER 1/3 Z-2.)")
+    assert lines[at + 1:at + 7] == ["G1 Z-2. F100", "X20. F400", "Z-2.", "X26.", "Z-2. F100", "X50. F400"]
+    # the retract (above the stock) is no part of the cut: it follows the last layer, once
+    assert lines.count("G1 Z10. F400") == 1
+    limit = dict(force_limit=200.0, feed_range=(100.0, 3000.0))
+    with pytest.raises(InfeasibleError):
+        optimize(tw, prog.data, OptimizeOptions(**limit), stock=(-10, -10, -12, 60, 30, 0))
+    r = optimize(tw, prog.data, OptimizeOptions(**limit, max_layers=8), stock=(-10, -10, -12, 60, 30, 0))
+    assert [ly["layers"] for ly in r.layers] == [2] and r.stock_proof.same and r.after.peak_load <= 200.0 * 1.001
 
 
 def test_cli_layers_and_the_json(tmp_path):

@@ -67,6 +67,27 @@ def test_the_blocks_real_programs_write(block, dialect):
     assert _refused_for_conflict(block, dialect) == modal.conflicts(codes, dialect)
 
 
+@pytest.mark.parametrize("dialect", ["linuxcnc", "fanuc"])
+def test_two_m_codes_conflict_exactly_when_the_reference_puts_them_in_one_group(dialect):
+    # (the words each needs beside it: M61 its tool, the I/O codes their pin, M50-M53 a switch)
+    extra = {"M61": "Q1", "M66": "P0 L0", "M67": "E0 Q0", "M68": "E0 Q0", "M62": "P0", "M63": "P0", "M64": "P0",
+             "M65": "P0"}
+    codes = [c for cs in modal.LINUXCNC_M.values() for c in cs]
+    if dialect == "fanuc":  # LinuxCNC's own codes are not Fanuc's
+        codes = [c for c in codes if c not in ("M61", "M70", "M71", "M72", "M73", "M62", "M63", "M64", "M65",
+                                               "M66", "M67", "M68")]
+    pairs = list(itertools.combinations(codes, 2))
+    random.Random(36).shuffle(pairs)
+    conflicting = 0
+    for a, b in pairs[:150]:
+        want = modal.m_conflicts([a, b], dialect)
+        words = " ".join(dict.fromkeys(w for c in (a, b) for w in extra.get(c, "").split()))
+        got = _refused_for_conflict(f"{a} {b} {words}".strip(), dialect)
+        assert got == want, f"{dialect}: {a} {b}: the reference says {'a' if want else 'no'} conflict"
+        conflicting += want
+    assert conflicting > 5 if dialect == "linuxcnc" else conflicting == 0
+
+
 # ---------------------------------------------------------------- the planner
 
 def _random_path(rng: random.Random):

@@ -61,3 +61,23 @@ def conflicts(codes: list[str], dialect: str) -> bool:
     groups = [group_of(c, dialect) for c in codes]
     groups = [g for g in groups if g is not None]
     return len(groups) != len(set(groups))
+
+
+#: LinuxCNC's M-code modal groups (interp_array.cc, ``ems[]``): group -> the codes the twin reads
+#: (a block may hold one code of each; Fanuc checks no M groups: a block may carry up to three)
+LINUXCNC_M = {
+    4: ["M0", "M1", "M2", "M30", "M99"],
+    5: ["M62", "M63", "M64", "M65", "M66", "M67", "M68"],
+    6: ["M6", "M61"],
+    7: ["M3", "M4", "M5", "M19", "M70", "M71", "M72", "M73"],
+    8: ["M7", "M8", "M9"],
+    9: ["M48", "M49", "M50", "M51", "M52", "M53"],
+}
+
+
+def m_conflicts(codes: list[str], dialect: str) -> bool:
+    """Do these M codes, in one block, break the one-code-per-group rule?"""
+    if dialect == "fanuc":
+        return False
+    groups = [g for c in codes for g, cs in LINUXCNC_M.items() if c in cs]
+    return len(groups) != len(set(groups))

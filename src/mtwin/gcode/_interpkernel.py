@@ -166,6 +166,47 @@ def _g_table() -> np.ndarray:
 #: per dialect row (0 Fanuc, 1 the others) and G code (x10): its slot and its modal group
 G_TABLE = _g_table()
 
+# ---- the M codes: one table too, with LinuxCNC's modal groups (its ems[]) ----
+# Each code (x10) has, per dialect row, what it does (its slot) and its group: two codes of one
+# group in a block is an error in LinuxCNC ("two M codes used from the same modal group": M3 M5,
+# M7 M8); a Fanuc control checks no M groups (a block may carry up to three M codes), so its
+# row has none.  Slot -1: not a code the twin reads.
+(MS_TOOLCHANGE, MS_SET_TOOL, MS_SAVE, MS_IO, MS_SPINDLE, MS_COOLANT, MS_END, MS_CALL, MS_RETURN,
+ MS_PASS) = range(10)
+N_MGROUPS = 11
+
+
+def _m_table() -> np.ndarray:
+    """(2 dialects, 1000 codes, [slot, group])."""
+    t = np.full((2, 1000, 2), -1, np.int8)
+
+    def put(slot, codes, rows=(0, 1)):
+        for r in rows:
+            for c in codes:
+                t[r, c, 0] = slot
+
+    put(MS_TOOLCHANGE, (60,))
+    put(MS_SET_TOOL, (610,), rows=(1,))  # LinuxCNC M61 Q<n>: the tool in the spindle is n
+    put(MS_SAVE, (700, 710, 720, 730), rows=(1,))  # LinuxCNC M70-M73 modal state
+    put(MS_IO, (620, 630, 640, 650, 660, 670, 680), rows=(1,))  # LinuxCNC digital/analog I/O
+    put(MS_SPINDLE, (30, 40, 50))
+    put(MS_COOLANT, (70, 80, 90))
+    put(MS_END, (20, 300))
+    put(MS_CALL, (980,))
+    put(MS_RETURN, (990,))
+    # stops, override switches, orient, rigid-tap mode: no effect on the path
+    put(MS_PASS, (0, 1, 10, 190, 290, 480, 490, 500, 510, 520, 530))
+    for group, codes in ((4, (0, 10, 20, 300, 600, 990)), (5, (620, 630, 640, 650, 660, 670, 680)),
+                         (6, (60, 610)), (7, (30, 40, 50, 190, 700, 710, 720, 730)), (8, (70, 80, 90)),
+                         (9, (480, 490, 500, 510, 520, 530))):
+        for c in codes:
+            t[1, c, 1] = group
+    return t
+
+
+#: per dialect row and M code (x10): its slot and its modal group (LinuxCNC's; none for Fanuc)
+M_TABLE = _m_table()
+
 # state indices (float)
 SF_FEED, SF_SPINDLE, SF_PATH_TOL, SF_TLO, SF_CAM_TOL, SF_COMP_R, SF_TOX, SF_TOY = 0, 1, 2, 3, 4, 5, 6, 7
 SF_A, SF_B, SF_C = 8, 9, 10  # rotary axis positions, degrees (not scaled by G20/G21)
@@ -594,6 +635,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
     g_seen = np.zeros(N_GROUPS, np.bool_)  # the block's modal groups taken (G_TABLE)
     gword = np.zeros(16, np.int64)
     mcodes = np.zeros(16, np.int64)
+    m_seen = np.zeros(N_MGROUPS, np.bool_)  # the block's M modal groups taken (M_TABLE)
     mword = np.zeros(16, np.int64)
     e = np.zeros(3)
     s = np.zeros(3)
@@ -781,44 +823,45 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         m61 = False
         m_io = False
         m_save = -1  # M70/M73 save (1), M71 invalidate (2), M72 restore (3)
+        m_seen[:] = False
         for q in range(nm):
             code = mcodes[q]
             kw = mword[q]
-            if code == 60:
-                m_tc = True
-            elif code == 610 and dialect != 0:
-                m61 = True  # LinuxCNC M61 Q<n>: the tool in the spindle is n (no change made)
-            elif dialect != 0 and (code == 700 or code == 710 or code == 720 or code == 730):
-                # LinuxCNC modal state: M70/M73 save (M73 restored at the subroutine's return),
-                # M71 forget, M72 restore; L is the call level (given by the macro executor)
-                m_save = 1 if (code == 700 or code == 730) else (2 if code == 710 else 3)
-            elif dialect != 0 and (code == 620 or code == 630 or code == 640 or code == 650 or code == 660
-                                   or code == 670 or code == 680):
-                # LinuxCNC M62-M65 digital outputs (P), M66 wait on an input (P/E, L, Q timeout),
-                # M67/M68 analog outputs (E, Q): machine I/O, no effect on the path
-                m_io = True
-            elif code == 30 or code == 40 or code == 50:
-                m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
-            elif code == 70 or code == 80 or code == 90:
-                m_cool = 1 if code == 70 else (2 if code == 80 else 0)
-            elif code == 20 or code == 300:
-                m_end = True
-            elif code == 980:
-                m_sub = True
-            elif code == 990:
-                m_ret = True
-            elif code == 0 or code == 10 or code == 480 or code == 490 or code == 10 \
-                    or code == 1 or code == 190 or code == 500 or code == 510 \
-                    or code == 520 or code == 530 or code == 290:
-                pass  # stops, override switches, orient, rigid-tap mode: no effect on the path
-            else:
+            slot = M_TABLE[drow, code, 0] if code < 1000 else -1
+            group = M_TABLE[drow, code, 1] if code < 1000 else -1
+            if slot < 0:
                 if lenient:
                     if nwarn < warn_code.size:
                         warn_code[nwarn] = W_IGNORED_M
                         warn_word[nwarn] = kw
                     nwarn += 1
-                else:
-                    return n, E_UNSUPPORTED_M, kw, li, err_vals, nwarn
+                    continue
+                return n, E_UNSUPPORTED_M, kw, li, err_vals, nwarn
+            # the one conflict check, as for the G codes
+            if group >= 0:
+                if m_seen[group]:
+                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
+                m_seen[group] = True
+            if slot == MS_TOOLCHANGE:
+                m_tc = True
+            elif slot == MS_SET_TOOL:
+                m61 = True
+            elif slot == MS_SAVE:
+                # M70/M73 save (M73 restored at the subroutine's return), M71 forget, M72 restore;
+                # L is the call level (given by the macro executor)
+                m_save = 1 if (code == 700 or code == 730) else (2 if code == 710 else 3)
+            elif slot == MS_IO:
+                m_io = True  # M62-M65 outputs (P), M66 wait (P/E, L, Q), M67/M68 analog (E, Q)
+            elif slot == MS_SPINDLE:
+                m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
+            elif slot == MS_COOLANT:
+                m_cool = 1 if code == 70 else (2 if code == 80 else 0)
+            elif slot == MS_END:
+                m_end = True
+            elif slot == MS_CALL:
+                m_sub = True
+            elif slot == MS_RETURN:
+                m_ret = True
 
         # ---- Fanuc G16: X and Y become the polar words (the LinuxCNC @ ^ path interprets them)
         if g_polar >= 0:

@@ -2,26 +2,29 @@
 
 The power-smoothing reference's second lever (after the feed): when a segment's load is over
 the limit at the bottom of the feed range, divide its axial depth into N layers and cut it N
-times, each pass at its own Z.  Here a *cut* is what the CAM system wrote for one depth: a
-straight plunge at the cut's start point, then feed moves in the XY plane at the plunge's Z
-(lines and arcs), the plunge starting from a height the program itself stood at over that
-point (its clearance).  Layer k of N is written as
+times, each pass at its own Z.  Here a *cut* is what the CAM system wrote for one depth: an
+entry that brings the tool down to the depth (a straight plunge, a ramp or a helix), then the
+feed moves in the XY plane that follow at that depth — over holding tabs and back down — up
+to the last move at the depth, all between the depth and the stock's top.  Layer k of N is
 
     (MTWIN LAYER k/N Z…)            a comment the CAM user recognises
-    G1 Z<z_k> F<the plunge's feed>  the plunge, to this layer's depth
-    <the cut's lines, Z set to z_k> copies (N words left out: they would repeat the program's)
-    G0 Z<safe height>               the link back: up to the tool's own retract height (the
-                                    highest its rapids went before the cut),
-    G0 X<start> Y<start>            over to the cut's start,
-    G0 Z<clearance>                 down to where the plunge starts (left out when it is there),
-    G1 F<the plunge's feed>         (the plunge mode and feed the original plunge line may inherit)
+    <the cut's lines, every Z word  copies (N words left out: they would repeat the program's):
+     raised to z_k where lower>     the entry stops at z_k, tabs stay where they stand above it
+    G0 Z<safe height>               the link back: up to the highest the tool went before
+                                    the cut (its rapids', or a post's feed-rate traverses),
+    G0 X<start> Y<start>            over to where the entry starts,
+    G0 Z<clearance>                 down to the entry's start height (left out when it is there),
+    G1 F<the entry's feed>          (the mode and feed the entry's first line may inherit)
 
 and the last layer is the program's own lines, byte for byte, so the cut ends at its depth and
-the program goes on in the modal state it had.  The depths are equal: z_k = top − k·(top −
-depth)/N, the top being the material's highest point over the cut as the twin's stock has it
-when the cut begins.  What is not a cut in this sense (a ramp or helix entry, G91, cutter
-compensation, a rotated or mirrored frame, a macro program, a subprogram, a line run more than
-once) is not layered, and says why.  The proof is the part: :mod:`mtwin.cutting.stockproof`.
+the program goes on in the modal state it had.  A copy runs where the original runs or above
+it, never below it nor below z_k (Z is linear along a line or a helix, and max(z, z_k) is
+convex), so each layer cuts a part of what the original cuts.  The depths are equal: z_k = top
+− k·(top − depth)/N, the top being the material's highest point over the cut as the twin's
+stock has it when the cut begins.  What is not a cut in this sense (G91, cutter compensation,
+a rotated or mirrored frame, a G code beyond G0-G3/G17/G90/G94, M, S or T words, a macro
+program, a subprogram, a line run more than once, a cut the tool reaches at rapid) is not
+layered, and says why.  The proof is the part: :mod:`mtwin.cutting.stockproof`.
 """
 from __future__ import annotations
 
@@ -48,22 +51,32 @@ class NotLayerable(Exception):
 
 @dataclass
 class Cut:
-    """A plunge and the planar feed moves after it, at one depth."""
+    """One pass at one depth: its entry (a straight plunge, a ramp or a helix down to the depth),
+    then the feed moves that follow it at the depth, over holding tabs and back, up to its last
+    move at the depth."""
 
-    plunge_line: int  # 1-based
-    first_line: int  # the first planar line
-    last_line: int  # the last planar line
+    plunge_line: int  # 1-based, the entry's first line
+    first_line: int  # the line that reaches the depth
+    last_line: int  # the last line at the depth
     depth: float  # mm, the cut's Z
-    clearance: float  # mm, where the plunge starts
-    start: tuple  # (x, y) mm, the plunge's point
-    plunge_feed: float  # mm/min
+    clearance: float  # mm, where the entry starts
+    start: tuple  # (x, y) mm, where the entry starts
+    plunge_feed: float  # mm/min, the entry's feed
     tool: int
-    safe: float = 0.0  # mm, the tool's retract height: the highest its rapids went before the cut
+    safe: float = 0.0  # mm, the tool's retract height: the highest it went before the cut
 
 
-def find_cut(program, first: int, last: int) -> Cut:
-    """The cut that holds the lines ``first``..``last`` (a segment of the optimiser): from its
-    plunge to the last feed move at its depth."""
+# the G codes a layered cut's lines may hold: motion, the XY plane, absolute, feed per minute
+_PLAIN_G = re.compile(rb"[Gg]\s*0*(?:[0-3]|17|90|94)(?![\d.])")
+_ANY_G = re.compile(rb"[Gg]\s*[-+]?[\d.]+")
+_ARC_G = re.compile(rb"[Gg]\s*0*[23](?![\d.])")
+
+
+def find_cut(program, first: int, last: int, stock_top: float = np.inf) -> Cut:
+    """The pass that holds the deepest feed move of the lines ``first``..``last`` (a segment of
+    the optimiser): the feed moves around it that stay between its depth and the stock's top,
+    from the entry that first brings the tool down to the depth to the last move at it.  Holding
+    tabs (up to a tab's top and back down) are inside it; a retract above the stock ends it."""
     if program.is_macro:
         raise NotLayerable("a macro program (its lines may run with other values)")
     rec = program.records
@@ -73,47 +86,53 @@ def find_cut(program, first: int, last: int) -> Cut:
     inside = np.flatnonzero((lines >= first) & (lines <= last) & feed)
     if not len(inside):
         raise NotLayerable("no feed move")
-    i = int(inside[0])
-    depth = float(rec["z"][i])
-    if rec["sz"][i] > depth + eps:
-        p = i  # the segment starts with its plunge
-    else:  # back over the feed moves at this depth to the move that came down to it
-        j = i
-        while j > 0 and feed[j - 1] and abs(rec["z"][j - 1] - depth) < eps and abs(rec["sz"][j - 1] - depth) < eps:
-            j -= 1
-        p = j - 1
-    if p < 0 or not feed[p] or abs(rec["z"][p] - depth) > eps or not rec["sz"][p] > depth + eps:
-        raise NotLayerable("it does not start with a plunge")
-    pl = rec[p]
-    if abs(pl["sx"] - pl["x"]) > eps or abs(pl["sy"] - pl["y"]) > eps or pl["kind"] != R.LINEAR:
-        raise NotLayerable("it is entered by a ramp or a helix (only a straight plunge is layered)")
-    # forward: the planar feed moves at the depth
-    k = p + 1
-    while k < len(rec) and feed[k] and abs(rec["z"][k] - depth) < eps and abs(rec["sz"][k] - depth) < eps:
-        k += 1
-    body = rec[p + 1:k]
-    if not len(body):
-        raise NotLayerable("no feed move at the plunge's depth")
-    if int(body["line"][-1]) < last:
-        raise NotLayerable("the segment leaves the plunge's depth")
-    span = rec[p:k]
+    j0 = int(inside[np.argmin(rec["z"][inside])])
+    depth, tool = float(rec["z"][j0]), rec["tool"][j0]
+    while True:
+        ok = feed & (rec["z"] >= depth - eps) & (rec["z"] <= stock_top + eps) & (rec["tool"] == tool)
+        a = b = j0
+        while a > 0 and ok[a - 1]:
+            a -= 1
+        while b + 1 < len(rec) and ok[b + 1]:
+            b += 1
+        # a segment on a holding tab: the tool rose to it from the pass below, which is the cut
+        if a > 0 and feed[a - 1] and rec["tool"][a - 1] == tool and rec["z"][a - 1] < depth - eps:
+            depth, j0 = float(rec["z"][a - 1]), a - 1
+            continue
+        break
+    at = np.flatnonzero(np.abs(rec["z"][a:b + 1] - depth) < eps) + a
+    reach, end = int(at[0]), int(at[-1])
+    s = reach  # back over the descending moves that bring the tool down to the depth
+    while s > a and rec["sz"][s - 1] > rec["z"][s - 1] + eps:
+        s -= 1
+    if not rec["sz"][s] > depth + eps:
+        raise NotLayerable("it does not start with a plunge, a ramp or a helix (the tool comes down to its depth "
+                           "at rapid)")
+    if not rec["flags"][s] & R.FL_FIRST_IN_LINE or (end + 1 < len(rec) and lines[end + 1] == lines[end]):
+        raise NotLayerable("it starts or ends inside a line")
+    span = rec[s:end + 1]
     why = _frame(span)
     if why:
         raise NotLayerable(why)
     if (span["plane"] != 0).any():
         raise NotLayerable("arcs outside the XY plane")
-    if len(np.unique(span["tool"])) > 1:
-        raise NotLayerable("a tool change inside it")
-    if _repeated(rec, int(pl["line"]), int(body["line"][-1])):
+    l0, l1 = int(lines[s]), int(lines[end])
+    if _repeated(rec, l0, l1):
         raise NotLayerable("its lines run more than once (a loop or a subprogram)")
-    text = program.data.split(b"\n")[int(body["line"][0]) - 1:int(body["line"][-1])]
-    if any(_OTHER_WORDS.search(_COMMENT.sub(b"", ln)) for ln in text):
+    text = [_COMMENT.sub(b"", ln) for ln in program.data.split(b"\n")[l0 - 1:l1]]
+    if any(_OTHER_WORDS.search(ln) for ln in text):
         raise NotLayerable("an M, S or T word among its lines (each layer would repeat it)")
-    before = rec[:p]
-    mine = (before["kind"] == R.RAPID) & (before["tool"] == pl["tool"]) & ((before["flags"] & R.FL_MACHINE) == 0)
-    safe = max(float(pl["sz"]), float(before["z"][mine].max()) if mine.any() else -np.inf)
-    return Cut(int(pl["line"]), int(body["line"][0]), int(body["line"][-1]), depth, float(pl["sz"]),
-               (float(pl["x"]), float(pl["y"])), float(pl["feed"]), int(pl["tool"]), safe)
+    if any(len(_ANY_G.findall(ln)) != len(_PLAIN_G.findall(ln)) for ln in text):
+        raise NotLayerable("a G code other than G0-G3, G17, G90 or G94 among its lines")
+    if rec["kind"][s] != R.LINEAR and not _ARC_G.search(text[0]):
+        raise NotLayerable("its entry arc takes its G2/G3 from an earlier line")
+    before = rec[:s]
+    mine = (before["tool"] == tool) & ((before["flags"] & R.FL_MACHINE) == 0) & (before["kind"] <= R.ARC_CCW)
+    # the link back rises to the highest the tool went before the cut (its rapids', or a post's
+    # feed-rate traverses): a height the program itself cleared its fixtures at
+    safe = max(float(rec["sz"][s]), float(before["z"][mine].max()) if mine.any() else -np.inf)
+    return Cut(l0, int(lines[reach]), l1, depth, float(rec["sz"][s]), (float(rec["sx"][s]), float(rec["sy"][s])),
+               float(rec["feed"][s]), int(tool), safe)
 
 
 def _frame(span) -> str:
@@ -199,7 +218,7 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
             i += 1
             continue
         c = ly.cut
-        body = [ln.rstrip(b"\r") if strip_cr else ln for ln in src[c.first_line - 1:c.last_line]]
+        body = [ln.rstrip(b"\r") if strip_cr else ln for ln in src[c.plunge_line - 1:c.last_line]]
         cr = b"\r" if strip_cr else b""
         fp = style.feed(c.plunge_feed / k, inch).encode()
         zc = style.coord(c.clearance / k).encode()
@@ -210,16 +229,16 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
         for n, z in enumerate(ly.depths[:-1], 1):
             zt = style.coord(z / k).encode()
             out.append(b"(MTWIN LAYER %d/%d Z%s)" % (n, ly.layers, zt) + cr)
-            out.append(b"G1 Z" + zt + b" F" + fp + cr)
-            origin += [c.plunge_line, c.plunge_line]
-            out += [_set_z(_N_WORD.sub(rb"\1", ln), zt) + cr for ln in body]
-            origin += list(range(c.first_line, c.last_line + 1))
+            origin.append(c.plunge_line)
+            # the pass again, no line lower than this layer: Z = max(Z, z_k)
+            out += [_floor_z(_N_WORD.sub(rb"\1", ln), z / k, zt) + cr for ln in body]
+            origin += list(range(c.plunge_line, c.last_line + 1))
             out += link
             origin += [c.plunge_line] * len(link)
         out.append(b"(MTWIN LAYER %d/%d Z%s: THE PROGRAM'S OWN LINES)"
                    % (ly.layers, ly.layers, style.coord(c.depth / k).encode()) + cr)
         origin.append(c.plunge_line)
-        # the program's own plunge and cut, byte for byte
+        # the program's own pass, byte for byte
         out += src[c.plunge_line - 1:c.last_line]
         origin += list(range(c.plunge_line, c.last_line + 1))
         i = c.last_line
@@ -245,10 +264,13 @@ def layer_numbers(text: bytes, origin: np.ndarray, layerings: list[Layering]) ->
     return out
 
 
-def _set_z(line: bytes, z: bytes) -> bytes:
-    """``line`` with its Z word (outside comments) set to ``z``."""
+def _floor_z(line: bytes, floor: float, text: bytes) -> bytes:
+    """``line`` with its Z word (outside comments) raised to ``floor`` (written ``text``) where it
+    is lower; byte for byte otherwise.  A move between two such ends runs where the original
+    runs or above it (Z is linear along a line or a helix, and max(z, floor) is convex), so a
+    layer cuts nothing the original pass does not."""
     code = _COMMENT.sub(lambda m: b" " * len(m.group(0)), line)
     m = _Z_WORD.search(code)
-    if not m:
+    if not m or float(m.group(3)) >= floor - 1e-9:
         return line
-    return line[:m.start(3)] + z + line[m.end(3):]
+    return line[:m.start(3)] + text + line[m.end(3):]

@@ -328,23 +328,32 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     plan0, eng0 = program_engagement(twin, program, stock)
     layerings: dict[int, Layering] = {}
     reasons, origin = refused.reasons, None
+    stock_top = float(eng0.stock.box[5])
     for _ in range(opts.max_layers):
+        this_round: dict[int, int] = {}  # cut -> layers it needs by its worst segment's excess
+        new_cuts: dict[int, object] = {}
         for r in reasons:
             a, b = r["lines"]
             if origin is not None:  # a line of the layered program: the program's line it came from
                 a, b = int(origin[a - 1]), int(origin[b - 1])
             try:
-                cut = find_cut(program, a, b)
+                cut = find_cut(program, a, b, stock_top)
             except NotLayerable as why:
                 raise InfeasibleError(f"{refused} — and lines {a}-{b} cannot be cut in layers: {why}",
                                       reasons=refused.reasons) from None
             ly = layerings.get(cut.plunge_line)
-            if ly is None:
-                # the load falls about as the depth: the fewest layers that bring it under
-                n = max(2, math.ceil(r["value"] / r["limit_value"] - 1e-9))
-                ly = layerings[cut.plunge_line] = Layering(cut, n, material_top(eng0, plan0, cut))
-            else:
-                ly.layers += 1
+            # the load falls about as the depth: the fewest layers that bring it under; a cut
+            # already layered and still over gets one more (once a round, however many of its
+            # segments are over)
+            n = max(2, math.ceil(r["value"] / r["limit_value"] - 1e-9)) if ly is None else ly.layers + 1
+            this_round[cut.plunge_line] = max(n, this_round.get(cut.plunge_line, 0))
+            new_cuts.setdefault(cut.plunge_line, cut)
+        for line, n in this_round.items():
+            if line not in layerings:
+                layerings[line] = Layering(new_cuts[line], n, material_top(eng0, plan0, new_cuts[line]))
+            ly = layerings[line]
+            ly.layers = n
+            a, b = ly.cut.plunge_line, ly.cut.last_line
             if ly.layers > opts.max_layers:
                 raise InfeasibleError(f"{refused} — lines {a}-{b} are still over it in {opts.max_layers} layers "
                                       f"(--max-layers)", reasons=refused.reasons)
