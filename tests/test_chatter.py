@@ -192,14 +192,16 @@ def test_tap_test_fit_recovers_two_modes_through_noise(tmp_path):
     (tmp_path / "tf.toml").write_text('[tools.3]\ntype = "flat"\ndiameter = 8.0\nfrf = "flipped.csv"\n')
     r = mtwin("lobes", "--twin", tmp_path / "tf.toml", "--tool", "3", "--immersion", "0.5")
     assert r.returncode == 2 and "imaginary part is positive at its resonance" in r.stderr, r.stderr
-    # one outlier row (1e300 m/N) fits a mode no tool tip has: refused, not written as k = 1e-295
+    # one outlier row (1e300 m/N) fitted a mode no tool tip has (k = 1e-295): the cell is refused
+    # where it stands, beyond any compliance a tap test measures
     spiked = tmp_path / "spiked.csv"
     rows = path.read_text().splitlines()
     v = rows[len(rows) // 2].split(",")
     rows[len(rows) // 2] = ",".join([v[0], "1e300", *v[2:]])
     spiked.write_text("\n".join(rows) + "\n")
     r = mtwin("calibrate-frf", spiked)
-    assert r.returncode == 2 and "outside what a tool tip has" in r.stderr, r.stderr
+    assert r.returncode == 2 and f"spiked.csv:{len(rows) // 2 + 1}:" in r.stderr \
+        and "beyond what a tap test measures" in r.stderr, r.stderr
     # the printed tables read back as a twin file's modes
     toml = mtwin("calibrate-frf", path, "--tool", "3").stdout
     twin = tmp_path / "t.toml"

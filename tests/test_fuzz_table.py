@@ -41,6 +41,12 @@ PROGRAMS = {
     "nan_word": (b"G21 G90\nG1 Xnan F100\nM30\n", "p.nc:2:"),
     "empty_sub_call": (b"G21\nM98 P9999\nM30\n", "p.nc:2:"),
     "helix_turns_huge": (b"G21 G90 G17\nG0 X0 Y0 Z0\nG2 X0 Y0 Z-10 I5 J0 P99999 F1000\nM30\n", "p.nc:3:"),
+    # a peck cycle of 1e8 pecks (R 1e8 mm above, Q 1 mm) ran without end; a macro value past any
+    # float was an internal error
+    "pecks_huge": (b"G21 G90 G17\nG0 X0 Y0 Z5\nG83 X30. Y25. Z-5. R99999999. Q1. F100.\nG80\nM30\n", "p.nc:3:"),
+    "pecks_tiny_q": (b"G21 G90 G17\nG0 X0 Y0 Z5\nG83 X30. Y25. Z-5. R2. Q0.00000001 F100.\nG80\nM30\n", "p.nc:3:"),
+    "macro_power_overflow": (b"G21 G90\n#1 = [10 ** 400]\nG1 X#1 F100\nM2\n", "p.nc:2:"),
+    "macro_product_overflow": (b"G21 G90\n#1 = [1" + b"*99999999" * 45 + b"]\nG1 X#1 F100\nM2\n", "p.nc:2:"),
 }
 
 TWINS = {
@@ -59,6 +65,13 @@ TWINS = {
     "twin_unknown_material": ('[cutting]\nmaterial = "unobtainium"\n', "unobtainium"),
     "twin_servo_period": ("[controller]\nservo_period = 1e-300\n", "servo_period"),
     "twin_bool_number": ("[axes.x]\nmax_velocity = true\n", "max_velocity"),
+    # finite, and still no machine's: bounds declared with each parameter
+    "twin_bell_time": ("[controller]\nbell_time = 1e5\n", "bell_time"),
+    "twin_in_position": ("[controller]\nin_position = 9e5\n", "in_position"),
+    "twin_tool_diameter": ('[tools.1]\ntype = "flat"\ndiameter = 9e5\n', "diameter"),
+    "twin_tool_helix": ('[tools.1]\ntype = "flat"\ndiameter = 6\nhelix = 9e5\n', "helix"),
+    "twin_spindle_loss": ("[cutting]\nspindle_loss = [1e99, 0.0, 0.0]\n", "spindle_loss"),
+    "twin_stock_far": ("[cutting]\nstock = [0, 0, -20, 60, 50, 1e99]\n", "stock"),
     "twin_mode_fn_tiny": ("[tools.1]\ntype = \"flat\"\ndiameter = 6\n[[tools.1.modes]]\ndirection = \"x\"\n"
                           "fn = 1e-300\nzeta = 0.02\nk = 1e7\n", "below any tool-tip mode"),
 }
@@ -81,6 +94,11 @@ MEASUREMENTS = {
 }
 
 LOGS = {
+    # a feed over 1,000 m/min (the cap was 1,000 times that), an override over the twin's 1,000 %
+    "log_feed_16e6_mm_s": ("2024-01-01T00:00:00.000Z|execution|ACTIVE\n2024-01-01T00:00:00.100Z|Feed_Rate|16000000\n",
+                           "log.txt:2:"),
+    "log_override_huge": ("2024-01-01T00:00:00.000Z|execution|ACTIVE\n2024-01-01T00:00:00.100Z|Feed_Override|999999\n",
+                          "log.txt:2:"),
     "log_feed_huge": ("2024-01-01T00:00:00.000Z|execution|ACTIVE\n2024-01-01T00:00:00.100Z|Feed_Rate|1e308\n",
                       "log.txt:2:"),
     "log_block_negative": ("2024-01-01T00:00:00.000Z|execution|ACTIVE\n2024-01-01T00:00:00.100Z|Block_Number|-3\n",
@@ -99,8 +117,8 @@ def _cases():
     for name, (text, where) in PROGRAMS.items():
         cmds = (["parse"], ["simulate"], ["optimize", "-o", "{d}/o.nc"], ["scale", "--feed", "1.2", "-o", "{d}/o.nc"],
                 ["verify", "{d}/p.nc"])
-        if "forever" in name:  # (3 s each to reach the guard, in the front end every command shares)
-            cmds = cmds[:1] if name != "while_forever" else cmds[2:3]
+        if "forever" in name or "pecks" in name:  # (3-5 s each to reach the guard, in the front end every
+            cmds = cmds[:1] if name != "while_forever" else cmds[2:3]  # command shares)
         for cmd in cmds:
             out.append(pytest.param({"p.nc": text}, [cmd[0], "{d}/p.nc", *cmd[1:]], where, id=f"{cmd[0]}-{name}"))
     for name, (text, where) in TWINS.items():
@@ -161,9 +179,28 @@ def _cases():
         "optimize-layers": ["optimize", "{d}/p.nc", "--layers", "sometimes", "-o", "{d}/o.nc"],
         "optimize-max-layers": ["optimize", "{d}/p.nc", "--max-layers", "1", "-o", "{d}/o.nc"],
         "verify-by-stock-tol": ["verify", "{d}/p.nc", "{d}/p.nc", "--by-stock", "--tol", "0"],
+        # finite and absurd: each option held to what a machine, a tool or a user's memory has
+        "simulate-decimate-above-servo": ["simulate", "{d}/p.nc", "-o", "{d}/t.csv", "--decimate", "1e99"],
+        "simulate-stock-far": ["simulate", "{d}/p.nc", "--stock=0,0,-20,60,50,1e99"],
+        "synth-rate-tiny": ["synth", "{d}/p.nc", "--rate", "1e-99", "-o", "{d}/s.csv"],
+        "optimize-force-1e99": ["optimize", "{d}/p.nc", "--force-limit", "1e99", "-o", "{d}/o.nc"],
+        "optimize-tolerance-1e99": ["optimize", "{d}/p.nc", "--tolerance", "1e99", "-o", "{d}/o.nc"],
+        "optimize-rough-tolerance-1e99": ["optimize", "{d}/p.nc", "--rough-tolerance", "1e99", "-o", "{d}/o.nc"],
+        "optimize-min-segment-1e99": ["optimize", "{d}/p.nc", "--min-segment", "1e99", "-o", "{d}/o.nc"],
+        "optimize-target-power-1e99": ["optimize", "{d}/p.nc", "--objective", "smooth", "--target-power", "1e99",
+                                       "-o", "{d}/o.nc"],
+        "optimize-population-huge": ["optimize", "{d}/p.nc", "--method", "ga", "--population", "1000000000",
+                                     "-o", "{d}/o.nc"],
+        "verify-tol-1e99": ["verify", "{d}/p.nc", "{d}/p.nc", "--tol", "1e99"],
+        "scale-spindle-1e9": ["scale", "{d}/p.nc", "--spindle", "1e9", "-o", "{d}/o.nc"],
+        "lobes-speed-range-1e99": ["lobes", "--twin", str(CHATTER_TWIN), "--speed-range", "100,1e99"],
+        "grind-cases-huge": ["grind", "design", "--cases", "1000000000000"],
+        "tools-vb-limit-1e99": ["tools", "--ledger", "{d}/none.db", "--vb-limit", "1e99"],
+        "calibrate-frf-freq-1e99": ["calibrate-frf", "{d}/f.csv"],
     }
+    frf = "freq,re_xx,im_xx\n100,1e-7,-1e-8\n200,2e-7,-1e-6\n1e99,1e-7,-1e-8\n"
     for name, args in opts.items():
-        out.append(pytest.param({"p.nc": GOOD, "m.csv": "not,an,frf\n1,2,3\n"}, args, "", id=name))
+        out.append(pytest.param({"p.nc": GOOD, "m.csv": "not,an,frf\n1,2,3\n", "f.csv": frf}, args, "", id=name))
     return out
 
 

@@ -90,6 +90,11 @@ _AMOUNTS = ("length", "sliding", "time", "volume")  # what a run cut: finite and
 _LANDS = ("vb_start", "vb_end")  # mm, finite and >= 0, or none recorded
 
 
+# the most one run of one part may hold: 1,000 km of path, 1e6 s, 1e9 mm^3, a 10-mm land (the
+# params' own bounds per unit); beyond them a number is an edit or damage, not a run
+_RUN_MAX = {"length": 1e9, "sliding": 1e9, "time": 1e6, "volume": 1e9, "vb_start": 10.0, "vb_end": 10.0}
+
+
 def _check_run(d: dict, path: str, ident: str) -> None:
     """A run's numbers as the ledger writes them, or an error naming the run (a file edited by
     hand, or damaged: never a silently wrong total)."""
@@ -99,9 +104,9 @@ def _check_run(d: dict, path: str, ident: str) -> None:
         v = d[k]
         if v is None and k in _LANDS:
             continue
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or v < 0:
-            raise MtwinError(f"{path}: tool {ident!r}, run {d['n']}: {k} = {v!r} is not a finite number >= 0 "
-                             f"(the ledger was changed by hand or damaged)")
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 <= v <= _RUN_MAX[k]:
+            raise MtwinError(f"{path}: tool {ident!r}, run {d['n']}: {k} = {v!r} is not a number from 0 to "
+                             f"{_RUN_MAX[k]:g} (the ledger was changed by hand or damaged)")
 
 
 def _law(values: dict) -> dict:

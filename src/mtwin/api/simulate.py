@@ -178,6 +178,8 @@ def _every(every: Optional[int], rate: Optional[float], dt: float) -> int:
         # (a rate under 1e-3 Hz keeps less than one sample in 17 minutes: no trace)
         if not (1e-3 <= rate < math.inf):
             raise MtwinError(f"--decimate must be a rate in Hz of at least 0.001, got {rate:g}")
+        if rate * dt > 1.0 + 1e-9:  # (a rate above the servo's has no samples to give)
+            raise MtwinError(f"--decimate {rate:g} Hz is above the servo rate, {1.0 / dt:g} Hz: at most that")
         every = max(1, int(round(1.0 / (rate * dt))))
     if every is None:
         every = 1
@@ -216,6 +218,17 @@ def scale(twin=None, program=None, *, feed: float = 1.0, spindle: float = 1.0, m
         msgs.warn(warning_text(prog.path, int(lines[0]),
                                f"F {float(f[raised].max()):,.0f} mm/min would exceed the machine's maximum cutting "
                                f"feed {limit:,.6g} mm/min: clamped to it on {lines.size} line(s) ({listed})"))
+    top = tw.machine.spindle.max_speed
+    s_new = prog.records["spindle"] * spindle
+    over = (s_new > top * (1 + 1e-9)) & (s_new > prog.records["spindle"])
+    if spindle != 1.0 and math.isfinite(spindle) and over.any():
+        # (a spindle clamped where its feed is not would change the chip: refused, not clamped)
+        ln = int(prog.records["line"][over][0])
+        big = float(s_new[over].max())
+        shown = f"{big:,.0f}" if big < 1e9 else f"{big:.3g}"
+        raise MtwinError(f"--spindle {spindle:g}: S {shown} rpm (line {ln}) would exceed the machine's maximum "
+                         f"spindle speed {top:,.6g} rpm; give a factor of at most "
+                         f"{top / float(prog.records['spindle'][over].max()):.4g}")
     data = scale_feeds(prog, feed, spindle, max_feed, machine_max=limit)
     changed = sum(1 for a, b in zip(prog.data.splitlines(), data.splitlines()) if a != b)
     return Scaled(prog, data, changed, msgs.items)

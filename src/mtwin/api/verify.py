@@ -18,8 +18,8 @@ def prove_stock(twin=None, original=None, optimised=None, *, stock=None, tol: fl
     from ..errors import MtwinError
     from ..motion.simulate import program_engagement
 
-    if not (tol > 0):
-        raise MtwinError("the stock tolerance must be positive")
+    if not (0 < tol <= 1.0):
+        raise MtwinError(f"the stock tolerance must be a positive distance of at most 1 mm, got {tol:g}")
     tw = open_twin(twin)
     msgs = Messages(on_message)
     a = load_part(tw, original, msgs)

@@ -149,8 +149,11 @@ class Dynamics:
 
 
 def speed_grid(lo: float, hi: float, count: int = 0) -> np.ndarray:
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
-        raise ConfigError(f"--speed-range: expected LO,HI rpm with 0 < LO < HI, got {lo:g},{hi:g}")
+    from ..params import UNIT_MAX
+
+    if not (0 < lo < hi <= UNIT_MAX["rpm"]):
+        raise ConfigError(f"--speed-range: expected LO,HI rpm with 0 < LO < HI <= {UNIT_MAX['rpm']:g}, got "
+                          f"{lo:g},{hi:g}")
     if count <= 0:
         count = 500
     return np.linspace(lo, hi, count)

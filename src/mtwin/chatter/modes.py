@@ -187,10 +187,22 @@ def finite_number(tok: str, where: str, expected: str = "a number", echo: bool =
     return v
 
 
+# an FRF's bounds: a tap test's band is a few kHz (the modes the twin takes are 1 Hz-100 kHz), and
+# the compliance of the softest tool tip it takes (k = 1e2 N/m, zeta 0.001) peaks at 5 m/N
+FRF_MAX_HZ = 1e5
+FRF_MAX_COMPLIANCE = 10.0  # m/N
+
+
 def _num(tok: str, path: str, ln: int, col: int, what: str) -> float:
     # an FRF's errors name the place, not the text there: a twin file may point its FRF at any
     # file beside it, and a batch copies errors into its reports
-    return finite_number(tok, f"{path}:{ln}:{col}: {what}", echo=False)
+    v = finite_number(tok, f"{path}:{ln}:{col}: {what}", echo=False)
+    freq = what in ("freq", "frequency")
+    if abs(v) > (FRF_MAX_HZ if freq else FRF_MAX_COMPLIANCE):
+        raise ConfigError(f"{path}:{ln}:{col}: {what}: beyond what a tap test measures (at most "
+                          + (f"{FRF_MAX_HZ:g} Hz)" if freq else f"{FRF_MAX_COMPLIANCE:g} m/N in magnitude; a "
+                             "compliance is in m/N)"))
+    return v
 
 
 def _check_freqs(freq: list, rows: list, path: str) -> None:

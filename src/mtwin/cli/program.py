@@ -113,8 +113,8 @@ def verify(
     from ..gcode.verify import compare
     from ..twin.setup import Messages, load_part, open_twin
 
-    if not (tol > 0):
-        raise MtwinError("--tol must be positive")
+    if not (0 < tol <= 1.0):  # (two paths 1e99 mm apart are not "the same within" anything)
+        raise MtwinError(f"--tol must be a positive distance of at most 1 mm, got {tol:g}")
     if by_stock:
         from ..api.verify import prove_stock
 

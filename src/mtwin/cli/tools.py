@@ -27,8 +27,8 @@ def tools_list(ctx: typer.Context, ledger: str = LEDGER, vb_limit: Optional[floa
     from ..ledger import Ledger, VB_LIMIT as LIMIT
 
     limit = vb_limit if vb_limit is not None else LIMIT
-    if not limit > 0:
-        raise MtwinError(f"--vb-limit must be a positive land in mm, got {limit:g}")
+    if not 0 < limit <= 10.0:  # (ISO 8688-2 ends a tool's life at 0.3 mm; 10 mm is no flank land)
+        raise MtwinError(f"--vb-limit must be a flank-wear land in mm from 0 to 10, got {limit:g}")
     ctx.obj = {"ledger": ledger, "vb_limit": limit, "json": json_out}
     if ctx.invoked_subcommand is not None:
         return

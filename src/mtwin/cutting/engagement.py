@@ -161,6 +161,12 @@ def stock_box(plan, program, cutting: Cutting, tools, box=None) -> tuple[tuple[f
             box, source = cutting.stock, "twin file cutting.stock"
         else:
             box, source = default_stock(plan, tools), GUESSED_STOCK
+    from ..params import UNIT_MAX
+
+    far = [v for v in box if not abs(v) <= UNIT_MAX["mm"]]
+    if far:  # (a box of 1e99 mm overflows the Z-map's cell count)
+        raise ConfigError(f"stock box ({source}): {far[0]:g} mm is beyond what a machine has (at most "
+                          f"{UNIT_MAX['mm']:g} mm): a typo or a unit mistake?")
     res = cutting.resolution
     area = (box[3] - box[0]) * (box[4] - box[1])
     if res <= 0:

@@ -38,22 +38,23 @@ TOOL_TYPES = ("flat", "ball", "bull", "vee")
 class Tool:
     type: str = P("flat", "str", "flat | ball | bull (corner radius) | vee (V-bit, engraving or chamfer cone: "
                                  "angle, tip_diameter)", "choice", TOOL_TYPES)
-    diameter: float = P(6.0, "mm", "cutting diameter [S: reference 6 mm end mill]")
+    diameter: float = P(6.0, "mm", "cutting diameter [S: reference 6 mm end mill]", hi=1000.0)
     flutes: int = P(2, "int", "number of flutes [S: reference two-flute]", hi=64)
-    helix: float = P(30.0, "", "helix angle, degrees [E: 30 deg typical for aluminium end mills]", "nonneg")
+    helix: float = P(30.0, "", "helix angle, degrees [E: 30 deg typical for aluminium end mills]", "nonneg",
+                     hi=89.0)
     corner_radius: float = P(0.0, "mm", "corner radius (bull-nose); a ball's is diameter/2", "nonneg")
     angle: float = P(90.0, "", "included angle of a vee tool's cone, degrees (V-bit 60-90, engraving 10-30, "
                                "chamfer 90)", "positive")
     tip_diameter: float = P(0.0, "mm", "flat tip of a vee tool (engraving bits: 0.1-0.5 mm)", "nonneg")
-    flute_length: float = P(15.0, "mm", "length of cut; deeper engagement is an error")
+    flute_length: float = P(15.0, "mm", "length of cut; deeper engagement is an error", hi=1000.0)
     stickout: float = P(0.0, "mm", "length out of the holder: the cantilever of the breakage and deflection limits "
-                                   "(0: 4 x diameter [E], docs/catalogue.md)", "nonneg")
+                                   "(0: 4 x diameter [E], docs/catalogue.md)", "nonneg", hi=1000.0)
     force_limit: float = P(0.0, "N", "the side load this tool may take in optimize (0: none given; --force-limit "
                                      "stands over it)", "nonneg")
     material: str = P("carbide", "str", "tool material: carbide | hss (its stiffness, strength and chip-load share, "
                                         "docs/catalogue.md)", "choice", ("carbide", "hss"))
     price: float = P(30.0, "", "price per tool or edge, currency units [E: 30-150 $ carbide end mill]", "nonneg")
-    taylor_n: float = P(0.35, "", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4]")
+    taylor_n: float = P(0.35, "", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4]", hi=1.0)
     taylor_c: float = P(1300.0, "", "Taylor constant C, m/min for T in min [E: aluminium 1100-1500]")
     # the tool tip's dynamics (docs/chatter.md): [[tools.N.modes]] tables, or a tap test's FRF
     modes: tuple = field(default=(), metadata={"unit": "modes", "check": "modes", "choices": (),
@@ -528,6 +529,10 @@ def cutting_from_dict(raw: dict, where: str = "twin file") -> Cutting:
         if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v)):
             raise ConfigError(f"{where}: cutting.spindle_loss: expected [a, b, c] for a + b*n + c*n^2 W (n in rpm)")
         loss = tuple(float(x) for x in v)
+        # (the loss at 10,000 rpm within the 10 MW any spindle has: 1e99 is a typo, not a drive)
+        if not abs(loss[0]) + abs(loss[1]) * 1e4 + abs(loss[2]) * 1e8 <= 1e7:
+            raise ConfigError(f"{where}: cutting.spindle_loss {list(loss)}: a loss beyond what a real spindle has "
+                              f"(over 10 MW at 10,000 rpm): a typo or a unit mistake?")
     return Cutting(tools, name, mat, stock, res, step, loss, tuple(defaults),
                    material_from="twin file" if "material" in cut else "")
 

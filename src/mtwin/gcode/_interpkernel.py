@@ -1768,6 +1768,8 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                             n = _emit(out, n, RAPID, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
                             s[an] = depth_now + pclear
                             depth_now -= canned_q
+                            if n > MAX_MOVES:  # (R99999999. Q1.: 1e8 pecks in one block)
+                                return n, E_MOVES, -1, li, err_vals, nwarn
                     e[an] = bottom
                     n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, fl)
                     s[an] = bottom

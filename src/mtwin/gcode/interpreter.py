@@ -482,8 +482,8 @@ def _interp_error(lexed: Lexed, code: int, k: int, li: int, vals, lenient: bool 
         K.E_REPEATS: f"a repeat count {w} over {K.MAX_REPEATS} (Fanuc's own range L1-L9999), the limit of the "
                      f"interpreter",
         K.E_LOOP: "program does not terminate (subprogram loop)",
-        K.E_MOVES: f"the program expands to more than {K.MAX_MOVES:,} moves here (repeats inside repeats?), the "
-                   f"limit of the interpreter",
+        K.E_MOVES: f"the program expands to more than {K.MAX_MOVES:,} moves here (repeats inside repeats, or a "
+                   f"peck cycle whose Q is tiny against its depth?), the limit of the interpreter",
         K.E_GEOMETRY_G: (f"{w} is not supported: it changes the toolpath geometry (cutter compensation, "
                          "rotation, scaling, polar or lathe modes), which mtwin does not model yet"),
         K.E_BAD_WCS: f"work offset number {w} out of range",

@@ -176,6 +176,8 @@ class _Expr:
             self.p += len(op)
             w = self.binary(level + 1) if op != "**" else self.unary()
             v = self.apply(op, v, w)
+            if not math.isfinite(v):  # (1e200 * 1e200: a value no control holds)
+                raise _Err(f"{op} gives a value beyond any number a control holds", self.p)
 
     def apply(self, op, a, b):
         if op == "+":
@@ -193,7 +195,12 @@ class _Expr:
                 raise _Err("MOD by zero", self.p)
             return math.fmod(a, b) if a * b >= 0 else a - b * math.floor(a / b)
         if op == "**":
-            return a ** b
+            if a < 0 and b != math.floor(b):
+                raise _Err(f"{a:g} ** {b:g}: a negative number to a fractional power", self.p)
+            try:
+                return float(a ** b)
+            except (OverflowError, ZeroDivisionError):
+                raise _Err(f"{a:g} ** {b:g} is beyond any number a control holds", self.p) from None
         tol = 1e-6
         if op == "EQ":
             return float(abs(a - b) < tol)

@@ -7,9 +7,13 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
+from ..params import UNIT_MAX
 from ..tomlwrite import toml_value
 from .cycle import Stage, run_cycle
 from .model import Batch, GrindTwin, read_toml
+
+
+MAX_ALLOWANCE = 10.0  # mm: a switch allowance beyond it is no plunge-grinding stage
 
 
 def read_cycle(path: str) -> list:
@@ -28,9 +32,10 @@ def read_cycle(path: str) -> list:
         f, a = s["feed"], s["switch_allowance"]
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in (f, a)):
             raise ConfigError(f"{path}: stage {i}: feed and switch_allowance must be numbers")
-        if f <= 0 or a < 0:
+        if not (0 < f <= UNIT_MAX["mm/min"] and 0 <= a <= MAX_ALLOWANCE):
             raise ConfigError(f"{path}: stage {i}: feed must be > 0 mm/min (the spark-out at zero feed follows the "
-                              f"last stage) and switch_allowance >= 0 mm")
+                              f"last stage) up to {UNIT_MAX['mm/min']:g}, and switch_allowance from 0 to "
+                              f"{MAX_ALLOWANCE:g} mm (a grinding allowance is tenths of a mm)")
         if a > last:
             raise ConfigError(f"{path}: stage {i}: switch allowances must not increase from stage to stage")
         last = a

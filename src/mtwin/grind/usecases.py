@@ -63,6 +63,9 @@ class GrindDesign:
                 "seconds": res.seconds}
 
 
+MAX_PARTS = 100_000  # parts per robustness iteration or validation
+
+
 def design(twin=None, *, grid: tuple[int, int] = (40, 40), cases: int = 300, validate: int = 1000, seed: int = 0,
            iterations: int = 10, progress: Optional[Callable] = None) -> GrindDesign:
     """The time-optimal stepped cycle by dynamic programming on a ``grid`` of (feed levels,
@@ -72,8 +75,11 @@ def design(twin=None, *, grid: tuple[int, int] = (40, 40), cases: int = 300, val
     m, n = grid
     if not (2 <= m <= 400 and 2 <= n <= 400):
         raise MtwinError(f"--grid {m}x{n}: each size must be between 2 and 400")
-    if cases < 10 or validate < 0 or iterations < 1 or seed < 0:
-        raise MtwinError("--cases must be at least 10, --validate and --seed at least 0, --iterations at least 1")
+    # (the batch is simulated in one array: a million parts is some 40 s and a few GB; 1e12 would
+    # ask for terabytes)
+    if not (10 <= cases <= MAX_PARTS and 0 <= validate <= MAX_PARTS and 1 <= iterations <= 1000 and seed >= 0):
+        raise MtwinError(f"--cases must be from 10 to {MAX_PARTS:,}, --validate from 0 to {MAX_PARTS:,}, "
+                         f"--iterations from 1 to 1,000, --seed at least 0")
     tw = _twin(twin)
     res = robust_design(tw, m, n, cases, seed, iterations, validate, progress=progress)
     if not res.design.stages:

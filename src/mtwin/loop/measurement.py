@@ -228,7 +228,7 @@ def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
                and summary_base(c) is None and c not in LOG_COLUMNS]
     # a column the twin does not know is kept out of the numbers: whatever it holds is fine
     data = _numbers(rows, header, name, first_row, [c not in ignored for c in names],
-                    [_bound(c, k) for c, k in cols])
+                    [(*_bound(c, k), c, k) for c, k in cols])
     if summary:
         return _summary(name, names, cols, data, meta, ignored, first_row)
     if len(data) == 0:
@@ -373,8 +373,8 @@ def _bound(column: str, scale: float) -> tuple[float, float, str]:
         top, unit = MAX_TIME, "s"
     elif column in ("line", "first_line", "last_line", "run", "tool"):
         top, unit = MAX_COUNT, ""
-    elif column in LOG_COLUMNS:
-        top, unit = UNIT_MAX["%"], "%"
+    elif column in LOG_COLUMNS:  # an override: at most what the twin's controller takes
+        top, unit = 1000.0, "%"
     else:
         unit = UNITS.get(column) or UNITS.get(summary_base(column) or "", "")
         top = UNIT_MAX.get(unit, MAX_MAGNITUDE) if unit else MAX_MAGNITUDE
@@ -412,9 +412,12 @@ def _numbers(rows, header, path, first_row, read, bounds=None) -> np.ndarray:
                                        f"{MAX_MAGNITUDE:g} in magnitude; leave the cell empty for a missing value)",
                                        SourceLocation(path, first_row + i, j + 1))
             if bounds is not None and abs(v) > bounds[j][0]:
-                _, top, unit = bounds[j]
-                raise MeasurementError(f"{cell!s} in column {header[j]!r} is beyond what a machine records (at most "
-                                       f"{top:g}{' ' + unit if unit else ''}): a typo or a unit mistake?",
+                _, top, unit, target, scale = bounds[j]
+                # (a column renamed or scaled on the way in says so: --map, or a unit in brackets)
+                read_as = f" (read as {target} × {scale:g} = {v * scale:g})" if scale != 1.0 else \
+                    (f" (read as {target})" if target != str(header[j]).strip() else "")
+                raise MeasurementError(f"{cell!s} in column {header[j]!r}{read_as} is beyond what a machine records "
+                                       f"(at most {top:g}{' ' + unit if unit else ''}): a typo or a unit mistake?",
                                        SourceLocation(path, first_row + i, j + 1))
             out[i, j] = v
     keep = ~np.all(np.isnan(out), axis=1) if n else np.zeros(0, bool)

@@ -479,8 +479,10 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
     except ValueError:
         raise MeasurementError(f"{e.item} value {v!r} is not a number", SourceLocation(path, e.line, 1)) from None
     # a feed, speed, tool number or override a control reports is finite, >= 0 and below
-    # these (1,000 m/min in mm/s; 1e6 rpm; 1e6 for a tool number or a percentage)
-    if not (math.isfinite(x) and 0 <= x <= (1e6 / 60.0 * 1e3 if key == "feed" else 1e6)):
+    # these (1,000 m/min in mm/s; 1e6 rpm; 1e6 for a tool number; an override 1,000 %, the most
+    # the twin's controller.feed_override takes)
+    top = {"feed": 1e6 / 60.0}.get(key, 1000.0 if key in OVERRIDES.values() else 1e6)
+    if not (math.isfinite(x) and 0 <= x <= top):
         raise MeasurementError(f"{e.item} value {v!r} is not a value a control reports (finite, >= 0, within "
                                f"any machine's range)", SourceLocation(path, e.line, 1))
     state[key] = x * 60.0 if key == "feed" else x  # MTConnect path feed: mm/s

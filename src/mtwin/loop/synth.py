@@ -26,8 +26,8 @@ def synthesize(twin, program, *, rate: float = 100.0, noise: float = 0.0, signal
     signal's RMS over the measurement (0.02 = 2 %); ``seed`` makes it reproducible."""
     from ..motion.trace import SIGNALS
 
-    if not (rate > 0 and np.isfinite(rate)):
-        raise MtwinError(f"--rate must be a positive number of samples per second, got {rate:g}")
+    if not (1e-3 <= rate < np.inf):  # (under 1e-3 Hz: less than one sample in 17 minutes)
+        raise MtwinError(f"--rate must be a number of samples per second of at least 0.001, got {rate:g}")
     if not (0 <= noise < 1):
         raise MtwinError(f"--noise is a fraction of each signal's RMS in [0, 1), got {noise:g}")
     signals = tuple(signals or DEFAULT_SIGNALS)

@@ -49,6 +49,13 @@ class InfeasibleError(MtwinError):
         self.reasons = reasons or []
 
 
+# bounds on the options, beyond which a value is a typo, not a wish: a contour error of 10 mm is
+# no tolerance, and a GA of a million individuals would fill the memory (60 and 200 by default)
+MAX_TOLERANCE = 10.0
+MAX_POPULATION = 10_000
+MAX_GENERATIONS = 100_000
+
+
 @dataclass
 class OptimizeOptions:
     objective: str = "time"
@@ -102,8 +109,10 @@ class OptimizeOptions:
         # every option within its domain, named as the command line names it
         from .search import METHODS, OBJECTIVES
 
-        def positive(v) -> bool:
-            return v is None or (v > 0 and math.isfinite(v))
+        from ..params import UNIT_MAX
+
+        def positive(v, unit: str = "") -> bool:  # (and no more than a machine has: params.UNIT_MAX)
+            return v is None or (0 < v <= UNIT_MAX.get(unit, math.inf))
 
         o = self
         checks = [  # (holds, the message when it does not: built only then)
@@ -116,27 +125,32 @@ class OptimizeOptions:
              lambda: f"--chatter-margin must be in (0, 1] (a share of the stability limit), got {o.chatter_margin}"),
             (o.chatter_method in ("zoa", "sdm", "auto"),
              lambda: f"--chatter-method must be zoa, sdm or auto, got {o.chatter_method!r}"),
-            (all(positive(v) for v in _force_values(o.force_limit)),
-             lambda: f"--force-limit must be a positive number of N (or T1=N,T3=N per tool), got {o.force_limit}"),
-            (positive(o.target_power), lambda: f"--target-power must be a positive number of W, got {o.target_power:g}"),
+            (all(positive(v, "N") for v in _force_values(o.force_limit)),
+             lambda: f"--force-limit must be a positive number of N up to {UNIT_MAX['N']:g} (or T1=N,T3=N per tool), "
+                     f"got {o.force_limit}"),
+            (positive(o.target_power, "W"),
+             lambda: f"--target-power must be a positive number of W up to {UNIT_MAX['W']:g}, got {o.target_power:g}"),
             (0 < o.power_tolerance < 1, lambda: f"--power-tolerance must be between 0 and 1, got {o.power_tolerance:g}"),
-            (o.tolerance >= 0 and math.isfinite(o.tolerance),
-             lambda: f"--tolerance must be a contour error of 0 mm or more, got {o.tolerance:g}"),
+            (0 <= o.tolerance <= MAX_TOLERANCE,
+             lambda: f"--tolerance must be a contour error from 0 to {MAX_TOLERANCE:g} mm, got {o.tolerance:g}"),
             (o.finish_feed in ("keep", "optimize", "auto"),
              lambda: f"--finish-feed must be auto, keep or optimize, got {o.finish_feed!r}"),
-            (o.rough_tolerance is None or (o.rough_tolerance >= 0 and math.isfinite(o.rough_tolerance)),
-             lambda: f"--rough-tolerance must be a contour error of 0 mm or more, got {o.rough_tolerance:g}"),
+            (o.rough_tolerance is None or 0 <= o.rough_tolerance <= MAX_TOLERANCE,
+             lambda: f"--rough-tolerance must be a contour error from 0 to {MAX_TOLERANCE:g} mm, got "
+                     f"{o.rough_tolerance:g}"),
             (o.ramp_feed in ("keep", "optimize"), lambda: f"--ramp-feed must be keep or optimize, got {o.ramp_feed!r}"),
             (o.chip_limit in ("learned", "none"), lambda: f"--chip-limit must be learned or none, got {o.chip_limit!r}"),
             (o.limits in ("auto", "learned", "physics"),
              lambda: f"--limits must be auto, learned or physics, got {o.limits!r}"),
             (0.1 <= o.limit_scale <= 1.5 and math.isfinite(o.limit_scale),
              lambda: f"--limit-scale must be between 0.1 and 1.5 (a share of the physics limits), got {o.limit_scale:g}"),
-            (o.min_segment >= 0, lambda: f"--min-segment must be >= 0, got {o.min_segment:g}"),
+            (0 <= o.min_segment <= UNIT_MAX["mm"],
+             lambda: f"--min-segment must be from 0 to {UNIT_MAX['mm']:g} mm, got {o.min_segment:g}"),
             (o.max_layers == 0 or 2 <= o.max_layers <= 20,
              lambda: f"--max-layers must be between 2 and 20 (or --layers off), got {o.max_layers}"),
-            (o.ga.population >= 4 and o.ga.generations >= 1,
-             lambda: "--population must be at least 4 and --generations at least 1"),
+            (4 <= o.ga.population <= MAX_POPULATION and 1 <= o.ga.generations <= MAX_GENERATIONS,
+             lambda: f"--population must be from 4 to {MAX_POPULATION:,} and --generations from 1 to "
+                     f"{MAX_GENERATIONS:,}, got {o.ga.population} and {o.ga.generations}"),
         ]
         for ok, message in checks:
             if not ok:

@@ -33,22 +33,25 @@ class Controller:
     style: str = P("fanuc", "str", "planner style: fanuc | linuxcnc | grbl", "choice", STYLES)
     servo_period: float = P(0.001, "s", "interpolation and servo period [S: 1 ms, LinuxCNC; Fanuc ~1 ms]", lo=1e-6)
     lookahead: int = P(40, "int", "look-ahead window in blocks [S: Fanuc AI contour up to 40]")
-    min_block_time: float = P(0.001, "s", "shortest time a block may take (block processing rate) [E]", "nonneg")
+    min_block_time: float = P(0.001, "s", "shortest time a block may take (block processing rate) [E]", "nonneg",
+                                hi=1.0)
     max_path_velocity: float = P(0.0, "mm/min", "path (vector) velocity limit for all moves, 0 = axis limits only", "nonneg")
     max_cutting_feed: float = P(0.0, "mm/min", "highest F the control runs and mtwin writes, 0 = the slowest "
                                 "axis' max_velocity", "nonneg")
     max_path_acceleration: float = P(0.0, "mm/s^2", "path acceleration limit, 0 = axis limits only", "nonneg")
     before_shape: str = P("bell", "str", "acc/dec before interpolation: bell (jerk-limited) | linear", "choice", BEFORE_SHAPES)
-    bell_time: float = P(0.032, "s", "bell time constant tb (jerk = a/tb) [S: 16-64 ms]", "nonneg")
+    bell_time: float = P(0.032, "s", "bell time constant tb (jerk = a/tb) [S: 16-64 ms]", "nonneg", hi=1.0)
     after_filter: str = P("linear", "str", "per-axis acc/dec after interpolation: linear | bell | exponential | none",
                           "choice", AFTER_FILTERS)
-    after_time: float = P(0.008, "s", "after-interpolation time constant T1 [S: 8-64 ms]", "nonneg")
+    after_time: float = P(0.008, "s", "after-interpolation time constant T1 [S: 8-64 ms]", "nonneg",
+                          hi=1.0)
     corner_velocity: float = P(400.0, "mm/min",
                                "fanuc: allowable velocity change per axis at a corner [E]")
     junction_deviation: float = P(0.01, "mm", "grbl: junction deviation [S: Grbl default 0.01 mm]")
     exact_stop_rapids: bool = P(True, "bool", "decelerate to a stop at the end of every rapid (in-position check)", "bool")
     in_position: float = P(0.02, "mm", "in-position width: at an exact stop the next block waits until every "
-                           "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg")
+                           "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg",
+                           hi=10.0)
     # Fanuc sets the acc/dec of rapids apart from that of cutting feed (the rapid and the cutting
     # time constants are separate parameters, 1620 and 1622 on a 0i/30i): a control accelerates its
     # rapids harder than it lets its feed moves (which carry the contour's accuracy)
@@ -156,7 +159,8 @@ class Cost:
     tool_price: float = P(40.0, "1", "price of a tool (or a set of edges), currency units [E: carbide end mill 30-150 $]",
                           "nonneg")
     tool_replace_time: float = P(120.0, "s", "time to replace a worn tool and set its offset [E: 1-5 min]", "nonneg")
-    taylor_n: float = P(0.35, "1", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4, carbide in steel 0.25]")
+    taylor_n: float = P(0.35, "1", "Taylor exponent n in V*T^n = C [E: aluminium 0.3-0.4, carbide in steel 0.25]",
+                        hi=1.0)
     taylor_c: float = P(1200.0, "m/min", "Taylor constant C (cutting speed for one minute of life) [E: aluminium "
                         "1100-1500, carbide in mild steel 300]")
     force_per_diameter: float = P(10.0, "N/mm", "default cutting-load limit per mm of tool diameter, when no "
