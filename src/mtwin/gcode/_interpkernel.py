@@ -219,6 +219,27 @@ SI_PLANE, SI_PATH_MODE, SI_FEED_MODE, SI_SPINDLE_DIR, SI_COOLANT, SI_WCS, SI_TOO
 
 
 @njit
+def _taken(seen, group):
+    """The one conflict check of the G and the M codes: was this modal group taken by another
+    code of the block already?  (It is taken now; group -1 conflicts with nothing.)"""
+    if group < 0:
+        return False
+    if seen[group]:
+        return True
+    seen[group] = True
+    return False
+
+
+@njit
+def _warn(warn_code, warn_word, nwarn, code, word):
+    """Note a warning (its code and the word it is about) while there is room; count it always."""
+    if nwarn < warn_code.size:
+        warn_code[nwarn] = code
+        warn_word[nwarn] = word
+    return nwarn + 1
+
+
+@njit
 def _emit(out, n, kind, line, s, e, c, turns, dwell, st, si, wcs_off, flags):
     """Write one record (or only count it when ``out`` is full)."""
     if n < out.size:
@@ -750,17 +771,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 # --lenient passes over an unknown code only on a block without axis words: with
                 # them it may be a motion of its own (a lathe cycle, a probe, a macro call)
                 if lenient and not (has[_X] or has[_Y] or has[_Z] or has[_AT] or has[_CARET]):
-                    if nwarn < warn_code.size:
-                        warn_code[nwarn] = W_IGNORED_G
-                        warn_word[nwarn] = kw
-                    nwarn += 1
+                    nwarn = _warn(warn_code, warn_word, nwarn, W_IGNORED_G, kw)
                     continue
                 return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
-            # the one conflict check: two codes of one modal group in a block
-            if group >= 0:
-                if g_seen[group]:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                g_seen[group] = True
+            if _taken(g_seen, group):  # two codes of one modal group in a block
+                return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
             # what each group's code sets
             if slot == GS_CANCEL:
                 g_cancel = True
@@ -831,17 +846,11 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             group = M_TABLE[drow, code, 1] if code < 1000 else -1
             if slot < 0:
                 if lenient:
-                    if nwarn < warn_code.size:
-                        warn_code[nwarn] = W_IGNORED_M
-                        warn_word[nwarn] = kw
-                    nwarn += 1
+                    nwarn = _warn(warn_code, warn_word, nwarn, W_IGNORED_M, kw)
                     continue
                 return n, E_UNSUPPORTED_M, kw, li, err_vals, nwarn
-            # the one conflict check, as for the G codes
-            if group >= 0:
-                if m_seen[group]:
-                    return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-                m_seen[group] = True
+            if _taken(m_seen, group):  # two codes of one modal group in a block
+                return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
             if slot == MS_TOOLCHANGE:
                 m_tc = True
             elif slot == MS_SET_TOOL:
@@ -1045,10 +1054,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
             if g_units >= 0 and (g_units == 1) != inch and si[SI_FEED_MODE] != 2:
                 # G20 F6 on one line: F is read in the units before the switch (as LinuxCNC
                 # does), which a programmer from the other system does not expect
-                if nwarn < warn_code.size:
-                    warn_code[nwarn] = W_F_BEFORE_UNITS
-                    warn_word[nwarn] = widx[_F]
-                nwarn += 1
+                nwarn = _warn(warn_code, warn_word, nwarn, W_F_BEFORE_UNITS, widx[_F])
         # 3. S
         if has[_S]:
             if val[_S] < 0:
@@ -1167,10 +1173,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_BAD_VALUE, widx[_D] if has[_D] else g_comp_w, li, err_vals, nwarn
                 if not comp_known[dn]:
                     # no radius known for this D: the CAM path is taken as compensated already
-                    if nwarn < warn_code.size:
-                        warn_code[nwarn] = W_COMP_RADIUS_UNKNOWN
-                        warn_word[nwarn] = widx[_D] if has[_D] else g_comp_w
-                    nwarn += 1
+                    nwarn = _warn(warn_code, warn_word, nwarn, W_COMP_RADIUS_UNKNOWN, widx[_D] if has[_D] else g_comp_w)
                 st[SF_COMP_R] = comp_r[dn]
         # 11. work offsets: positions stay in program coordinates of the new frame
         if g_wcs >= 0:
@@ -1435,10 +1438,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 if kind == LINEAR and st[SF_FEED] <= 0.0:
                     if not (lenient and not has[_F]):
                         return n, E_ZERO_FEED, g_nonmodal_w, li, err_vals, nwarn
-                    if nwarn < warn_code.size:
-                        warn_code[nwarn] = W_NO_FEED
-                        warn_word[nwarn] = g_nonmodal_w
-                    nwarn += 1
+                    nwarn = _warn(warn_code, warn_word, nwarn, W_NO_FEED, g_nonmodal_w)
                 n = _emit(out, n, kind, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_MACHINE)
                 for a in range(3):
                     pos[a] = e[a]
@@ -1487,10 +1487,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                     return n, E_ZERO_FEED, g_motion_w, li, err_vals, nwarn
                 _target(e, pos, has, val, scale, incremental)
                 n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag | FL_PROBE)
-                if nwarn < warn_code.size:
-                    warn_code[nwarn] = W_PROBE
-                    warn_word[nwarn] = g_motion_w if g_motion_w >= 0 else w0
-                nwarn += 1
+                nwarn = _warn(warn_code, warn_word, nwarn, W_PROBE, g_motion_w if g_motion_w >= 0 else w0)
                 for a in range(3):
                     pos[a] = e[a]
             elif motion == 50 or motion == 51:
@@ -1570,10 +1567,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                         if not (lenient and not has[_F]):
                             return n, E_ZERO_FEED, kw, li, err_vals, nwarn
                         # a called macro whose feed comes from its caller: readable, not simulable
-                        if nwarn < warn_code.size:
-                            warn_code[nwarn] = W_NO_FEED
-                            warn_word[nwarn] = kw if kw >= 0 else w0
-                        nwarn += 1
+                        nwarn = _warn(warn_code, warn_word, nwarn, W_NO_FEED, kw if kw >= 0 else w0)
                     if motion == 10:
                         n = _emit(out, n, LINEAR, li, s, e, e, 0, 0.0, st, si, wcs_off, first_flag)
                         if si[SI_FEED_MODE] == 2 and n <= out.size:
@@ -1638,10 +1632,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                                 # controls such as Mach3 and Grbl run these (as a spiral, or
                                 # with a jump at the end): --lenient takes the spiral
                                 bad = False
-                                if nwarn < warn_code.size:
-                                    warn_code[nwarn] = W_ARC_SPIRAL
-                                    warn_word[nwarn] = g_motion_w if g_motion_w >= 0 else widx[L1]
-                                nwarn += 1
+                                nwarn = _warn(warn_code, warn_word, nwarn, W_ARC_SPIRAL, g_motion_w if g_motion_w >= 0 else widx[L1])
                             if bad:
                                 err_vals[0] = r1
                                 err_vals[1] = r2
@@ -1836,10 +1827,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 continue
         if m_ret:
             if depth == 0:
-                if nwarn < warn_code.size:
-                    warn_code[nwarn] = W_M99_IN_MAIN
-                    warn_word[nwarn] = mword[0]
-                nwarn += 1
+                nwarn = _warn(warn_code, warn_word, nwarn, W_M99_IN_MAIN, mword[0])
                 break
             if stack_left[depth - 1] > 0:
                 stack_left[depth - 1] -= 1

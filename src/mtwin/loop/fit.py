@@ -24,11 +24,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import MtwinError, SourceLocation
+from ..errors import MtwinError
 from ..params import effect_param, is_effect_param
 from ..fitting import FIT_FACTOR, STRONG_EVIDENCE, default_scale, delta_bic, solve, verdict
 from .compare import _STAT, _has, compare, simulate_measured
-from .measurement import STATS, MeasurementError, no_unknown_statistics, summary_base
+from .measurement import no_unknown_statistics, summary_base
 
 MAX_SELECTED = 4  # effects forward selection takes at most, per signal
 TRIAL_EVALUATIONS = 24  # the short fit each candidate of a forward-selection step gets
