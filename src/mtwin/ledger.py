@@ -98,8 +98,6 @@ _RUN_MAX = {"length": 1e9, "sliding": 1e9, "time": 1e6, "volume": 1e9, "vb_start
 def _check_run(d: dict, path: str, ident: str) -> None:
     """A run's numbers as the ledger writes them, or an error naming the run (a file edited by
     hand, or damaged: never a silently wrong total)."""
-    import math
-
     for k in _AMOUNTS + _LANDS:
         v = d[k]
         if v is None and k in _LANDS:

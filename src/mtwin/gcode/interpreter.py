@@ -8,9 +8,7 @@ builds the small lookup tables the kernel needs, and turns its error codes into
 from __future__ import annotations
 
 import os
-import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
