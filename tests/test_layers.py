@@ -48,6 +48,7 @@ def test_the_deepest_slot_is_cut_in_the_fewest_layers_under_the_limit(layered):
     # each layer's feed is raised to the limit, above the range's floor the single pass broke
     feeds = [float(f) for f in re.findall(r"G1 X60\. F(\d+)", text)[2:]]
     assert len(feeds) == 2 and min(feeds) > 100.0
+    assert ly["feeds"] == [[feeds[0]], [feeds[1]]]  # (--json: each layer's feeds as written)
     assert layered.as_dict()["stock_proof"]["same_stock"] is True
 
 

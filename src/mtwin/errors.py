@@ -21,6 +21,10 @@ class SourceLocation:
     col: int
 
     def __str__(self) -> str:
+        # (a place in no line — a log's whole run, a file's metadata — is the file alone, not
+        # "file:0:0", the form warning_text writes too)
+        if self.line <= 0:
+            return self.path
         return f"{self.path}:{self.line}:{self.col}"
 
 

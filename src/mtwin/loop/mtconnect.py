@@ -456,7 +456,7 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
         except ValueError:
             raise MeasurementError(f"Block_Number {v!r} is not a number", SourceLocation(path, e.line, 1)) from None
         if not (math.isfinite(fb) and fb == int(fb) and 0 <= fb < 1e9):
-            raise MeasurementError(f"Block_Number {v!r} is not a block number (a whole number >= 0)",
+            raise MeasurementError(f"Block_Number {v!r} is not a block number (a whole number from 0 to 1e9)",
                                    SourceLocation(path, e.line, 1))
         b = int(fb)
         if n_map is not None:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import MtwinError, warning_text
+from ..errors import GCodeError, MtwinError, SourceLocation, warning_text
 from ..layout import (C_MRR, C_POWER, L_FIRST_MOVE, L_LAST_MOVE, L_SEG, L_STATUS, LOOP_PUSHED, LOOP_RUNNING,
                       LOOP_UNSETTLED, N_PROF, N_Q, N_SUMS)
 from . import _runkernel as RK
@@ -255,7 +255,12 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     wait_guess = 0.25 if c.in_position > 0 else 0.0
     n_est = n_plan + int(n_stops * wait_guess / dt)
     if n_plan > 500_000_000:
-        raise MtwinError(f"program runs {_duration(total)}: more than 500 million servo samples")
+        # (name the move that takes longest: a G0 X99999999. or a G4 P999999999 is the usual cause)
+        k = int(np.argmax(plan.dur))
+        line = int(seg["line"][k])
+        raise GCodeError(f"the program runs {_duration(total)}: more than 500 million servo samples of "
+                         f"{dt * 1e3:g} ms; its longest move, this line's, takes {_duration(float(plan.dur[k]))}",
+                         SourceLocation(program.path, line, 1))
     bytes_per_sample = RK.bytes_per_sample()  # what a trace keeps per sample
     need = (n_plan // every + 1) * bytes_per_sample
     if need > 4e9:

@@ -401,13 +401,19 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
 
     # each segment of the answer says which layer of which cut it is (the report marks it)
     layer_of = layer_numbers(layered.data, origin, list(layerings.values()))
+    feeds: dict[int, list] = {line: [[] for _ in range(ly.layers)] for line, ly in layerings.items()}
     for seg in res.segments:
         k, n = layer_of[seg["lines"][0] - 1]
         if n:
             seg["layer"] = [int(k), int(n)]
-    res.layers = [ly.as_dict() | {"time_added_at_program_feeds":
+            cut = next(ly.cut for ly in layerings.values()
+                       if ly.cut.plunge_line <= origin[seg["lines"][0] - 1] <= ly.cut.last_line)
+            if not seg["air"]:
+                feeds[cut.plunge_line][k - 1].append(seg["feed_after"])
+    res.layers = [ly.as_dict() | {"feeds": [sorted(set(f)) for f in feeds[line]],
+                                  "time_added_at_program_feeds":
                                   within(came_from, plan_l.dur, ly.cut) - within(plan0.seg["line"], plan0.dur, ly.cut)}
-                  for ly in layerings.values()]
+                  for line, ly in layerings.items()]
     res.stock_proof = proof
     res.warnings.append(f"{program.path}: {len(layerings)} cut(s) written in layers to meet the limit: "
                         + "; ".join(f"lines {ly.cut.plunge_line}-{ly.cut.last_line} in {ly.layers} layers of "
