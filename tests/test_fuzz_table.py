@@ -194,6 +194,7 @@ def _cases():
         "verify-tol-1e99": ["verify", "{d}/p.nc", "{d}/p.nc", "--tol", "1e99"],
         "scale-spindle-1e9": ["scale", "{d}/p.nc", "--spindle", "1e9", "-o", "{d}/o.nc"],
         "lobes-speed-range-1e99": ["lobes", "--twin", str(CHATTER_TWIN), "--speed-range", "100,1e99"],
+        "lobes-feed-direction-1e99": ["lobes", "--twin", str(CHATTER_TWIN), "--feed-direction", "1e99"],
         "grind-cases-huge": ["grind", "design", "--cases", "1000000000000"],
         "tools-vb-limit-1e99": ["tools", "--ledger", "{d}/none.db", "--vb-limit", "1e99"],
         "calibrate-frf-freq-1e99": ["calibrate-frf", "{d}/f.csv"],

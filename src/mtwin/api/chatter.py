@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from ..errors import ConfigError
+from ..errors import ConfigError, MtwinError
 
 
 def _feed_angle(text: str) -> float:
@@ -20,7 +20,10 @@ def _feed_angle(text: str) -> float:
         return -math.pi / 2
     from ..chatter.modes import finite_number
 
-    return math.radians(finite_number(t, "--feed-direction", "x, y, -x, -y or an angle in degrees from +X"))
+    deg = finite_number(t, "--feed-direction", "x, y, -x, -y or an angle in degrees from +X")
+    if not -360.0 <= deg <= 360.0:  # (1e99 degrees is no direction: its remainder is noise)
+        raise MtwinError(f"--feed-direction: an angle from -360 to 360 degrees, got {deg:g}")
+    return math.radians(deg)
 
 
 MIN_POINTS, MAX_POINTS = 10, 20_000
