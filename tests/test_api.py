@@ -161,3 +161,35 @@ def test_a_program_read_by_the_caller_without_motion_is_refused_like_a_file():
     for run in (lambda: optimize(tw, prog), lambda: mtwin.simulate(tw, prog)):
         with pytest.raises(GCodeError, match="f.ngc:1:1: the program has no motion"):
             run()
+
+
+def test_parse_verify_import_journal_and_tools_are_use_cases_too(tmp_path, capfd):
+    """What `parse`, `verify`, `import mtconnect`, `journal` and `tools` print with --json, from
+    the library alone (issue 36: the API as the only door)."""
+    import subprocess
+    import sys
+
+    def command(*args):
+        r = subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 0, r.stderr
+        return json.loads(r.stdout)
+
+    parsed = mtwin.parse(None, POCKET)
+    assert parsed.as_dict() == command("parse", POCKET, "--json")
+    assert parsed.moves_csv().splitlines()[0].startswith("line,kind,x,y,z")
+    same = mtwin.prove_path(None, POCKET, POCKET)
+    assert same.same and same.as_dict() == command("verify", POCKET, POCKET, "--json")
+    moved = tmp_path / "moved.nc"
+    moved.write_text((ROOT / POCKET).read_text().replace("X24.500 Y25.000", "X24.600 Y25.000"))
+    assert not mtwin.prove_path(None, POCKET, str(moved)).same
+    assert mtwin.journal(str(ROOT / "samples/machines/hurco-vmx24.toml"))  # (the profile's calibrations)
+    log = tmp_path / "log.txt"
+    log.write_text("2024-01-01T00:00:00.000Z|execution|ACTIVE\n2024-01-01T00:00:00.000Z|Block_Number|1\n"
+                   "2024-01-01T00:00:01.000Z|Block_Number|5\n2024-01-01T00:00:02.000Z|execution|STOPPED\n")
+    m = mtwin.import_log(str(log))
+    assert list(m.line) and int(m.line.max()) == 5
+    with pytest.raises(mtwin.errors.MtwinError):  # (no ledger there: none is created by reading)
+        mtwin.tools(str(tmp_path / "none.db"))
+    with pytest.raises(mtwin.errors.MtwinError, match="vb-limit"):
+        mtwin.tools(str(tmp_path / "none.db"), vb_limit=1e99)
+    assert capfd.readouterr().out == ""  # (the library prints nothing)

@@ -9,10 +9,12 @@ from .version import __version__
 
 __all__ = ["load_program", "InterpreterSettings", "Program", "rewrite", "verify", "summarize", "scale_feeds",
            "Twin", "Machine", "TwinSetup", "Reading", "simulate", "scale", "optimize", "synthesize", "compare",
-           "diagnose", "calibrate", "grind"]
+           "diagnose", "calibrate", "grind", "parse", "prove_path", "prove_stock", "import_log", "journal", "tools",
+           "tool"]
 
 # the use cases (mtwin.api): what each command runs, as functions
-_USE_CASES = ("simulate", "scale", "synthesize", "compare", "diagnose", "calibrate", "Reading", "TwinSetup")
+_USE_CASES = ("simulate", "scale", "synthesize", "compare", "diagnose", "calibrate", "Reading", "TwinSetup", "parse",
+              "prove_path", "prove_stock", "import_log", "journal", "tools", "tool")
 
 
 def __getattr__(name):

@@ -27,12 +27,18 @@ from .loop import (
                    calibrate,
                    compare,
                    diagnose,
+                   import_log,
+                   journal,
                    measured_program,
                    objective_for,
                    synthesize,
 )
+from .program import Parsed, parse
 from .simulate import Scaled, Simulation, scale, simulate, simulate_runs
+from .tools import tool, tools
+from .verify import PathProof, prove_path, prove_stock
 
-__all__ = ["Calibration", "Comparison", "Diagnosis", "Messages", "Reading", "SI_UNITS", "Scaled", "Simulation",
-           "Synthetic", "TwinSetup", "calibrate", "compare", "diagnose", "load_part", "measured_program",
-           "objective_for", "open_twin", "scale", "simulate", "simulate_runs", "synthesize"]
+__all__ = ["Calibration", "Comparison", "Diagnosis", "Messages", "Parsed", "PathProof", "Reading", "SI_UNITS", "Scaled",
+           "Simulation", "Synthetic", "TwinSetup", "calibrate", "compare", "diagnose", "load_part", "measured_program",
+           "objective_for", "open_twin", "parse", "prove_path", "prove_stock", "scale", "simulate", "simulate_runs",
+           "synthesize", "import_log", "journal", "tools", "tool"]

@@ -500,3 +500,25 @@ def _validation(tw2, program, validate, how, reading, align, sig, stock, msgs) -
 
     tg2 = target(tw2, prog, meas2, align, sig, stock)
     return {"measurement": str(validate), **rms_by_signal(tg2, tg2.base, list(tg2.measured))}
+
+
+def import_log(log: str, *, run: Optional[int] = None, block_is: str = "line", program: Optional[str] = None,
+               ignore_items=()):
+    """``mtwin import mtconnect``: a control's log (SHDR or MTConnectStreams XML) as a measurement
+    (:class:`~mtwin.loop.measurement.Measurement`; ``write(path)`` writes it, ``runs`` lists the
+    program runs the log holds).  ``program``: the program the log ran, a path (for
+    ``block_is="n"``: the N words the log's block numbers count)."""
+    from ..io import read_input
+    from ..loop.mtconnect import read_mtconnect
+
+    try:
+        data = read_input(program, "program") if program else None
+    except OSError as exc:
+        raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
+    return read_mtconnect(log, run, block_is, data, tuple(ignore_items or ()))
+
+
+def journal(twin_file: str) -> list:
+    """``mtwin journal``: each calibration a twin file records (effects fitted, values, the RMS
+    error before and after), oldest first; empty when it has none."""
+    return read_journal(twin_file)

@@ -43,16 +43,10 @@ def import_mtconnect(
     """Data items logged on change become a time series sampled at every change: t, line,
     feed (mm/min; MTConnect reports mm/s), spindle_speed, and tool and overrides where logged.
     Runs, feed holds and assumptions are listed on stderr and in the file's metadata."""
-    from ..loop.mtconnect import read_mtconnect
+    from ..api.loop import import_log
 
     check_outputs(output)
-    try:
-        from ..io import read_input
-
-        data = read_input(program, "program") if program else None
-    except OSError as exc:
-        raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
-    m = read_mtconnect(log, run, block_is, data, ignore_item or ())
+    m = import_log(log, run=run, block_is=block_is, program=program, ignore_items=ignore_item or ())
     m.write(output)
     for k, r in enumerate(m.runs, 1):
         say(f"run {k}: {r.describe()}")
@@ -334,7 +328,7 @@ def _print_calibration(cal, output: str) -> None:
 @reports_errors
 def journal(path: str = typer.Argument(..., help="Twin file."), json_out: bool = JSON):
     """Each calibration of the twin file: effects fitted, values, and the RMS error before and after."""
-    from ..loop.journal import read_journal
+    from ..api.loop import journal as read_journal
     from .render import table
 
     j = read_journal(path)

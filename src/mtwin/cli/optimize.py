@@ -123,10 +123,8 @@ def optimize(
     """Segment the predicted power curve, choose F (and S) per segment for the objective under
     the load, power, torque and feed limits, write the program through the byte-preserving
     writer, prove it cuts the same path and check the limits on its re-simulation."""
-    from ..optimize import InfeasibleError, OptimizeOptions
+    from ..optimize import InfeasibleError, OptimizeOptions, record_optimised
     from ..report.optimize_html import optimize_html
-    from ..ledger import record_trace
-    from ..twin.setup import Messages, load_part, open_twin
 
     _check_outputs(output, report, json_out)
     if record and not setup.ledger:
@@ -137,26 +135,25 @@ def optimize(
                            power_tolerance=power_tolerance, segmentation=segmentation, min_segment=min_segment, ga=ga,
                            chatter_margin=chatter_margin, chatter_method=chatter_method, max_layers=_max_layers(layers, max_layers),
                            tradeoff_resimulated=report is not None, **limits)
-    tw = open_twin(setup)  # (one twin: the program is read with it and optimised on it)
-    prog = load_part(tw, part, Messages(message))
     try:
-        res = _run_with_progress(tw, setup.stock_box(), prog, opts, ga.generations if method == "ga" else 0)
+        res = _run_with_progress(setup, part, opts, ga.generations if method == "ga" else 0)
     except InfeasibleError as exc:
         if json_out:  # (what was refused, as data, before the message on stderr)
-            emit_json({"program": prog.path, "objective": objective, "method": method, "written": False,
+            emit_json({"program": exc.program, "objective": objective, "method": method, "written": False,
                        "error": str(exc), "reasons": exc.reasons}, indent=1)
         raise
     for w in res.warnings:
         message("warning", w)
     write_output(res.output, output, [part], in_place)
     if record:  # the optimised program's run, as re-simulated, into the tools' history
-        record_trace(setup.ledger, setup.tool_map, res.trace_after, program=output, source="optimize")
+        record_optimised(setup, res, output)
+    path = res.program.path
     if report:
-        write_output(optimize_html(res, prog.path), report, [part])
+        write_output(optimize_html(res, path), report, [part])
     if json_out:
-        emit_json(res.as_dict(prog.path), indent=1)
+        emit_json(res.as_dict(path), indent=1)
         return
-    _print_optimize(res, prog)
+    _print_optimize(res, path)
 
 
 def _max_layers(layers: str, max_layers) -> int:
@@ -177,13 +174,14 @@ def _check_outputs(output: str, report, json_out: bool) -> None:
     check_outputs(output, report)
 
 
-def _run_with_progress(tw, stock, prog, opts, generations: int):
+def _run_with_progress(setup, part, opts, generations: int):
     """Run the optimiser with a transient progress display on a terminal's stderr (the stage,
     and the GA's generations), shown once the run has taken a second; plain otherwise."""
     from ..optimize import optimize
 
+    stock = setup.stock_box()
     if not err.is_terminal:
-        return optimize(tw, prog, opts, stock=stock)
+        return optimize(setup, part, opts, stock=stock, on_message=message)
     import threading
 
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -211,7 +209,8 @@ def _run_with_progress(tw, stock, prog, opts, generations: int):
 
     timer.start()
     try:
-        return optimize(tw, prog, opts, stock=stock, progress=ga if generations else None, stage=stage)
+        return optimize(setup, part, opts, stock=stock, progress=ga if generations else None, stage=stage,
+                        on_message=message)
     finally:
         timer.cancel()
         with lock:
@@ -220,7 +219,7 @@ def _run_with_progress(tw, stock, prog, opts, generations: int):
                 bar.stop()
 
 
-def _print_optimize(res, prog) -> None:
+def _print_optimize(res, path: str) -> None:
     from ..optimize.guards import line_ranges
 
     b, a = res.before, res.after
@@ -231,7 +230,7 @@ def _print_optimize(res, prog) -> None:
 
     from rich.table import Table
 
-    err.print(f"{prog.path}: {res.objective} by {res.method}", soft_wrap=True, highlight=False)
+    err.print(f"{path}: {res.objective} by {res.method}", soft_wrap=True, highlight=False)
     t = Table()
     for col in ("", "before", "after", "change"):
         t.add_column(col, justify="right" if col else "left")

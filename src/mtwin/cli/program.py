@@ -5,7 +5,7 @@ from typing import Optional
 
 import typer
 
-from ..errors import EXIT_CHECK_FAILED, MtwinError
+from ..errors import EXIT_CHECK_FAILED
 from ..units import MM_PER_INCH
 from .app import app, err, reports_errors
 from .argtypes import check_outputs, write_output
@@ -24,20 +24,17 @@ def parse(
     setup=None,
 ):
     """Summarise a program: moves, tools, feeds, bounding box, lengths and nominal time."""
-    from ..gcode.summary import moves_csv, summarize
-    from ..twin.setup import Messages, load_part
-    from ..units import SI_UNITS
+    from ..api import parse as parse_program
 
     check_outputs(output)
-    prog = load_part(setup, part, Messages(message), need_motion=False)
+    parsed = parse_program(setup, part, on_message=message)
     if moves:
-        write_output(moves_csv(prog).encode(), output or "-", [part])
+        write_output(parsed.moves_csv().encode(), output or "-", [part])
         return
-    summary = summarize(prog)
     if json_out:
-        emit_json({**summary.as_dict(), "si_units": SI_UNITS})
+        emit_json(parsed.as_dict())
         return
-    _print_summary(summary)
+    _print_summary(parsed.summary)
 
 
 def _print_summary(s) -> None:
@@ -110,16 +107,10 @@ def verify(
 ):
     """Prove two programs cut the same path (ignoring F/S words and move splits), or with
     --by-stock leave the same part. Exit 0 same, 1 different."""
-    from ..gcode.verify import compare
-    from ..twin.setup import Messages, load_part, open_twin
+    from ..api.verify import prove_path, prove_stock
 
-    if not (0 < tol <= 1.0):  # (two paths 1e99 mm apart are not "the same within" anything)
-        raise MtwinError(f"--tol must be a positive distance of at most 1 mm, got {tol:g}")
     if by_stock:
-        from ..api.verify import prove_stock
-
-        proof = prove_stock(setup, original, optimised, stock=setup.stock_box(), tol=tol,
-                            on_message=lambda kind, text: message(kind, text))
+        proof = prove_stock(setup, original, optimised, stock=setup.stock_box(), tol=tol, on_message=message)
         if json_out:
             emit_json(proof.as_dict(), indent=None)
         if proof.same:
@@ -127,15 +118,12 @@ def verify(
             return
         err.print(f"[red]not the same part:[/red] {proof.reason()}", soft_wrap=True)
         raise typer.Exit(EXIT_CHECK_FAILED)
-    tw = open_twin(setup)
-    a = load_part(tw, original, Messages(message))
-    b = load_part(tw, optimised, Messages(message))
-    diff = compare(a, b, tol)
+    proof = prove_path(setup, original, optimised, tol=tol, on_message=message)
     if json_out:
-        emit_json({"same_path": diff is None, "tolerance": tol, **({"difference": diff.as_dict()} if diff else {})},
-                  indent=None)
-    if diff is None:
-        err.print(f"same path within {tol:g} mm ({a.records.size:,} and {b.records.size:,} moves)")
+        emit_json(proof.as_dict(), indent=None)
+    if proof.same:
+        err.print(f"same path within {tol:g} mm ({proof.original.records.size:,} and "
+                  f"{proof.optimised.records.size:,} moves)")
         return
-    err.print(f"[red]paths differ:[/red] {diff}", soft_wrap=True)
+    err.print(f"[red]paths differ:[/red] {proof.difference}", soft_wrap=True)
     raise typer.Exit(EXIT_CHECK_FAILED)

@@ -5,7 +5,6 @@ from typing import Optional
 
 import typer
 
-from ..errors import MtwinError
 from .app import app, err, reports_errors
 from .options import JSON
 from .render import emit_json, table
@@ -24,21 +23,20 @@ VB_LIMIT = typer.Option(None, "--vb-limit", help="End of a tool's life: flank-we
 def tools_list(ctx: typer.Context, ledger: str = LEDGER, vb_limit: Optional[float] = VB_LIMIT,
                json_out: bool = JSON):
     """List the ledger's tools: runs, path cut, the land now and the parts left to the limit."""
-    from ..ledger import Ledger, VB_LIMIT as LIMIT
+    from ..api.tools import tools
+    from ..ledger import VB_LIMIT as LIMIT
 
     limit = vb_limit if vb_limit is not None else LIMIT
-    if not 0 < limit <= 10.0:  # (ISO 8688-2 ends a tool's life at 0.3 mm; 10 mm is no flank land)
-        raise MtwinError(f"--vb-limit must be a flank-wear land in mm from 0 to 10, got {limit:g}")
     ctx.obj = {"ledger": ledger, "vb_limit": limit, "json": json_out}
     if ctx.invoked_subcommand is not None:
+        from ..api.tools import check_vb_limit
+
+        check_vb_limit(limit)
         return
-    with Ledger(ledger, create=False) as lg:
-        tools = [lg.tool(i) for i in lg.ids()]
-    rows = [{"id": t.id, "runs": t.runs, "length_mm": round(t.history.length, 3),
-             "sliding_m": round(t.history.sliding, 4), "time_s": round(t.history.time, 3),
-             "calibrated": t.law is not None, **t.wear(limit)} for t in tools]
+    doc = tools(ledger, vb_limit=limit)
+    rows = doc["tools"]
     if json_out:
-        emit_json({"ledger": ledger, "tools": rows})
+        emit_json(doc)
         return
     t = table("tool", ("runs", "right"), ("cut m", "right"), ("sliding m", "right"), ("VB mm", "right"),
               ("parts left", "right"), "law", title=f"{ledger}: tools (VB limit {limit:g} mm)")
@@ -53,22 +51,18 @@ def tools_list(ctx: typer.Context, ledger: str = LEDGER, vb_limit: Optional[floa
 @reports_errors
 def tools_show(ctx: typer.Context, ident: str = typer.Argument(..., help="The tool's id.")):
     """One tool: its runs, its wear law and the calibrations' error falling."""
-    from ..ledger import Ledger
+    from ..api.tools import tool
 
     o = ctx.obj
-    with Ledger(o["ledger"], create=False) as lg:
-        tool = lg.tool(ident)
-        runs, cals = lg.runs(ident), lg.calibrations(ident)
-    doc = {"id": tool.id, "created": tool.created, "law": tool.law, "wear": tool.wear(o["vb_limit"]),
-           "history": tool.history.__dict__, "runs": runs, "calibrations": cals}
+    doc = tool(o["ledger"], ident, vb_limit=o["vb_limit"])
     if o["json"]:
         emit_json(doc)
         return
-    w = doc["wear"]
-    err.print(f"[bold]{tool.id}[/]: {len(runs)} run(s), {tool.history.length / 1000:.3f} m cut, "
-              f"{tool.history.sliding:.2f} m of edge sliding, {tool.history.time:.1f} s in the cut")
-    if tool.law:
-        err.print(f"law: flank-wear {', '.join(f'{k}={v:g}' for k, v in tool.law.items())}; land now "
+    w, h, runs, cals = doc["wear"], doc["history"], doc["runs"], doc["calibrations"]
+    err.print(f"[bold]{doc['id']}[/]: {len(runs)} run(s), {h['length'] / 1000:.3f} m cut, "
+              f"{h['sliding']:.2f} m of edge sliding, {h['time']:.1f} s in the cut")
+    if doc["law"]:
+        err.print(f"law: flank-wear {', '.join(f'{k}={v:g}' for k, v in doc['law'].items())}; land now "
                   f"{w['vb']:.3f} mm, {w['parts_left'] if w['parts_left'] is not None else '?'} part(s) left to "
                   f"VB {w['vb_limit']:g} mm")
     else:

@@ -11,7 +11,7 @@ use case as the other use cases are functions of ``mtwin`` (``mtwin.simulate``, 
 import sys
 import types
 
-from .run import InfeasibleError, OptimizeOptions, OptimizeResult, optimize
+from .run import InfeasibleError, OptimizeOptions, OptimizeResult, optimize, record_optimised
 from .search import GAOptions
 
 
@@ -22,4 +22,4 @@ class _CallablePackage(types.ModuleType):
 
 sys.modules[__name__].__class__ = _CallablePackage
 
-__all__ = ["optimize", "OptimizeOptions", "OptimizeResult", "GAOptions", "InfeasibleError"]
+__all__ = ["optimize", "OptimizeOptions", "OptimizeResult", "GAOptions", "InfeasibleError", "record_optimised"]

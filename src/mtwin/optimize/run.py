@@ -47,6 +47,7 @@ class InfeasibleError(MtwinError):
     def __init__(self, message: str, reasons: list | None = None):
         super().__init__(message)
         self.reasons = reasons or []
+        self.program = ""  # the program's name (optimize() sets it)
 
 
 # bounds on the options, beyond which a value is a typo, not a wish: a contour error of 10 mm is
@@ -251,6 +252,7 @@ class OptimizeResult:
     stock_proof: object = None
     # plunges that run their upper part in proven air at the air feed (guards.air_entries)
     air_entries: list = field(default_factory=list)
+    program: object = None  # the program as read (optimize() sets it)
 
     @property
     def tools(self) -> list:
@@ -291,7 +293,7 @@ class OptimizeResult:
 
 
 def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progress=None, stock=None,
-             stage=None) -> OptimizeResult:
+             stage=None, on_message=None) -> OptimizeResult:
     """Optimise a program's F (and S) words on a twin (see the module and docs/optimize.md).
 
     Parameters
@@ -307,26 +309,48 @@ def optimize(twin=None, program=None, opts: OptimizeOptions | None = None, progr
         The stock box (xmin, ymin, zmin, xmax, ymax, zmax), mm.
     stage : callable, optional
         Called with a short description of each stage (simulating, searching, re-simulating).
+    on_message : callable, optional
+        ``on_message(kind, text)`` for the program's own warnings as it is read (before the
+        run); without it they open the result's ``warnings``.
 
     Returns
     -------
     OptimizeResult
-        ``output`` the proven program's bytes; ``as_dict()`` what ``--json`` prints.
+        ``output`` the proven program's bytes; ``as_dict()`` what ``--json`` prints;
+        ``program`` the program as read.  An :class:`InfeasibleError` carries the program's
+        name (``program``) and, per segment, why (``reasons``).
     """
     from ..twin.setup import Messages, load_part, open_twin
 
-    msgs = Messages()
+    msgs = Messages(on_message)
     twin = open_twin(twin)
     program = load_part(twin, program, msgs)
     opts = opts or OptimizeOptions()
     try:
-        res = _optimize(twin, program, opts, progress, stock, stage)
+        try:
+            res = _optimize(twin, program, opts, progress, stock, stage)
+        except InfeasibleError as exc:
+            if not opts.max_layers:
+                raise
+            res = _layered(twin, program, opts, progress, stock, stage, exc)
     except InfeasibleError as exc:
-        if not opts.max_layers:
-            raise
-        res = _layered(twin, program, opts, progress, stock, stage, exc)
-    res.warnings[:0] = msgs.warnings
+        exc.program = program.path
+        raise
+    if on_message is None:
+        res.warnings[:0] = msgs.warnings
+    res.program = program
     return res
+
+
+def record_optimised(setup, res: OptimizeResult, program: str) -> list[str]:
+    """``optimize --record``: the optimised program's run, as re-simulated, into the tool ledger
+    of ``setup`` (a TwinSetup: ``ledger`` and ``tool_map``), under the name ``program`` (where
+    it was written).  Returns the tool ids recorded."""
+    from ..ledger import record_trace
+
+    if not getattr(setup, "ledger", None):
+        raise MtwinError("--record adds the run to a tool ledger: give --ledger FILE and --tool-id T3=ID")
+    return record_trace(setup.ledger, setup.tool_map, res.trace_after, program=program, source="optimize")
 
 
 def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refused: InfeasibleError) -> OptimizeResult:
