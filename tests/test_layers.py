@@ -270,3 +270,31 @@ def test_the_ga_takes_the_number_of_layers_as_a_discrete_variable(monkeypatch):
     tried.clear()
     bis = optimize(mtwin.Twin(), str(SLOTS), OptimizeOptions(**LIMIT, max_layers=8))
     assert [ly["layers"] for ly in bis.layers] == [2] and tried == [2]
+
+
+@pytest.mark.parametrize("name,text,said", [
+    # a review's reproductions: a link that rapids through an island the tool never rose above,
+    # in a program that rapids into the stock once itself (the proof had let every rapid pass)
+    ("island", "G0 Z-1.\nG1 X5. F100\nG1 Z-6. F100\nG1 X50. F200\nG1 Y30.\nG1 X5. F100\nG0 Z5.\n",
+     "rapids through stock"),
+    # the entry under G95: the link's G1 F<mm/min> would leave the program's own lines in G94
+    ("g95", "G0 X0 Y30. Z5.\nG95\nG1 Z-6. F0.033\nG94 G1 X60. F200\nG0 Z5.\n", "feed per revolution"),
+])
+def test_what_a_layering_cannot_make_safe_is_refused_with_the_reason(name, text, said):
+    src = ("(T1 D=6 CR=0 - flat end mill)\n(STOCK: X-10 Y-10 Z-12 TO X70 Y40 Z0)\nG21 G90 G94 G17\nT1 M6\n"
+           "S3000 M3\n" + text + "M5\nM30\n").encode()
+    with pytest.raises(InfeasibleError, match=said):
+        optimize(mtwin.Twin(), src, OptimizeOptions(**LIMIT, max_layers=8))
+
+
+def test_fractional_n_words_and_a_sign_apart_are_layered():
+    # N10.1 (LinuxCNC reads it) lost only "N10" and left ".1 G1 …"; "Z - 6." was never raised
+    src = SLOTS.read_text().replace("G1 Z-6. F100\nG1 X60. F200", "N10.1 G1 Z - 6. F100\nN10.2 G1 X60. F200")
+    r = optimize(mtwin.Twin(), src.encode(), OptimizeOptions(**LIMIT, max_layers=8))
+    (ly,) = r.layers
+    lines = r.output.decode().splitlines()
+    at = lines.index("(MTWIN LAYER 1/2 Z-3.)")
+    assert any(ln.startswith("G1 Z-3.") for ln in lines[at + 1:at + 4]) and not any(
+        ln.startswith(".") for ln in lines)
+    # "before" is the program as written (over the limit): the limit's cost is said, not hidden
+    assert r.before.cycle_time < r.after.cycle_time and r.verdict[0] == "slower"

@@ -268,7 +268,10 @@ class Ledger:
 
     def _insert_run(self, ident: str, *, program: str, tool_number: int, material: str, use: ToolHistory,
                     vb_start, vb_end, source: str) -> None:
-        # (inside a transaction of the caller's)
+        # (inside a transaction of the caller's; a run the ledger would refuse to read back is not
+        # written: the transaction is rolled back, nothing recorded)
+        _check_run({"n": "new", "length": use.length, "sliding": use.sliding, "time": use.time,
+                    "volume": use.volume, "vb_start": vb_start, "vb_end": vb_end}, self.path, ident)
         self._ensure(ident)
         self._db.execute("INSERT INTO runs (tool, at, program, tool_number, material, length, sliding, time, "
                          "volume, vb_start, vb_end, source) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",

@@ -214,14 +214,19 @@ def _check_freqs(freq: list, rows: list, path: str) -> None:
                              f"{freq[i - 1]:g} Hz")
     if freq[0] < 0:
         raise ConfigError(f"{path}:{rows[0]}:1: a frequency must be >= 0 Hz, got {freq[0]:g}")
+    if freq[-1] > FRF_MAX_HZ:
+        raise ConfigError(f"{path}:{rows[-1]}:1: a frequency beyond what a tap test measures (at most "
+                          f"{FRF_MAX_HZ:g} Hz), got {freq[-1]:g}")
 
 
 def _read_csv(path: str, lines: list[str]) -> FRF:
     header_at = next(i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#"))
     names = [h.strip().lower() for h in lines[header_at].split(",")]
-    alias = {}
+    alias, scale = {}, {}
     for i, h in enumerate(names):
         h2 = re.sub(r"\s*\(.*\)$", "", h)  # "freq (hz)", "re_xx (m/n)"
+        unit = re.search(r"\(([^)]*)\)\s*$", h)
+        unit = unit.group(1).strip().replace("µ", "u") if unit else ""
         h2 = {"re_x": "re_xx", "im_x": "im_xx", "re_y": "re_yy", "im_y": "im_yy", "frequency": "freq",
               "f": "freq", "freq_hz": "freq"}.get(h2, h2)
         if h2 not in ("freq", "re_xx", "im_xx", "re_yy", "im_yy"):
@@ -230,6 +235,13 @@ def _read_csv(path: str, lines: list[str]) -> FRF:
         if h2 in alias:
             raise ConfigError(f"{path}:{header_at + 1}:{_col(lines[header_at], i)}: a column named twice")
         alias[h2] = i
+        # a unit in the header is honoured (a tap test in mm/N read as m/N is 1000 times too soft)
+        units = {"": 1.0, "hz": 1.0, "khz": 1e3} if h2 == "freq" else {"": 1.0, "m/n": 1.0, "mm/n": 1e-3,
+                                                                         "um/n": 1e-6}
+        if unit not in units:
+            raise ConfigError(f"{path}:{header_at + 1}:{_col(lines[header_at], i)}: unit ({unit}) not known for "
+                              f"{h2} (known: {', '.join(u for u in units if u)})")
+        scale[h2] = units[unit]
     if "freq" not in alias:
         raise ConfigError(f"{path}:{header_at + 1}:1: no freq column (Hz)")
     for d in ("xx", "yy"):
@@ -248,6 +260,7 @@ def _read_csv(path: str, lines: list[str]) -> FRF:
         for k, j in alias.items():
             cols[k].append(_num(toks[j], path, i + 1, _col(ln, j), k))
         rows.append(i + 1)
+    cols = {k: [v * scale[k] for v in vs] for k, vs in cols.items()}
     freq = cols.pop("freq")
     _check_freqs(freq, rows, path)
     f = np.asarray(freq)

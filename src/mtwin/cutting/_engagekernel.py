@@ -449,8 +449,8 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
     for i in range(nseg):
         first[i] = n
         count[i] = 0
-        if kind[i] != 2 and cuts[i] == 0 and length[i] > 0.0 and collide[0] < 0:
-            # a rapid through material is a crash: report the first one
+        if kind[i] != 2 and cuts[i] == 0 and length[i] > 0.0:
+            # a rapid through material is a crash: each one is marked (collide[i] = i)
             t = tool_index[i]
             rr = tools[t, 0] - dx
             m = max(1, int(math.ceil(length[i] / step)))
@@ -462,9 +462,9 @@ def engage_path(H, x0, y0, dx, kind, cuts, p0, p1, c, e1, e2, h, r0, r1, theta, 
                     rad = 0.0 if a == 8 else rr
                     hh = _height(H, x0, y0, dx, nx, ny, pt[0] + rad * math.cos(ang), pt[1] + rad * math.sin(ang))
                     if hh > pt[2] + 0.01:
-                        collide[0] = i
+                        collide[i] = i
                         break
-                if collide[0] >= 0:
+                if collide[i] >= 0:
                     break
         if kind[i] == 2 or cuts[i] == 0 or length[i] <= 0.0:
             continue

@@ -57,6 +57,7 @@ class Engagement:
     warnings: list
     motion: np.ndarray | None = None  # indices of the plan's motion segments the arrays were made for
     rapid_line: int = 0  # the line of the first rapid that goes through stock standing then, 0: none
+    rapid_segments: np.ndarray | None = None  # the plan segments of every rapid through stock
 
     @property
     def steps(self) -> int:
@@ -322,7 +323,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
     else:
         prof = np.zeros((0, nsl_max, N_BINS), np.float32)
     H = stock.heights
-    collide = np.full(1, -1, np.int64)
+    collide = np.full(max(len(seg), 1), -1, np.int64)  # per segment: a rapid through stock
     n, cells = EK.engage_path(H, stock.box[0], stock.box[1], stock.resolution,
                               seg["kind"].astype(np.int64), cuts, np.ascontiguousarray(seg["p0"]),
                               np.ascontiguousarray(seg["p1"]), np.ascontiguousarray(seg["c"]),
@@ -333,17 +334,18 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
                               EK.trig_table(N_BINS), step, N_BINS, first, count, sums, q, prof, collide)
     helix = np.array([math.tan(math.radians(t.helix)) for t in tools])
     warnings = []
-    if collide[0] >= 0:
+    crashes = np.flatnonzero(collide[:len(seg)] >= 0)
+    if crashes.size:
         from ..errors import warning_text
 
-        warnings.append(warning_text(program.path, int(seg['line'][collide[0]]),
+        warnings.append(warning_text(program.path, int(seg['line'][crashes[0]]),
                                      "a rapid move goes through the stock (the tool would crash; rapids remove "
                                      "no material in the twin)"))
     eng = Engagement(first, count, sums[:n], q[:n], table, tool_index, numbers, stock, step, int(cells),
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
                      (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings,
                      np.flatnonzero(seg["kind"] != PAUSE),
-                     int(seg["line"][collide[0]]) if collide[0] >= 0 else 0)
+                     int(seg["line"][crashes[0]]) if crashes.size else 0, crashes)
     if cache is not None:
         cache.put(key, eng)
     return eng

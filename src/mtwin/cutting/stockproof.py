@@ -80,11 +80,26 @@ def prove_same_stock(eng_a, plan_a, eng_b, plan_b, tol: float = 1e-3) -> StockPr
         worst = {"x": x, "y": y, "original_z": za, "optimised_z": zb,
                  "original_line": _nearest_line(plan_a, x, y, min(za, zb)),
                  "optimised_line": _nearest_line(plan_b, x, y, min(za, zb))}
-    # a rapid through stock the original has too is the program's own (a guessed stock, often),
-    # not one the rewriting added
-    rapid = int(getattr(eng_b, "rapid_line", 0)) if not getattr(eng_a, "rapid_line", 0) else 0
+    rapid = _added_rapid(eng_a, plan_a, eng_b, plan_b)
     return StockProof(tol, float(eng_a.stock.resolution), tuple(eng_a.stock.box), int(d.size), max_diff,
                       float(max(0.0, -d.min())) if d.size else 0.0, worst, rapid, ha, hb)
+
+
+def _added_rapid(eng_a, plan_a, eng_b, plan_b) -> int:
+    """The line of the first rapid of the rewritten program that goes through stock where no
+    rapid of the original does (0: none).  A rapid through stock the original has too — the same
+    move, end to end — is the program's own (a guessed stock, often), not one the rewriting
+    added; any other is, however many the original has (a link of a layered cut)."""
+    def moves(eng, plan):
+        idx = getattr(eng, "rapid_segments", None)
+        if idx is None:  # (an engagement from before every rapid was marked)
+            idx = np.flatnonzero(plan.seg["line"] == eng.rapid_line)[:1] if getattr(eng, "rapid_line", 0) else ()
+        return [(tuple(np.round(plan.seg["p0"][i], 4)), tuple(np.round(plan.seg["p1"][i], 4)), int(plan.seg["line"][i]))
+                for i in idx]
+
+    own = {(a, b) for a, b, _ in moves(eng_a, plan_a)}
+    added = [line for a, b, line in moves(eng_b, plan_b) if (a, b) not in own]
+    return added[0] if added else 0
 
 
 def _beyond_one_cell(ha: np.ndarray, hb: np.ndarray, tol: float) -> np.ndarray:

@@ -39,8 +39,10 @@ from ..units import MM_PER_INCH
 MAX_LAYERS = 8  # --layers auto tries up to this many
 _NOT_PLAIN = (R.FL_INCREMENTAL | R.FL_CANNED | R.FL_MACHINE | R.FL_SUB | R.FL_COMP | R.FL_POLAR | R.FL_ROTARY
               | R.FL_SPLINE | R.FL_MIRROR | R.FL_CORNER | R.FL_SYNC | R.FL_DIAMETER)
-_Z_WORD = re.compile(rb"([Zz])(\s*)([-+]?(?:\d+\.?\d*|\.\d+))")
-_N_WORD = re.compile(rb"^(\s*)[Nn]\s*\d+\s*")
+# (a sign may stand apart from its digits, as the lexer reads it: "Z - 6."; an N word may be
+# fractional, as LinuxCNC accepts: "N10.1")
+_Z_WORD = re.compile(rb"([Zz])(\s*)([-+]?\s*(?:\d+\.?\d*|\.\d+))")
+_N_WORD = re.compile(rb"^(\s*)[Nn]\s*\d+(?:\.\d*)?\s*")
 _COMMENT = re.compile(rb"\([^)]*\)|;.*$")
 _OTHER_WORDS = re.compile(rb"[MmSsTt]\s*[-+]?[\d.#\[]")
 
@@ -116,6 +118,10 @@ def find_cut(program, first: int, last: int, stock_top: float = np.inf) -> Cut:
         raise NotLayerable(why)
     if (span["plane"] != 0).any():
         raise NotLayerable("arcs outside the XY plane")
+    # (the link restores G1 and the entry's feed in mm/min: a pass under G95 or G93, or one that
+    # changes the mode, would run the program's own lines after it in another feed mode)
+    if (span["feed_mode"] != R.FEED_PER_MIN).any():
+        raise NotLayerable("a feed per revolution (G95) or inverse time (G93) in it")
     l0, l1 = int(lines[s]), int(lines[end])
     if _repeated(rec, l0, l1):
         raise NotLayerable("its lines run more than once (a loop or a subprogram)")
@@ -271,6 +277,6 @@ def _floor_z(line: bytes, floor: float, text: bytes) -> bytes:
     layer cuts nothing the original pass does not."""
     code = _COMMENT.sub(lambda m: b" " * len(m.group(0)), line)
     m = _Z_WORD.search(code)
-    if not m or float(m.group(3)) >= floor - 1e-9:
+    if not m or float(m.group(3).replace(b" ", b"").replace(b"\t", b"")) >= floor - 1e-9:
         return line
     return line[:m.start(3)] + text + line[m.end(3):]

@@ -439,6 +439,12 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
                                   within(came_from, plan_l.dur, ly.cut) - within(plan0.seg["line"], plan0.dur, ly.cut)}
                   for line, ly in layerings.items()]
     res.stock_proof = proof
+    # "before" is the program as written (which breaks the limit), not the layered one at the
+    # program's feeds: the verdict says what the limit costs against what the user had
+    orig = twin.simulate(program, stock=eng0.stock.box).summary
+    c = orig.cutting
+    res.before = Figures(float(orig.cycle_time), None, float(c.peak_load if c else 0.0),
+                         float(c.peak_power if c else 0.0), None)
     res.warnings.append(f"{program.path}: {len(layerings)} cut(s) written in layers to meet the limit: "
                         + "; ".join(f"lines {ly.cut.plunge_line}-{ly.cut.last_line} in {ly.layers} layers of "
                                     f"{ly.depth_per_layer:.3g} mm" for ly in layerings.values())
@@ -474,7 +480,7 @@ def _more_layers(twin, program, opts: OptimizeOptions, progress, stock, stage, l
             layered = twin.load(text, path=program.path)
             try:
                 r = _optimize(twin, layered, opts, progress, stock, stage)
-            except InfeasibleError:
+            except MtwinError:  # (infeasible, or a layered program that cannot be read: not better)
                 r = None
             # (by more than the re-simulation's own spread: a layer more is moves more)
             if r is not None and score(r) < score(best[0]) * (1 - 1e-3):
