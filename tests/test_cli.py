@@ -1,12 +1,16 @@
-"""The real CLI, run as a subprocess: exit codes, streams, atomic output, JSON keys."""
+"""The real CLI, run as a subprocess: exit codes, streams, atomic output, JSON keys; outputs a
+user reads (tables when piped, config check, Ctrl-C, the --lenient hint)."""
+
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
-from conftest import SAMPLES
+from conftest import ROOT, SAMPLES
 
 POCKET = str(SAMPLES / "pocket.nc")
 
@@ -103,3 +107,60 @@ def test_twin_file_validation(tmp_path):
     twin.write_text("[tool_lengths]\n2 = 80.0\n")
     r = mtwin("parse", POCKET, "--twin", str(twin))
     assert r.returncode == 2 and b"not in the tool table" in r.stderr
+
+
+def _cli(*args, **kw):
+    """The command in a process of its own, text out (the outputs a user sees)."""
+    return subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True, **kw)
+
+
+def test_tables_are_not_cut_when_piped(tmp_path):
+    d = tmp_path / "a_rather_long_directory_name_for_the_shop_floor_programs" / "and_one_more_level_of_them"
+    d.mkdir(parents=True)
+    (d / "pocket_with_a_long_name.nc").write_bytes((ROOT / "samples" / "pocket.nc").read_bytes())
+    r = _cli("simulate", str(d / "pocket_with_a_long_name.nc"), env={**__import__("os").environ, "COLUMNS": ""})
+    assert r.returncode == 0, r.stderr
+    assert str(d / "pocket_with_a_long_name.nc") in r.stderr  # not broken mid-word at 80 columns
+    assert max(len(x) for x in r.stderr.splitlines()) > 80
+
+
+def test_config_check_describes_the_files_machine(tmp_path):
+    (tmp_path / "my.toml").write_text("[spindle]\nmax_speed = 42000.0\nrated_power = 15000.0\n")
+    r = _cli("config", "check", str(tmp_path / "my.toml"))
+    assert r.returncode == 0, r.stderr
+    assert "15 kW / 42,000 rpm" in r.stderr and "11 kW" not in r.stderr and "mtwin default" not in r.stderr
+    named = tmp_path / "named.toml"
+    named.write_text('[machine]\nname = "Haas VF-2"\n')
+    assert "Haas VF-2" in _cli("config", "check", str(named)).stderr
+
+
+def test_ctrl_c_says_so_and_writes_nothing(tmp_path):
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_motion import make_program
+
+    (tmp_path / "big.nc").write_bytes(make_program(60000))
+    # (SIGINT restored for the child: a test run started in the background ignores it, and a
+    # process that starts with SIGINT ignored keeps ignoring it)
+    p = subprocess.Popen([sys.executable, "-m", "mtwin", "optimize", str(tmp_path / "big.nc"), "-o",
+                          str(tmp_path / "o.nc")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    time.sleep(4.0)  # (past start-up: the run is simulating or searching)
+    if p.poll() is not None:
+        pytest.skip("the run finished before the signal")
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err[-500:]
+    assert "interrupted (Ctrl-C): no output is left half-written" in err
+    assert not (tmp_path / "o.nc").exists() and not list(tmp_path.glob("*.tmp*"))
+
+
+def test_lenient_is_offered_only_where_it_helps(tmp_path):
+    (tmp_path / "a.nc").write_text("G21 G90\nG0 X0 Y0\nG1 X5 Y5 F100 G13.7\nM30\n")
+    (tmp_path / "b.nc").write_text("G21 G90\nG0 X0 Y0\nG13.7\nM30\n")
+    a = _cli("parse", str(tmp_path / "a.nc"))
+    assert a.returncode == 2 and "--lenient does not pass over it" in a.stderr
+    b = _cli("parse", str(tmp_path / "b.nc"))
+    assert b.returncode == 2 and "--lenient passes over codes that do not move the tool" in b.stderr
+    assert _cli("parse", str(tmp_path / "b.nc"), "--lenient").returncode == 0
+    c = _cli("parse", str(tmp_path / "a.nc"), "--lenient")
+    assert c.returncode == 2 and "even with --lenient" in c.stderr

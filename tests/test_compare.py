@@ -13,7 +13,7 @@ import mtwin
 from conftest import SAMPLES
 from mtwin.effects import Effect, register
 from mtwin.loop.compare import compare
-from mtwin.loop.measurement import MeasurementError, read_measurement
+from mtwin.loop.measurement import Measurement, MeasurementError, read_measurement
 from mtwin.params import Param
 from test_cli import mtwin as run_cli
 
@@ -221,3 +221,36 @@ def test_a_file_with_only_unknown_columns_names_them(tmp_path):
     f.write_text("t,zz_torque\n0,1\n0.1,2\n")
     r = run_cli("compare", CONTOUR, str(f))
     assert r.returncode == 2 and "zz_torque" in r.stderr.decode() and "--map" in r.stderr.decode()
+
+
+def test_a_spreadsheet_csv_with_a_bom_quoted_headers_and_odd_columns(tmp_path):
+    f = tmp_path / "bom.csv"
+    f.write_bytes('\ufeff"t [ms]",Spindle Power,"Feed Override (%)",\r\n0,100,100,\r\n10,120,100,\r\n'.encode())
+    m = read_measurement(str(f), ["Spindle Power=spindle_power"])
+    np.testing.assert_allclose(m.t, [0.0, 0.01])
+    np.testing.assert_allclose(m.signals["spindle_power"], [100.0, 120.0])
+    assert len(m.ignored) == 2  # the override and the empty header: kept out, noted
+
+
+def test_blank_line_cells_do_not_break_line_alignment():
+    tw = mtwin.Twin()
+    prog = tw.load(CONTOUR)
+    trace = tw.simulate(prog)
+    t = trace.t[::10]
+    line = np.asarray(trace.line[::10], dtype=np.int64).copy()
+    line[1::97] = -1  # 1 % empty cells (between known ones)
+    meas = Measurement("gaps.csv", t, {"x": trace.signal("x")[::10]}, line)
+    c = compare(trace, meas, "line")
+    assert c.signals["x"]["samples"] == len(t) and c.signals["x"]["max_error"] < 1e-6
+
+
+def test_position_alignment_finds_a_logger_that_started_late():
+    tw = mtwin.Twin()
+    prog = tw.load(CONTOUR)
+    trace = tw.simulate(prog)
+    late = slice(12000, None, 10)  # the logger started 12 s into the program, in the contour cut
+    meas = Measurement("late.csv", trace.t[late] - trace.t[12000],
+                       {a: trace.signal(a)[late] for a in ("x", "y", "z")})
+    c = compare(trace, meas, "position")
+    assert c.time_offset == pytest.approx(12.0, abs=0.011)
+    assert c.signals["x"]["max_error"] < 1e-6

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from conftest import SAMPLES
 
 import mtwin
-from mtwin.errors import MtwinError
 from mtwin.gcode.verify import compare
 from mtwin.optimize.run import InfeasibleError, OptimizeOptions, optimize
 from mtwin.optimize.search import GAOptions
@@ -308,3 +309,20 @@ def test_spindle_range_on_a_machine_that_does_not_wait_for_the_spindle(tmp_path)
     import json
 
     assert json.loads(r.stdout)["spindle"]
+
+
+def _cli(*args, **kw):
+    """The command in a process of its own, text out (the outputs a user sees)."""
+    return subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True, **kw)
+
+
+def test_optimize_refusal_uses_the_machines_bounds(tmp_path):
+    (tmp_path / "p.nc").write_text("G21 G90 G94\n(T1 D=6. CR=0. - FLAT END MILL)\nT1 M6\nS8000 M3\nG0 X0 Y0 Z5\n"
+                                   "G1 Z-3 F300\nG1 X50 F1000000000\nM30\n")
+    r = _cli("optimize", str(tmp_path / "p.nc"), "-o", str(tmp_path / "o.nc"), "--force-limit", "1", "--json")
+    assert r.returncode == 2
+    doc = json.loads(r.stdout)
+    assert doc["written"] is False
+    low = min(x["at_feed"] for x in doc["reasons"])
+    assert low <= 30000.0 * 0.1  # the range is the machine's, not 10 % of F1e9
+    assert "1e+08" not in r.stderr

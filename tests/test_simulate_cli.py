@@ -1,13 +1,18 @@
-"""`mtwin simulate` and `mtwin config`: JSON keys, trace files, reproducibility, clear errors."""
+"""`mtwin simulate` and `mtwin config`: JSON keys, trace files, reproducibility, clear errors;
+outputs that mean what they say (a feed over the machine's maximum, the guessed stock, shares
+that add up, the tools listed)."""
 from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
-from conftest import SAMPLES
+import mtwin as mtwin_api  # (the package: `mtwin` here is the command runner)
+from conftest import ROOT, SAMPLES
 from test_cli import mtwin
 
 SAMPLE_PROGRAMS = sorted(p.name for p in SAMPLES.glob("*.nc"))
@@ -214,3 +219,87 @@ def test_machine_parameters_by_dotted_name():
     for bad in ({"axes.q.mass": 1.0}, {"axes.x.servo.nope": 1.0}, {"axes.x.mass": -3.0}, {"axes.x.servo": 1.0}):
         with pytest.raises(MtwinError):
             with_params(Machine(), bad)
+
+
+def _cli(*args, **kw):
+    """The command in a process of its own, text out (the outputs a user sees)."""
+    return subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True, **kw)
+
+
+def test_a_feed_above_the_machines_maximum_is_a_warning_and_runs_at_the_maximum(tmp_path):
+    (tmp_path / "f.nc").write_text("G21 G90 G94\nG0 X0 Y0 Z5\nG1 X100 F1000000000\nG1 X0 F30000\nM30\n")
+    r = _cli("simulate", str(tmp_path / "f.nc"), "--no-cutting", "--json")
+    assert r.returncode == 0, r.stderr
+    # no maximum cutting feed in the twin: a feed no path can reach runs at the axes' limits
+    assert ("f.nc:3:1: warning: the feed of this line, 1e+09 mm/min, is above what the axes can run together "
+            "(59,093 mm/min)") in r.stderr
+    tw = mtwin_api.Twin()
+    a = tw.plan(tw.load(str(tmp_path / "f.nc")))
+    b = tw.plan(tw.load(b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 X100 F36000\nG1 X0 F30000\nM30\n", path="g.nc"))
+    assert a.total_time == pytest.approx(b.total_time, rel=1e-12)  # X at its 36 m/min
+    # the control's maximum cutting feed: clamped to it, as the control does
+    (tmp_path / "m.toml").write_text("[controller]\nmax_cutting_feed = 20000.0\n")
+    r = _cli("simulate", str(tmp_path / "f.nc"), "--no-cutting", "--twin", str(tmp_path / "m.toml"))
+    assert "1e+09 mm/min, is above the machine's maximum cutting feed 20000 mm/min: feeds are clamped to it" in r.stderr
+    tw2 = mtwin_api.Twin.from_toml(str(tmp_path / "m.toml"))
+    c = tw2.plan(tw2.load(str(tmp_path / "f.nc")))
+    d = tw2.plan(tw2.load(b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 X100 F20000\nG1 X0 F30000\nM30\n", path="g.nc"))
+    assert c.total_time == pytest.approx(d.total_time, rel=1e-12)
+    # a feed within it says nothing
+    ok = _cli("simulate", str(ROOT / "samples" / "contour.nc"), "--no-cutting")
+    assert "cutting feed" not in ok.stderr and "can run together" not in ok.stderr
+
+
+def test_the_default_stock_spans_the_arcs_own_sweep(tmp_path):
+    # a quarter arc of radius 100: its circle's box would be 200 x 200 mm
+    src = ("G21 G90 G17 G94\n(T1 D=6. CR=0. - FLAT END MILL)\nT1 M6\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F300\n"
+           "G2 X100 Y100 I100 J0 F1000\nG0 Z5\nM30\n")
+    tw = mtwin_api.Twin()
+    tr = tw.simulate(tw.load(src.encode(), path="a.nc"))
+    box = tr.summary.cutting.stock
+    assert box == pytest.approx([-3.0, -3.0, -2.0, 103.0, 103.0, 0.0])  # the sweep, the tool radius, Z0 top
+    # a G18 arc too (its sweep in X and Z)
+    pl = tw.plan(tw.load(b"G21 G90 G18\nG0 X10 Y0 Z0\nG1 Y-1 F300\nG2 X0 Z10 I-10 K0 F1000\nM30\n", path="b.nc"))
+    np.testing.assert_allclose(pl.feed_box, [[0.0, -1.0, 0.0], [10.0, 0.0, 10.0]], atol=1e-9)
+
+
+def test_one_message_about_the_stock_when_the_spindle_is_stopped(tmp_path):
+    (tmp_path / "s.nc").write_text("G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X10\nM30\n")
+    r = _cli("simulate", str(tmp_path / "s.nc"))
+    assert "spindle stopped" in r.stderr and "no feed move meets the stock" not in r.stderr
+    assert "not modelled: the feed moves cut the stock with the spindle stopped (line 3" in r.stderr
+    # the one wording of a guessed stock, in simulate and in optimize's warning
+    (tmp_path / "g.nc").write_text("G21 G90 G94\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X10\nG1 Z2\n"
+                                   "G1 Z5 X30\nM30\n")
+    r = _cli("simulate", str(tmp_path / "g.nc"))
+    assert "guessed from the feed moves (their extent and the tool radius, top at Z0)" in r.stderr
+
+
+def test_summary_shares_add_up_and_tables_carry_units(tmp_path):
+    tw = mtwin_api.Twin()
+    prog_path = ROOT / "samples" / "pocket.nc"
+    tr = tw.simulate(tw.load(str(prog_path)))
+    line, p = np.asarray(tr.line), np.asarray(tr.signal("spindle_power"))
+    rows = []
+    for k, ln in enumerate(sorted(set(line[line > 0].tolist()))[:12]):
+        v = float(np.mean(p[line == ln])) * (1.0 + 0.3 * (k % 3))  # some rows far off
+        rows.append(f"{ln},{ln},{v:.6g}")
+    (tmp_path / "s.csv").write_text("first_line,last_line,spindle_power_mean\n" + "\n".join(rows) + "\n")
+    r = _cli("compare", str(prog_path), str(tmp_path / "s.csv"), "--json")
+    assert r.returncode == 0, r.stderr
+    shares = [w["share"] for w in json.loads(r.stdout)["worst_regions"]]
+    assert shares and max(shares) <= 1.0 and sum(shares) <= 1.0 + 1e-9
+    r = _cli("compare", str(prog_path), str(tmp_path / "s.csv"))
+    assert "unit" in r.stderr and "│ W " in r.stderr.replace("┃", "│")
+
+
+def test_simulate_and_optimize_json_list_the_tools(tmp_path):
+    r = _cli("simulate", str(ROOT / "samples" / "pocket.nc"), "--json", "--tool", "7=ball:8:3")
+    tools = json.loads(r.stdout)["tools"]
+    assert tools == [{"number": 1, "type": "flat", "diameter": 6.0, "flutes": 2, "corner_radius": 0.0,
+                      "source": "program comment", "line": 4, "form": "Fusion 360"}]
+    r = _cli("optimize", str(ROOT / "samples" / "pocket.nc"), "-o", str(tmp_path / "o.nc"), "--json",
+             "--tool", "1=ball:8:3")
+    (t,) = json.loads(r.stdout)["tools"]
+    assert (t["number"], t["type"], t["diameter"], t["flutes"], t["corner_radius"], t["source"]) == \
+        (1, "ball", 8.0, 3, 4.0, "--tool")
