@@ -94,11 +94,12 @@ def share_cutting(twin, program, like) -> None:
     twin.cutting_cache.put(program, twin.cutting, program_cutting(twin, like))
 
 
-def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False, loop_effects=()):
-    """Engagement arrays and coefficients for the kernel (empty arrays: no cutting model)."""
+def _cutting_args(m, cut, program, plan, stock, enabled: bool, tooth: bool = False, loop_effects=(),
+                  tool_state=None, engagement_cache=None):
+    """Engagement arrays and coefficients for the kernel (empty arrays: no cutting model): ``m``
+    the machine, ``cut`` the program's cutting part (its tools, material, stock)."""
     seg = plan.seg
     nseg = max(len(seg), 1)
-    m = twin.machine
     rec = program.records
     spin_cmd = np.zeros(nseg)
     hand = np.ones(nseg)
@@ -107,7 +108,6 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
         speed = r["spindle"] if program.spindle_scale is None else r["spindle"] * program.spindle_scale[seg["rec"]]
         spin_cmd[:] = r["spindle_dir"] * np.minimum(speed, m.spindle.max_speed)
         hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
-    cut = program_cutting(twin, program) if enabled else twin.cutting
     curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
     if not enabled or not len(seg):
         z = np.zeros(nseg, np.int64)
@@ -124,11 +124,11 @@ def _cutting_args(twin, program, plan, stock, enabled: bool, tooth: bool = False
                          f"motion alone with --no-cutting")
     from ..cutting.engagement import engagement_for
 
-    eng = engagement_for(plan, program, cut, stock, tooth=tooth, cache=twin.engagement_cache)
+    eng = engagement_for(plan, program, cut, stock, tooth=tooth, cache=engagement_cache)
     mat = cut.material
     kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
-    tfx = tool_effects(eng, plan, loop_effects, program, twin)
+    tfx = step_effects(eng, plan, loop_effects, program, tool_state, mat)
     return eng, RK.CuttingInputs(eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, tfx.coefficients,
                                  hand, spin_cmd, float(m.spindle.acceleration), np.array(cut.spindle_loss), curve,
                                  prof, *eng.slices, eng.helix), tfx
@@ -147,6 +147,13 @@ class ToolEffects:
 
 
 def tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffects:
+    """:func:`step_effects` with the twin's tool state and the program's material on the twin."""
+    start = getattr(twin, "tool_state", None) or {}
+    material = program_cutting(twin, program).material if twin is not None and program is not None else None
+    return step_effects(eng, plan, loop_effects, program, start, material)
+
+
+def step_effects(eng, plan, loop_effects, program=None, start=None, material=None) -> ToolEffects:
     """The cutting coefficients per engagement step — the material's times the in-loop effects'
     factors (``cutting_scale``) plus their increments (``cutting_add``) — and the wear land of
     the effect that models one."""
@@ -155,12 +162,12 @@ def tool_effects(eng, plan, loop_effects, program=None, twin=None) -> ToolEffect
     users = [(e, p) for e, p in loop_effects if type(e).cutting_scale is not Effect.cutting_scale]
     adders = [(e, p) for e, p in loop_effects if type(e).cutting_add is not Effect.cutting_add]
     landers = [(e, p) for e, p in loop_effects if type(e).wear_land is not Effect.wear_land]
-    start = getattr(twin, "tool_state", None) or {}
+    start = start or {}  # tool number -> the history each tool starts with
     if not len(eng.q) or (not users and not adders and not landers and not start):
         return ToolEffects(np.zeros((0, 6)), None, None)
     kc = np.zeros(6)
-    if twin is not None and program is not None:
-        mat = program_cutting(twin, program).material
+    if material is not None:
+        mat = material
         kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
     steps = StepInfo.from_engagement(eng, plan, program, kc=kc, start=start)
     scale = np.ones((len(eng.q), 6))
@@ -233,9 +240,13 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 60:.1f} min" if seconds >= 60.0 else f"{seconds:.3g} s"
 
 
-def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, progress=None, cutting: bool = True,
-                  stock=None, tooth: bool = False, chatter: bool = True) -> Trace:
-    machine = twin.machine
+def simulate_plan(machine, program, plan, *, cut_part, effects=(), tool_state=None, engagement_cache=None,
+                  every: int = 1, disturbance=None, progress=None, cutting: bool = True, stock=None, tooth: bool = False,
+                  chatter: bool = True) -> Trace:
+    """Run a planned program through the servo loop and the cutting process: what it uses, and
+    nothing else — the machine, the program's cutting part (``cut_part``: its tools, material
+    and stock), the effects, the tools' starting state and the engagement cache.  Only the twin
+    calls it (``Twin.simulate``, ``Twin.simulate_batch``), which gathers these."""
     c = machine.controller
     if every < 1:
         raise MtwinError(f"--every must be at least 1, got {every}")
@@ -277,7 +288,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     sv = servo_table(machine)
     # the twin's effects, in their order: in the loop they change what the kernel reads,
     # on observation they change the finished trace
-    resolved = [(e, e.resolved()) for e in twin.effects]
+    resolved = [(e, e.resolved()) for e in effects]
     loop_effects = [(e, p) for e, p in resolved if e.stage == "loop"]
     for e, p in loop_effects:
         e.servo(sv, p)
@@ -309,7 +320,8 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
         path = RK.PathArrays(np.array([PAUSE], np.int64), z3, z3, z3, z3, z3, z3, z3, z, z, z, z,
                              np.zeros(1, np.int32))
         profile = RK.Profile(z, np.zeros((1, N_PROF)), np.zeros(1), np.zeros(1, np.bool_))
-    eng, cut_args, tfx = _cutting_args(twin, program, plan, stock, cutting, tooth, loop_effects)
+    eng, cut_args, tfx = _cutting_args(machine, cut_part, program, plan, stock, cutting, tooth, loop_effects,
+                                       tool_state, engagement_cache)
     cut_state = RK.CutState(np.zeros(2), np.zeros(16))  # spindle speed (rpm) and angle (rad); statistics
     cstats = cut_state.cstats
     state = RK.new_state(nfilt, x0, sv, len(seg))
@@ -408,7 +420,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     if eng is not None:
         from ..cutting.library import tools_used
 
-        cutting_part = program_cutting(twin, program)
+        cutting_part = cut_part
         cut_time = cstats[RK.CS_CUT_TIME]
         feed_moves = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
         # (feed moves that meet the stock with the spindle stopped were named above: the stock
@@ -461,7 +473,7 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
             summary.cutting.tool_wear = _wear_table(tfx)
     if chatter and eng is not None and summary.cutting is not None:
         # (``chatter=False``: an optimiser's intermediate re-simulation, which needs no margins)
-        summary.cutting.chatter = chatter_table(twin, program, plan, eng)
+        summary.cutting.chatter = chatter_table(machine, cut_part, program, plan, eng)
     changed: set[str] = set()
     for e, p in observed:
         if eng is None and any(s in CUT_SIGNALS for s in e.signals):
@@ -475,13 +487,13 @@ def simulate_plan(twin, program, plan, *, every: int = 1, disturbance=None, prog
     return trace
 
 
-def chatter_table(twin, program, plan, eng) -> dict:
+def chatter_table(machine, cut, program, plan, eng) -> dict:
     """Per program line that cuts with a tool whose dynamics the twin knows: its largest
     stability margin (axial depth over the lobes' limit at its speed, arc and direction), the
-    depth, limit, speed and chatter frequency there; empty when no tool has dynamics."""
+    depth, limit, speed and chatter frequency there; empty when no tool has dynamics.  ``cut``:
+    the program's cutting part (:func:`program_cutting`)."""
     from ..chatter.margin import step_arcs, step_limits, tool_dynamics
 
-    cut = program_cutting(twin, program)
     rec = program.records
     tools, dyn = tool_dynamics(cut, rec["tool"])
     if not any(dyn.values()) or not eng.steps:
@@ -489,7 +501,7 @@ def chatter_table(twin, program, plan, eng) -> dict:
     r = plan.seg["rec"][eng.step_segments()]
     tool = rec["tool"][r].astype(np.int64)
     hand = np.where(rec["spindle_dir"][r] < 0, -1, 1)
-    speed = np.minimum(rec["spindle"][r].astype(float), twin.machine.spindle.max_speed)
+    speed = np.minimum(rec["spindle"][r].astype(float), machine.spindle.max_speed)
     arcs = step_arcs(eng.q)
     mat = cut.material
     line = rec["line"][r]

@@ -1185,10 +1185,11 @@ def _result(run: _Run) -> OptimizeResult | None:
     chatter = {}
     if prob.chatter is not None:
         # the answer's own margins, line by line (the rounds' re-simulations skipped them)
-        from ..motion.simulate import chatter_table
+        from ..motion.simulate import chatter_table, program_cutting
 
         if after.summary.cutting is not None:
-            after.summary.cutting.chatter = chatter_table(tw_after, new, tw_after.plan(new), after.engagement)
+            after.summary.cutting.chatter = chatter_table(tw_after.machine, program_cutting(tw_after, new), new,
+                                                          tw_after.plan(new), after.engagement)
         on = seg_after >= 0
         line_segs: dict = {}
         for ln, sg in np.unique(np.stack([np.asarray(after.line)[on], seg_after[on]], axis=1), axis=0):

@@ -96,7 +96,8 @@ class Twin:
         out = RunTraces()
         tw = self
         for k in range(1, int(runs) + 1):
-            tr = simulate_plan(tw, program, plan, cutting=cutting, stock=stock, tooth=tooth_resolution)
+            tr = simulate_plan(tw.machine, program, plan, **tw._run_parts(program, cutting), cutting=cutting,
+                               stock=stock, tooth=tooth_resolution)
             if not keep_all and out:
                 out.clear()
             out.append(tr)
@@ -105,6 +106,15 @@ class Twin:
             used = tr.tool_use or {}
             tw = tw.with_tool_state({n: tw.tool_state.get(n, ToolHistory()) + u for n, u in used.items()})
         return out
+
+    def _run_parts(self, program, cutting: bool) -> dict:
+        """What a run of ``program`` takes from this twin besides the machine: the program's
+        cutting part (its declared tools over the twin's), the effects, the tools' state and
+        the engagement cache (``simulate_plan`` takes them, not the twin)."""
+        from ..motion.simulate import program_cutting
+
+        return {"cut_part": program_cutting(self, program) if cutting else self.cutting, "effects": self.effects,
+                "tool_state": self.tool_state, "engagement_cache": self.engagement_cache}
 
     def with_tools(self, tools: dict) -> "Twin":
         """A copy that knows these tools (number -> ``mtwin.cutting.library.Tool``, or a
@@ -215,7 +225,8 @@ class Twin:
         program = _with_overrides(program, feeds, spindles)
         if plan is None or feeds is not None or spindles is not None:
             plan = self.plan(program)
-        return simulate_plan(self, program, plan, every=every, disturbance=disturbance,
+        return simulate_plan(self.machine, program, plan, **self._run_parts(program, cutting), every=every,
+                             disturbance=disturbance,
                              progress=progress, cutting=cutting, stock=stock, tooth=tooth_resolution,
                              chatter=chatter)
 
