@@ -193,13 +193,17 @@ def test_the_link_goes_up_to_the_tools_own_retract_height_first():
                    b"G0 Z10.\nM30\n", path="p.nc")
     cut = find_cut(prog, 7, 7)
     assert (cut.plunge_line, cut.last_line, cut.clearance, cut.safe) == (6, 7, 1.0, 10.0)
-    text, origin = layered_text(prog, [Layering(cut, 2, 0.0)])
+    text, origin, layer = layered_text(prog, [Layering(cut, 2, 0.0)])
     lines = text.decode().splitlines()
     at = lines.index("(MTWIN LAYER 1/2 Z-2.)")
     assert lines[at + 1:at + 8] == ["G1 Z-2. F100", "G2 X20. Y0 I10. J0 F400", "G0 Z10.", "G0 X0. Y0.", "G0 Z1.",
                                     "G1 F100", "(MTWIN LAYER 2/2 Z-4.: THE PROGRAM'S OWN LINES)"]
     assert lines[at + 8:at + 10] == ["G1 Z-4. F100", "G2 X20. Y0 I10. J0 F400"]  # the program's own, as written
     assert len(origin) == len(text.split(b"\n")) and origin[at + 2] == 7
+    # each line's layer, of how many, and its cut, as written (the copy and link, then the own lines)
+    assert len(layer) == len(origin) and layer[at - 1].tolist() == [0, 0, 0]
+    assert [layer[i].tolist() for i in (at, at + 6, at + 7, at + 9)] == [[1, 2, 6], [1, 2, 6], [2, 2, 6], [2, 2, 6]]
+    assert layer[at + 10].tolist() == [0, 0, 0]  # (the G0 Z10. after the cut)
 
 
 def test_the_proof_holds_within_one_cell_and_no_further():
@@ -260,7 +264,7 @@ def test_the_ga_takes_the_number_of_layers_as_a_discrete_variable(monkeypatch):
 
     def stand_in(twin, program, *rest):
         if b"(MTWIN LAYER" not in program.data:  # the program as written: over the limit, refused
-            raise InfeasibleError("over", reasons=[{"lines": [17, 17], "value": 82.5, "limit_value": 60.0}])
+            return real(twin, program, *rest)
         return fake(twin, program, *rest)
 
     monkeypatch.setattr(R, "_optimize", stand_in)

@@ -200,9 +200,11 @@ def material_top(eng, plan, cut: Cut) -> float:
     return round(cut.depth + float(np.percentile(ap, 95)), 2)
 
 
-def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]:
-    """The program with each cut written in its layers (see the module), and for each of its
-    lines the program's line it came from (1-based; a link, the cut's plunge line)."""
+def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """The program with each cut written in its layers (see the module); for each of its lines
+    the program's line it came from (1-based; a comment or a link: the cut's first line); and
+    (layer k, of N, the cut's first line) where the line belongs to a layered cut — its copy, its
+    link, its comment — (0, 0, 0) elsewhere."""
     from ..gcode.numfmt import detect_style
 
     style = detect_style(program.lexed)
@@ -214,6 +216,7 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
     strip_cr = eol == b"\r\n"
     out: list[bytes] = []
     origin: list[int] = []
+    layer: list[tuple[int, int, int]] = []
     todo = {ly.cut.plunge_line: ly for ly in layerings}
     i = 0
     while i < len(src):
@@ -221,6 +224,7 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
         if ly is None:
             out.append(src[i])
             origin.append(i + 1)
+            layer.append((0, 0, 0))
             i += 1
             continue
         c = ly.cut
@@ -232,42 +236,23 @@ def layered_text(program, layerings: list[Layering]) -> tuple[bytes, np.ndarray]
         xs, ys = (style.coord(v / k).encode() for v in c.start)
         link = [b"G0 Z" + zs + cr, b"G0 X" + xs + b" Y" + ys + cr] + ([b"G0 Z" + zc + cr] if zs != zc else []) \
             + [b"G1 F" + fp + cr]
+        own = list(range(c.plunge_line, c.last_line + 1))
         for n, z in enumerate(ly.depths[:-1], 1):
             zt = style.coord(z / k).encode()
             out.append(b"(MTWIN LAYER %d/%d Z%s)" % (n, ly.layers, zt) + cr)
-            origin.append(c.plunge_line)
             # the pass again, no line lower than this layer: Z = max(Z, z_k)
             out += [_floor_z(_N_WORD.sub(rb"\1", ln), z / k, zt) + cr for ln in body]
-            origin += list(range(c.plunge_line, c.last_line + 1))
             out += link
-            origin += [c.plunge_line] * len(link)
+            origin += [c.plunge_line] + own + [c.plunge_line] * len(link)
+            layer += [(n, ly.layers, c.plunge_line)] * (1 + len(own) + len(link))
         out.append(b"(MTWIN LAYER %d/%d Z%s: THE PROGRAM'S OWN LINES)"
                    % (ly.layers, ly.layers, style.coord(c.depth / k).encode()) + cr)
-        origin.append(c.plunge_line)
         # the program's own pass, byte for byte
         out += src[c.plunge_line - 1:c.last_line]
-        origin += list(range(c.plunge_line, c.last_line + 1))
+        origin += [c.plunge_line] + own
+        layer += [(ly.layers, ly.layers, c.plunge_line)] * (1 + len(own))
         i = c.last_line
-    return b"\n".join(out), np.array(origin, np.int64)
-
-
-_LAYER_COMMENT = re.compile(rb"\(MTWIN LAYER (\d+)/(\d+) ")
-
-
-def layer_numbers(text: bytes, origin: np.ndarray, layerings: list[Layering]) -> np.ndarray:
-    """Per line of a layered program (``layered_text``'s), (layer k, of N) where it is part of a
-    layered cut — its plunge, its copy of the cut, its link — and (0, 0) elsewhere."""
-    out = np.zeros((len(origin), 2), np.int64)
-    k = (0, 0)
-    for i, ln in enumerate(text.split(b"\n")):
-        m = _LAYER_COMMENT.match(ln)
-        if m:
-            k = (int(m.group(1)), int(m.group(2)))
-        if any(ly.cut.plunge_line <= origin[i] <= ly.cut.last_line for ly in layerings):
-            out[i] = k
-        else:
-            k = (0, 0)
-    return out
+    return b"\n".join(out), np.array(origin, np.int64), np.array(layer, np.int64).reshape(-1, 3)
 
 
 def _floor_z(line: bytes, floor: float, text: bytes) -> bytes:

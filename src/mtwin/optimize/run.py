@@ -44,10 +44,11 @@ class InfeasibleError(MtwinError):
     """Even the lowest feed of the range breaks a limit: the program needs another strategy.
     ``reasons``: per segment, the limit, its lines and tool, the value against the limit."""
 
-    def __init__(self, message: str, reasons: list | None = None):
+    def __init__(self, message: str, reasons: list | None = None, before=None):
         super().__init__(message)
         self.reasons = reasons or []
         self.program = ""  # the program's name (optimize() sets it)
+        self.before = before  # the refused program's simulation (a Trace), where it was made
 
 
 # bounds on the options, beyond which a value is a typo, not a wish: a contour error of 10 mm is
@@ -359,7 +360,7 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
     still over), optimised as any program, and proven to leave the original's part."""
     from ..cutting.stockproof import prove_same_stock
     from ..motion.simulate import program_engagement
-    from .layers import Layering, NotLayerable, find_cut, layer_numbers, layered_text, material_top
+    from .layers import Layering, NotLayerable, find_cut, layered_text, material_top
 
     stage = stage or (lambda text: None)
     stage("layering the cuts over the limit")
@@ -395,7 +396,7 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
             if ly.layers > opts.max_layers:
                 raise InfeasibleError(f"{refused} — lines {a}-{b} are still over it in {opts.max_layers} layers "
                                       f"(--max-layers)", reasons=refused.reasons)
-        text, origin = layered_text(program, list(layerings.values()))
+        text, origin, layer_of = layered_text(program, list(layerings.values()))
         layered = twin.load(text, path=program.path)
         try:
             res = _optimize(twin, layered, opts, progress, stock, stage)
@@ -407,8 +408,8 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
         raise InfeasibleError(f"{refused} — still over it in {opts.max_layers} layers (--max-layers)",
                               reasons=refused.reasons)
     if opts.method == "ga":
-        res, layered, origin = _more_layers(twin, program, opts, progress, stock, stage, layerings,
-                                            (res, layered, origin))
+        res, layered, origin, layer_of = _more_layers(twin, program, opts, progress, stock, stage, layerings,
+                                                      (res, layered, origin, layer_of))
     stage("proving the layered program leaves the same part")
     plan1, eng1 = program_engagement(twin, twin.load(res.output, path=program.path), eng0.stock.box)
     proof = prove_same_stock(eng0, plan0, eng1, plan1)
@@ -424,24 +425,22 @@ def _layered(twin, program, opts: OptimizeOptions, progress, stock, stage, refus
         return float(dur[(lines >= c.plunge_line) & (lines <= c.last_line)].sum())
 
     # each segment of the answer says which layer of which cut it is (the report marks it)
-    layer_of = layer_numbers(layered.data, origin, list(layerings.values()))
     feeds: dict[int, list] = {line: [[] for _ in range(ly.layers)] for line, ly in layerings.items()}
     for seg in res.segments:
-        k, n = layer_of[seg["lines"][0] - 1]
+        k, n, cut_line = layer_of[seg["lines"][0] - 1]
         if n:
             seg["layer"] = [int(k), int(n)]
-            cut = next(ly.cut for ly in layerings.values()
-                       if ly.cut.plunge_line <= origin[seg["lines"][0] - 1] <= ly.cut.last_line)
             if not seg["air"]:
-                feeds[cut.plunge_line][k - 1].append(seg["feed_after"])
+                feeds[int(cut_line)][k - 1].append(seg["feed_after"])
     res.layers = [ly.as_dict() | {"feeds": [sorted(set(f)) for f in feeds[line]],
                                   "time_added_at_program_feeds":
                                   within(came_from, plan_l.dur, ly.cut) - within(plan0.seg["line"], plan0.dur, ly.cut)}
                   for line, ly in layerings.items()]
     res.stock_proof = proof
     # "before" is the program as written (which breaks the limit), not the layered one at the
-    # program's feeds: the verdict says what the limit costs against what the user had
-    orig = twin.simulate(program, stock=eng0.stock.box).summary
+    # program's feeds: the verdict says what the limit costs against what the user had (its
+    # simulation is the one the refusal was made on)
+    orig = refused.before.summary
     c = orig.cutting
     res.before = Figures(float(orig.cycle_time), None, float(c.peak_load if c else 0.0),
                          float(c.peak_power if c else 0.0), None)
@@ -457,7 +456,7 @@ def _more_layers(twin, program, opts: OptimizeOptions, progress, stock, stage, l
     optimised answer gets better by the objective (a shallower layer may run at a feed so much
     higher that it pays for its link).  Bisection keeps the fewest layers that meet the limit,
     the reference's rule (feed first, then N = 2, 3, …).  Returns (result, layered program,
-    origin of its lines) of the best."""
+    origin and layer of its lines) of the best."""
     from .layers import layered_text
 
     def score(r) -> float:
@@ -476,7 +475,7 @@ def _more_layers(twin, program, opts: OptimizeOptions, progress, stock, stage, l
                 continue
             ly.layers += 1
             stage(f"trying lines {ly.cut.plunge_line}-{ly.cut.last_line} in {ly.layers} layers")
-            text, origin = layered_text(program, list(layerings.values()))
+            text, origin, layer_of = layered_text(program, list(layerings.values()))
             layered = twin.load(text, path=program.path)
             try:
                 r = _optimize(twin, layered, opts, progress, stock, stage)
@@ -484,7 +483,7 @@ def _more_layers(twin, program, opts: OptimizeOptions, progress, stock, stage, l
                 r = None
             # (by more than the re-simulation's own spread: a layer more is moves more)
             if r is not None and score(r) < score(best[0]) * (1 - 1e-3):
-                best, better = (r, layered, origin), True
+                best, better = (r, layered, origin, layer_of), True
             else:
                 ly.layers -= 1
     return best
@@ -766,7 +765,7 @@ def _limits(run: _Run) -> OptimizeResult | None:
                                  if any(int(r["tool"]) in phys and r["limit"] == "load" for r in reasons) else
                                  " — take a smaller depth or width of cut there, or a larger --force-limit "
                                  "(or leave it out: the limits are then learned from the program); nothing was written"),
-                              reasons=reasons)
+                              reasons=reasons, before=before)
 
     # ---- target power for smoothing
     target = opts.target_power
