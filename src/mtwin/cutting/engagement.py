@@ -13,7 +13,7 @@ import hashlib
 import math
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -56,8 +56,9 @@ class Engagement:
     helix: np.ndarray  # (ntools,) tan of the helix angle
     warnings: list
     motion: np.ndarray | None = None  # indices of the plan's motion segments the arrays were made for
-    rapid_line: int = 0  # the line of the first rapid that goes through stock standing then, 0: none
-    rapid_segments: np.ndarray | None = None  # the plan segments of every rapid through stock
+    # the plan segments of every rapid that goes through stock standing then (a crash; the
+    # stock proof holds a rewrite's against the original's)
+    rapid_segments: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def steps(self) -> int:
@@ -345,7 +346,7 @@ def engagement_for(plan, program, cutting: Cutting, box=None, tooth: bool = Fals
                      time.perf_counter() - t0, prof[:n] if tooth else prof,
                      (np.array(starts, np.int64), skind, skap, sr, szlo, szhi, sdrho), helix, warnings,
                      np.flatnonzero(seg["kind"] != PAUSE),
-                     int(seg["line"][crashes[0]]) if crashes.size else 0, crashes)
+                     crashes)
     if cache is not None:
         cache.put(key, eng)
     return eng

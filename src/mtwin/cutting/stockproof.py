@@ -91,11 +91,8 @@ def _added_rapid(eng_a, plan_a, eng_b, plan_b) -> int:
     move, end to end — is the program's own (a guessed stock, often), not one the rewriting
     added; any other is, however many the original has (a link of a layered cut)."""
     def moves(eng, plan):
-        idx = getattr(eng, "rapid_segments", None)
-        if idx is None:  # (an engagement from before every rapid was marked)
-            idx = np.flatnonzero(plan.seg["line"] == eng.rapid_line)[:1] if getattr(eng, "rapid_line", 0) else ()
         return [(tuple(np.round(plan.seg["p0"][i], 4)), tuple(np.round(plan.seg["p1"][i], 4)), int(plan.seg["line"][i]))
-                for i in idx]
+                for i in eng.rapid_segments]
 
     own = {(a, b) for a, b, _ in moves(eng_a, plan_a)}
     added = [line for a, b, line in moves(eng_b, plan_b) if (a, b) not in own]

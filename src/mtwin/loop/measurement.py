@@ -228,7 +228,7 @@ def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
                and summary_base(c) is None and c not in LOG_COLUMNS]
     # a column the twin does not know is kept out of the numbers: whatever it holds is fine
     data = _numbers(rows, header, name, first_row, [c not in ignored for c in names],
-                    [(*_bound(c, k), c, k) for c, k in cols])
+                    [(*_bound(c), c, k) for c, k in cols])
     if summary:
         return _summary(name, names, cols, data, meta, ignored, first_row)
     if len(data) == 0:
@@ -363,10 +363,9 @@ MAX_TIME = 1e10
 MAX_COUNT = 1e9
 
 
-def _bound(column: str, scale: float) -> tuple[float, float, str]:
-    """The largest magnitude a column's cells may hold in the file's own units (its scale to the
-    format's unit taken out), and that unit: an instrument records no 1e99 W (the bounds are
-    the parameters' own, ``params.UNIT_MAX``), then that largest magnitude in the format's unit."""
+def _bound(column: str) -> tuple[float, str]:
+    """The largest magnitude a column may hold in the format's unit, and that unit: an
+    instrument records no 1e99 W (the bounds are the parameters' own, ``params.UNIT_MAX``)."""
     from ..params import UNIT_MAX
 
     if column == "t":
@@ -378,7 +377,7 @@ def _bound(column: str, scale: float) -> tuple[float, float, str]:
     else:
         unit = UNITS.get(column) or UNITS.get(summary_base(column) or "", "")
         top = UNIT_MAX.get(unit, MAX_MAGNITUDE) if unit else MAX_MAGNITUDE
-    return (top / abs(scale) if scale else top), top, unit
+    return top, unit
 
 
 def _numbers(rows, header, path, first_row, read, bounds=None) -> np.ndarray:
@@ -411,8 +410,8 @@ def _numbers(rows, header, path, first_row, read, bounds=None) -> np.ndarray:
                 raise MeasurementError(f"{cell!s} in column {header[j]!r} is not a finite measured value (at most "
                                        f"{MAX_MAGNITUDE:g} in magnitude; leave the cell empty for a missing value)",
                                        SourceLocation(path, first_row + i, j + 1))
-            if bounds is not None and abs(v) > bounds[j][0]:
-                _, top, unit, target, scale = bounds[j]
+            if bounds is not None and abs(v * bounds[j][3]) > bounds[j][0]:  # (in the format's unit)
+                top, unit, target, scale = bounds[j]
                 # (a column renamed or scaled on the way in says so: --map, or a unit in brackets)
                 read_as = f" (read as {target} × {scale:g} = {v * scale:g})" if scale != 1.0 else \
                     (f" (read as {target})" if target != str(header[j]).strip() else "")
