@@ -308,3 +308,24 @@ def test_diagnose_tells_chatter_from_a_vibration_recording_and_a_spectrum(tmp_pa
         v = {x["first_line"]: x for x in json.loads(d.stdout)["chatter"]["spectra"]}
         assert v[12]["chatter"] and not v[17]["chatter"] and v[12]["chatter_frequency"] == pytest.approx(930, abs=3)
         assert v[12]["twin_agrees"] is agrees
+
+
+def test_an_frf_headers_units_are_honoured_and_its_bounds_held_in_m_per_n(tmp_path):
+    """A tap test written in µm/N (or mm/N, kHz) reads as the same FRF in m/N and Hz; its bounds
+    hold on the converted values (a soft tool's 2,000 µm/N is 2e-3 m/N, no 'beyond' value); an
+    unknown unit is an error at its header cell."""
+    from mtwin.chatter.modes import read_frf
+    from mtwin.errors import ConfigError
+
+    f = np.arange(200.0, 2500.0, 5.0)
+    h = Mode("x", 650.0, 0.03, 5.0e3).compliance(f)  # (a soft tip: 3.3e-3 m/N at its peak)
+    si, um = tmp_path / "si.csv", tmp_path / "um.csv"
+    si.write_text("freq,re_xx,im_xx\n" + "".join(f"{a:.15g},{b.real:.15e},{b.imag:.15e}\n" for a, b in zip(f, h)))
+    um.write_text("freq (kHz),re_xx (um/N),im_xx (µm/N)\n"
+                  + "".join(f"{a / 1e3:.15g},{b.real * 1e6:.15e},{b.imag * 1e6:.15e}\n" for a, b in zip(f, h)))
+    a, b = read_frf(si), read_frf(um)
+    assert np.allclose(a.freq, b.freq) and np.allclose(a.xx, b.xx, rtol=1e-12)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("freq,re_xx (in/lbf),im_xx\n100,1e-7,-1e-8\n200,1e-7,-1e-8\n300,1e-7,-1e-8\n")
+    with pytest.raises(ConfigError, match=r"bad.csv:1:6: unit \(in/lbf\) not known"):
+        read_frf(bad)
