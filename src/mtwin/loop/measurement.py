@@ -11,6 +11,7 @@ fine.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import math
 import os
@@ -363,6 +364,17 @@ MAX_TIME = 1e10
 MAX_COUNT = 1e9
 
 
+@functools.lru_cache(maxsize=None)  # (asked for every override item of a log)
+def max_override() -> float:
+    """The largest override a log may hold, %: the most the twin's ``controller.feed_override``
+    takes (its declaration's bound), so a log's override can always be replayed."""
+    from dataclasses import fields
+
+    from ..twin.machine import Controller
+
+    return float(next(f for f in fields(Controller) if f.name == "feed_override").metadata["hi"])
+
+
 def _bound(column: str) -> tuple[float, str]:
     """The largest magnitude a column may hold in the format's unit, and that unit: an
     instrument records no 1e99 W (the bounds are the parameters' own, ``params.UNIT_MAX``)."""
@@ -373,7 +385,7 @@ def _bound(column: str) -> tuple[float, str]:
     elif column in ("line", "first_line", "last_line", "run", "tool"):
         top, unit = MAX_COUNT, ""
     elif column in LOG_COLUMNS:  # an override: at most what the twin's controller takes
-        top, unit = 1000.0, "%"
+        top, unit = max_override(), "%"
     else:
         unit = UNITS.get(column) or UNITS.get(summary_base(column) or "", "")
         top = UNIT_MAX.get(unit, MAX_MAGNITUDE) if unit else MAX_MAGNITUDE

@@ -46,7 +46,7 @@ from datetime import datetime
 import numpy as np
 
 from ..errors import SourceLocation
-from .measurement import Measurement, MeasurementError
+from .measurement import Measurement, MeasurementError, max_override
 
 _NAMES = ("Block_Number", "Feed_Rate", "Spindle_Speed", "Current_Tool", "Program_Status", "Execution",
           "Program_Name_Running", "Program", "Line", "PathFeedrate", "RotaryVelocity", "ToolNumber",
@@ -481,7 +481,7 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
     # a feed, speed, tool number or override a control reports is finite, >= 0 and below
     # these (1,000 m/min in mm/s; 1e6 rpm; 1e6 for a tool number; an override 1,000 %, the most
     # the twin's controller.feed_override takes)
-    top = {"feed": 1e6 / 60.0}.get(key, 1000.0 if key in OVERRIDES.values() else 1e6)
+    top = {"feed": 1e6 / 60.0}.get(key, max_override() if key in OVERRIDES.values() else 1e6)
     if not (math.isfinite(x) and 0 <= x <= top):
         raise MeasurementError(f"{e.item} value {v!r} is not a value a control reports (finite, >= 0, within "
                                f"any machine's range)", SourceLocation(path, e.line, 1))
