@@ -70,7 +70,8 @@ def material_for(path: Path, rules: list) -> tuple[str, str] | None:
 
 
 def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None = None,
-              factor: float | None = None, material: str | None = None) -> dict:
+              factor: float | None = None, material: str | None = None,
+              spindle_range: tuple | None = None) -> dict:
     import mtwin
     from mtwin.cutting.library import describes
     from mtwin.errors import MtwinError
@@ -100,7 +101,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     signal.alarm(timeout)
     t0 = time.perf_counter()
     try:
-        opts = OptimizeOptions()
+        opts = OptimizeOptions(spindle_range=spindle_range)
         if factor is not None:
             peak = tw.simulate(prog).summary.cutting
             peak = float(peak.peak_load) if peak is not None else 0.0
@@ -108,7 +109,7 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
                 rec.update(status="no load")
                 return rec
             rec["force_limit"] = factor * peak
-            opts = OptimizeOptions(force_limit=factor * peak)
+            opts = OptimizeOptions(force_limit=factor * peak, spindle_range=spindle_range)
         res = optimize(tw, prog, opts)
     except Timeout:
         rec.update(status="timeout")
@@ -252,7 +253,28 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
     rec["described"] = bool(c is not None and c.tools and all(t["source"] != "default" for t in c.tools))
     rec["physics"] = any(x.get("source") == "physics" for x in res.limits)
     rec["physics_broken"] = _physics_broken(prog, new, before, after, res) if rec["physics"] else []
+    own_s = {int(t): float(prog.records["spindle"][feed & (prog.records["tool"] == t)].max(initial=0.0))
+             for t in np.unique(prog.records["tool"][feed])}
+    rec["spindle"] = {str(k): v for k, v in res.spindle.items() if abs(v - own_s.get(int(k), v)) > 0.5}
+    rec["machine_broken"] = _machine_broken(tw, before, after)
     return rec
+
+
+def _machine_broken(tw, before, after) -> list:
+    """The spindle's rated power and its torque curve, checked on the re-simulated answer:
+    over them where the program was not (a higher speed carries a chip at more power)."""
+    sp = tw.machine.spindle
+    out = []
+    cb, ca = before.summary.cutting, after.summary.cutting
+    if ca is None:
+        return out
+    pb = cb.peak_power if cb is not None else 0.0
+    if ca.peak_power > sp.rated_power * 1.001 and ca.peak_power > pb * 1.001:
+        out.append(f"spindle power {ca.peak_power:.0f} W > {sp.rated_power:.0f} W (line {ca.peak_power_line})")
+    lb = cb.peak_spindle_load if cb is not None else 0.0
+    if ca.peak_spindle_load > 1.001 and ca.peak_spindle_load > lb * 1.001:
+        out.append(f"spindle torque {100 * ca.peak_spindle_load:.0f} % of the curve (line {ca.peak_spindle_torque_line})")
+    return out
 
 
 def _physics_broken(prog, new, before, after, res) -> list:
@@ -319,6 +341,7 @@ def main() -> None:
     ap.add_argument("--force-limit-factor", type=float, default=None)
     ap.add_argument("--materials", default=None)
     ap.add_argument("--forms", action="store_true")
+    ap.add_argument("--spindle-range", default=None, help="LOW,HIGH rpm: --spindle-range for every program")
     a = ap.parse_args()
     rules = []
     if a.materials:
@@ -333,12 +356,14 @@ def main() -> None:
     if a.forms:
         count_forms(files)
         return
+    spindle_range = tuple(float(x) for x in a.spindle_range.replace(":", ",").split(",")) if a.spindle_range else None
     out = open(a.out, "w") if a.out else None
     recs = []
     runs = [(p, None) for p in files] + ([(p, a.force_limit_factor) for p in files] if a.force_limit_factor else [])
     for p, factor in runs:
         m = material_for(p, rules) if rules else None
-        r = check_one(p, a.timeout, twin_file=a.twin, factor=factor, material=m[0] if m else None)
+        r = check_one(p, a.timeout, twin_file=a.twin, factor=factor, material=m[0] if m else None,
+                      spindle_range=spindle_range)
         recs.append(r)
         rel = (str(p.relative_to(corpus)) if corpus in p.parents else str(p)) + \
             (f" [--force-limit {r.get('force_limit', 0):.1f}]" if factor else "")
@@ -359,6 +384,10 @@ def main() -> None:
                 flags.append(f"CHANGED ON UNDESCRIBED TOOL {r['changed_on_undescribed_tool'][:5]}")
             if not r["contour_ok"]:
                 flags.append("CONTOUR WORSE")
+            if r.get("machine_broken"):
+                flags.append(f"SPINDLE LIMIT BROKEN {r['machine_broken'][:2]}")
+            if r.get("spindle"):
+                flags.append(f"S {r['spindle']}")
             if r.get("physics_broken"):
                 flags.append(f"PHYSICS LIMIT BROKEN {r['physics_broken'][:3]}")
             if r.get("material"):
@@ -399,6 +428,9 @@ def _totals(recs: list, files: list, factor, materials: bool = False) -> None:
         if len(desc):
             print(f"programs whose cutting tools the twin describes: {len(desc)}; change %: min {desc.min():+.1f}, "
                   f"median {np.median(desc):+.1f}, max {desc.max():+.1f}; >= 5 % faster: {int((desc <= -5).sum())}")
+        print(f"spindle speed changed: {sum(bool(r.get('spindle')) for r in done)}; "
+              f"spindle power or torque over the machine's where the program was not: "
+              f"{sum(bool(r.get('machine_broken')) for r in done)}")
         print(f"physics limits used: {sum(bool(r.get('physics')) for r in done)}; a physics limit broken on the "
               f"re-simulated answer: {sum(bool(r.get('physics_broken')) for r in done)}")
         print(f"not verified: {sum(not r['verified'] for r in done)}; changed on an undescribed tool: "

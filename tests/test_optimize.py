@@ -326,3 +326,33 @@ def test_optimize_refusal_uses_the_machines_bounds(tmp_path):
     low = min(x["at_feed"] for x in doc["reasons"])
     assert low <= 30000.0 * 0.1  # the range is the machine's, not 10 % of F1e9
     assert "1e+08" not in r.stderr
+
+
+def test_bisection_with_a_spindle_range_chooses_the_speed_that_pays():
+    """Issue 32: a chip held to its limit carries the same chip at a higher feed when the spindle
+    runs faster.  With --spindle-range the bisection tries speeds over the range (it kept the
+    program's S before, so a range changed nothing unless the GA was asked): slots.nc (S3000,
+    its slot held by the learned chip thickness) runs at the range's top, is faster on
+    re-simulation than without the range, and its chip stays at the program's own level."""
+    tw = mtwin.Twin()
+    prog = tw.load(str(SAMPLES / "slots.nc"))
+    plain = optimize(tw, prog, OptimizeOptions())
+    ranged = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
+    assert ranged.spindle == {1: 8000.0}
+    assert ranged.after.cycle_time < plain.after.cycle_time * 0.8
+    cut = [s for s in ranged.segments if not s["air"]]
+    assert cut and all(s["limited_by"] in ("chip thickness", "load") for s in cut)
+    # the same feed per tooth where the chip binds: F rises with S (8000/3000) or less
+    for a, b in zip(plain.segments, ranged.segments):
+        if not a["air"]:
+            assert b["feed_after"] <= a["feed_after"] * 8000.0 / 3000.0 + 2.0  # (F words are rounded)
+
+
+def test_a_power_limit_stops_the_speed_where_it_binds():
+    """The speed choice never buys time with a broken limit: on a spindle of 300 W the power
+    binds (at a fixed chip, power grows with the speed), and every re-simulated segment of the
+    answer stays within it."""
+    tw = mtwin.Twin().with_params({"spindle.rated_power": 300.0})
+    prog = tw.load(str(SAMPLES / "slots.nc"))
+    res = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
+    assert res.after.peak_power <= 300.0 * 1.0001

@@ -192,7 +192,8 @@ class Problem:
             used = ts * (n / 60.0) * self.seg_arc * 1e-3 / self.rates.slide_life  # the wear law's life
         else:
             used = self.rates.lives_used(ts, cutting_speed(self.seg_diam, n))
-        wear = np.where(cut, used, 0.0).sum(axis=1)
+        used = np.where(cut, used, 0.0)
+        wear = used.sum(axis=1)
         cost = self.rates.cost(time, wear)
         v_chatter = np.zeros_like(v_load)
         if self.chatter is not None:
@@ -201,7 +202,8 @@ class Problem:
         return {"time": time, "cost": cost, "load": load, "power": power, "torque": torque, "fz": fz,
                 "mean_power": mean_power, "seg_time": ts,
                 "violation": v_load + v_power + v_torque + v_chip + v_chatter, "v_chatter": v_chatter,
-                "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "v_chip": v_chip, "tool_lives": wear}
+                "v_load": v_load, "v_power": v_power, "v_torque": v_torque, "v_chip": v_chip, "tool_lives": wear,
+                "seg_lives": used}
 
     def runup_change(self, spins: np.ndarray) -> np.ndarray:
         """Change of the spindle run-up waits (s) at these speeds against the program's."""

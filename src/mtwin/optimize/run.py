@@ -970,7 +970,12 @@ def _rounds(run: _Run) -> OptimizeResult | None:
     tw_after = _fresh(twin) if twin.machine.controller.style == "linuxcnc" else twin
     f0 = prob.f0_var
     lo = feed_range[0]
-    allowed = np.ones(prob.nvar)
+    # per variable, the load's and the machine's (spindle power, torque) ratios to their limits
+    # a segment may reach: 1, or what the program itself runs at where it only must not get
+    # worse — each on its own (a load the program runs over its learned level allows no power
+    # over the spindle's rating)
+    allowed_l = np.ones(prob.nvar)
+    allowed_m = np.ones(prob.nvar)
     base_outside = None
     force_min = 1.0
     cap = np.full(prob.nvar, np.inf)
@@ -1005,7 +1010,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             after = tw_after.simulate(new, stock=stock, chatter=False)
         seg_after, rec_after = _segment_of_samples(after, new, program, segs)
         loads_after = loads_before if after is before else _Loads.of(after, limits)
-        over_v = _ratios(loads_after, segs, prob, seg_after)
+        after_l, after_m = _ratio_pair(loads_after, prob, seg_after)
         chip_v = _chip_ratios(loads_after, prob, seg_after)
         ce_after = ce_before if after is before else contour_error(after)
         if round_ == 1:
@@ -1015,7 +1020,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             cb = _reaching(ce_before, before, rec_before, air_floor)
             contour_before = _per_var(cb, seg_before, prob)
             contour_rec_before = _per_rec(cb, seg_before, rec_before, program)
-            own = _ratios(loads_before, segs, prob, seg_before) * 1.001
+            own_l, own_m = (r * 1.001 for r in _ratio_pair(loads_before, prob, seg_before))
             # the chip ceilings from physics cap a raise only: a segment may keep its own chip
             chip_ok = np.maximum(1.0, _chip_ratios(loads_before, prob, seg_before) * 1.001)
             # what the program runs at on a learned level, on a kept segment, or (the air
@@ -1024,16 +1029,19 @@ def _rounds(run: _Run) -> OptimizeResult | None:
             own_ok = (~var_given & ~(learned and worn)) | keep
             if opts.objective == "air":
                 own_ok[:] = True
-            allowed = np.where(own_ok, np.maximum(allowed, own), allowed)
+            allowed_l = np.where(own_ok, np.maximum(allowed_l, own_l), allowed_l)
+            allowed_m = np.where(own_ok, np.maximum(allowed_m, own_m), allowed_m)
+            own = np.maximum(own_l / allowed_l, own_m / allowed_m)  # over 1: the program breaks a limit there
+        over_v = np.maximum(after_l / allowed_l, after_m / allowed_m)  # (over 1: over what is allowed)
         raised = (f_try > f0 * (1 + 1e-9)) & ~keep
         at_floor = (f_try <= floor * (1 + 1e-9)) | keep
         # 1. the limits on each segment itself
-        over = (over_v > allowed) & ~keep
+        over = (over_v > 1.0) & ~keep
         # at its own feed over a given limit it also breaks in the program: its floor goes
         # — or over a given limit with no raised segment before it to blame: its own entry is
         # over the limit in the written program, so it must come down too
         prev_raised = (prev >= 0) & raised[np.maximum(prev, 0)]
-        drop = over & at_floor & (floor > lo) & ((own > allowed) | (var_given & ~prev_raised))
+        drop = over & at_floor & (floor > lo) & ((own > 1.0) | (var_given & ~prev_raised))
         if drop.any():
             floor = np.where(drop, lo, floor)
             broken |= drop
@@ -1043,7 +1051,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         # it brought the load in (its entry), and that one is slowed
         for v in np.flatnonzero(over & at_floor):
             if prev[v] >= 0:
-                blame[prev[v]] = max(blame[prev[v]], float(over_v[v] / allowed[v]))
+                blame[prev[v]] = max(blame[prev[v]], float(over_v[v]))
         # moves outside the segments (plunges, canned cycles, rapids) keep their feeds, but a
         # faster move before them changes how they are entered: each must stay within the
         # limits, or within what it had in the program; otherwise the segment before is slowed
@@ -1113,7 +1121,7 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         power = 1.0 if round_ == 1 else 2.0
         new_f = cur.copy()
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio_l = np.where(over, over_v / allowed, 1.0)
+            ratio_l = np.where(over, over_v, 1.0)
             # a limit on the segment itself: as low as it needs, down to its floor
             new_f = np.where(load_bad, np.minimum(new_f, f_try / ratio_l ** power * (1 - opts.margin)), new_f)
             lowered_for = np.where(load_bad, "load", lowered_for)
@@ -1718,6 +1726,17 @@ def _chip_ratios(loads: _Loads, prob, seg_of: np.ndarray) -> np.ndarray:
     h = prob.seg_hchecked[seg_of[inside]]
     _max_into(out, prob.seg_var[seg_of[inside]], np.where(np.isfinite(h), loads.chip[inside] / h, 0.0))
     return out
+
+
+def _ratio_pair(loads: _Loads, prob, seg_of: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per variable, the largest ratio of the load to its limit, and of spindle power or torque
+    to theirs, on a simulated trace (``seg_of``: the segment of every sample)."""
+    inside = seg_of >= 0
+    var = prob.seg_var[seg_of[inside]]
+    load, machine = np.zeros(prob.nvar), np.zeros(prob.nvar)
+    _max_into(load, var, loads.load[inside] / prob.seg_force[seg_of[inside]])
+    _max_into(machine, var, loads.machine[inside])
+    return load, machine
 
 
 def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray, machine: bool = True) -> np.ndarray:

@@ -63,13 +63,52 @@ def start_spins(p: Problem) -> np.ndarray:
     return n
 
 
+SPEED_GRID = 9  # speeds tried over a spindle range by the bisection (geometric)
+
+
+def best_spins(p: Problem, objective: str, start: np.ndarray) -> np.ndarray:
+    """With a spindle range, the speed of every spindle variable that gives its segments the
+    least time (or cost) at their highest feeds within every limit: the start speed and a
+    geometric grid over the range are tried.  A faster spindle carries the same chip at a
+    higher feed, so where a chip or load limit binds the feed, a higher speed pays until the
+    power, torque, chatter or the feed range stops it; the cost objective weighs the tool life
+    it spends.  The choice is per variable (its segments' limits depend on its speed alone);
+    the spindle's run-up waits, which tie them together, are weighed on the whole: the start
+    speeds stay unless the choice wins with them counted."""
+    lo_f = p.limits.feed[0]
+    cut = ~p.seg_air
+    cands = [start] + [np.full(p.nspin, s) for s in np.geomspace(*p.limits.spindle, SPEED_GRID)]
+    scores = []
+    for spins in cands:
+        fmax = p.max_feasible_feed(spins)
+        ev = p.evaluate(np.where(np.isnan(fmax), lo_f, fmax)[None, :], spins[None, :])
+        ts = ev["seg_time"][0]
+        seg = ts if objective == "time" else p.rates.cost(ts, ev["seg_lives"][0])
+        # a speed under which a segment breaks a limit even at the lowest feed loses to any
+        # that keeps them all
+        bad = np.where(cut, ev["violation"][0], 0.0) + np.isnan(fmax[p.seg_var])
+        scores.append(np.bincount(p.seg_spin, weights=seg + 1e9 * bad, minlength=p.nspin))
+    pick = np.argmin(np.array(scores), axis=0)
+    chosen = np.array([cands[k][i] for i, k in enumerate(pick)], float)
+
+    def total(spins):
+        fmax = p.max_feasible_feed(spins)
+        ev = p.evaluate(np.where(np.isnan(fmax), lo_f, fmax)[None, :], spins[None, :])
+        return float(ev[objective][0] + 1e9 * ev["violation"][0].sum())
+
+    return chosen if total(chosen) < total(start) else start
+
+
 def bisect(p: Problem, objective: str, target_power: float | None = None, tolerance: float = 0.05) -> SearchResult:
     """Per-segment bisection on the feed, as in the power-smoothing reference.
 
-    ``time`` (and ``cost``, for which it is the feed-only answer): the highest feed within the
-    range and the limits; ``smooth``: the feed whose segment mean power is the target within
-    ``tolerance`` (relative), capped by the limits; the spindle speeds stay (in range)."""
+    ``time`` and ``cost``: the highest feed within the range and the limits, at the speeds
+    :func:`best_spins` chooses when a spindle range is given; ``smooth``: the feed whose
+    segment mean power is the target within ``tolerance`` (relative), capped by the limits;
+    the spindle speeds stay (in range)."""
     spins = start_spins(p)
+    if p.limits.spindle and objective in ("time", "cost"):
+        spins = best_spins(p, objective, spins)
     fmax = p.max_feasible_feed(spins)
     lo_f, hi_f = p.limits.feed
     if objective in ("time", "cost"):
