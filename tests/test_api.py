@@ -193,3 +193,31 @@ def test_parse_verify_import_journal_and_tools_are_use_cases_too(tmp_path, capfd
     with pytest.raises(mtwin.errors.MtwinError, match="vb-limit"):
         mtwin.tools(str(tmp_path / "none.db"), vb_limit=1e99)
     assert capfd.readouterr().out == ""  # (the library prints nothing)
+
+
+def test_the_housekeeping_commands_are_use_cases_too(capfd):
+    """`materials`, `effects`, `config` and `cache` as data from the library (issue 36): what
+    the commands print with --json, or their text, comes from these."""
+    import subprocess
+    import sys
+
+    from mtwin.api import admin
+    from mtwin import warmup
+
+    def command(*args):
+        r = subprocess.run([sys.executable, "-m", "mtwin", *args], capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 0, r.stderr
+        return r.stdout
+
+    assert admin.materials() == json.loads(command("materials", "--json"))
+    assert admin.materials("304")[0]["name"] == json.loads(command("materials", "304", "--json"))["name"]
+    assert [e.as_dict() for e in admin.effects()] == json.loads(command("effects", "--json"))
+    assert [p.name for p in admin.effect("backlash").params] and admin.effect("backlash").stage == "observation"
+    assert admin.twin_toml(None) == command("config", "show")
+    hurco = str(ROOT / "samples/machines/hurco-vmx24.toml")
+    assert admin.check_twin(hurco).startswith("hurco")
+    info = warmup.cache_info()
+    assert command("cache", "info").splitlines()[0] == info.path
+    with pytest.raises(mtwin.errors.MtwinError):
+        admin.materials("unobtainium")
+    assert capfd.readouterr().out == ""

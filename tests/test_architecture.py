@@ -314,10 +314,14 @@ def test_a_programs_cutting_set_up_is_read_once_per_twin_and_lives_with_the_prog
     other = tw.with_material("1045")  # another cutting part: read again
     b = program_cutting(other, prog)
     assert b is not a and program_cutting(tw, prog) is a and program_cutting(other, prog) is b
+    # a twin copy per evaluation (a calibration's): the program keeps the last few set-ups
+    for k in range(10):
+        program_cutting(tw.with_params({"cutting.al6061.ktc": 1000.0 + k}), prog)
+    assert len(tw.cutting_cache) == tw.cutting_cache.PER_PROGRAM
     n = len(tw.cutting_cache._entries)
     del prog
     gc.collect()
-    assert len(tw.cutting_cache._entries) == n - 1
+    assert len(tw.cutting_cache._entries) == n - 1 and len(tw.cutting_cache) == 0
 
 
 def test_one_door_to_a_simulation():
@@ -330,3 +334,29 @@ def test_one_door_to_a_simulation():
             if isinstance(n, ast.ImportFrom) and any(a.name == "simulate_plan" for a in n.names):
                 callers.append(name)
     assert callers and set(callers) == {"mtwin.twin"}, callers
+
+
+# the library the commands may reach: the use cases (``api``, and the packages whose door is
+# their own: optimize, grind, fleet — the package, not its modules), the report renderers, and
+# what every layer shares (errors, units, io, version); ``warmup``, the kernel cache's use cases
+CLI_MAY_IMPORT = ("mtwin.api", "mtwin.optimize", "mtwin.grind", "mtwin.fleet", "mtwin.warmup", "mtwin.errors",
+                  "mtwin.units", "mtwin.io", "mtwin.version")
+CLI_MAY_IMPORT_UNDER = ("mtwin.api.", "mtwin.report.")
+
+
+def test_the_cli_reaches_the_library_through_its_use_cases():
+    """Issue 36: the CLI only parses, calls a use case and renders — it imports no library
+    module but the use cases' doors and the renderers."""
+    bad = []
+    for path in sorted(CLI.glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for n in ast.walk(tree):
+            if not isinstance(n, ast.ImportFrom) or n.level == 1:
+                continue
+            target = "mtwin." + (n.module or "") if n.level == 2 else (n.module or "")
+            if not target.startswith("mtwin") or target.startswith("mtwin.cli"):
+                continue
+            if target in CLI_MAY_IMPORT or target.startswith(CLI_MAY_IMPORT_UNDER):
+                continue
+            bad.append(f"{path.name}:{n.lineno} from {target} import {', '.join(a.name for a in n.names)}")
+    assert not bad, bad

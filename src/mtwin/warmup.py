@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import subprocess
 import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 #: set to "0" to keep a first run from compiling the kernels in a background process
@@ -223,3 +227,45 @@ def compiled_count() -> int:
     from . import jit
 
     return len(jit.COMPILE_LOG)
+
+
+# ---------------------------------------------------------------------- the cache as use cases (mtwin cache)
+
+@dataclass(frozen=True)
+class CacheInfo:
+    path: str
+    files: int
+    bytes: int
+
+
+def cache_info() -> CacheInfo:
+    """``mtwin cache info``: where the compiled kernels are and how much they hold."""
+    d = Path(cache_dir())
+    files = [p for p in d.rglob("*") if p.is_file()] if d.is_dir() else []
+    return CacheInfo(str(d), len(files), sum(p.stat().st_size for p in files))
+
+
+def cache_clear() -> str:
+    """``mtwin cache clear``: the compiled kernels deleted (the next run compiles what it
+    needs again); the folder's path."""
+    d = Path(cache_dir())
+    if d.is_dir():
+        shutil.rmtree(d)
+    return str(d)
+
+
+def cache_warm(on_progress: Callable[[str], None] | None = None) -> tuple[int, float, str]:
+    """``mtwin cache warm``: every kernel compiled into the cache now; (kernels compiled,
+    seconds, the cache's folder).  ``on_progress(what)`` as each starts."""
+    t0 = time.perf_counter()
+    warm(on_progress or (lambda what: None))
+    return compiled_count(), time.perf_counter() - t0, str(cache_dir())
+
+
+def cache_warm_background() -> None:
+    """The detached warm-up a first run starts: low priority, one at a time, silent."""
+    set_notices(None, None)
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(10)
+    with contextlib.suppress(AlreadyWarming), background_lock():
+        warm()

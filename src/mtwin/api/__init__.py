@@ -11,11 +11,15 @@ Conventions (as python-control writes its own down):
 * nothing is printed: warnings and notes go to ``on_message(kind, text)`` as they arise and
   stay on the result's ``messages``; bad input raises :class:`~mtwin.errors.MtwinError`.
 
+The housekeeping commands' use cases (twin files, effects, materials, the kernel cache) are
+in :mod:`mtwin.api.admin`.
+
 ``mtwin.optimize`` (the optimiser, :func:`mtwin.optimize.run.optimize`) and
 ``mtwin.grind`` (plunge grinding) follow the same rules in their own packages.
 """
 from __future__ import annotations
 
+from ..loop.measurement import signal_unit
 from ..twin.setup import Messages, TwinSetup, load_part, open_twin
 from ..units import SI_UNITS
 from .loop import (
@@ -41,4 +45,4 @@ from .verify import PathProof, prove_path, prove_stock
 __all__ = ["Calibration", "Comparison", "Diagnosis", "Messages", "Parsed", "PathProof", "Reading", "SI_UNITS", "Scaled",
            "Simulation", "Synthetic", "TwinSetup", "calibrate", "compare", "diagnose", "load_part", "measured_program",
            "objective_for", "open_twin", "parse", "prove_path", "prove_stock", "scale", "simulate", "simulate_runs",
-           "synthesize", "import_log", "journal", "tools", "tool"]
+           "synthesize", "import_log", "journal", "tools", "tool", "signal_unit"]

@@ -4,6 +4,8 @@ from __future__ import annotations
 from ..errors import MtwinError
 from ..ledger import VB_LIMIT, Ledger
 
+__all__ = ["MAX_VB_LIMIT", "VB_LIMIT", "check_vb_limit", "tool", "tools"]
+
 MAX_VB_LIMIT = 10.0  # mm: ISO 8688-2 ends an end mill's life at a 0.3-mm land; 10 mm is no flank land
 
 

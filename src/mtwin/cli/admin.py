@@ -1,9 +1,6 @@
-"""Housekeeping commands: ``config``, ``effects``, ``cache``."""
+"""Housekeeping commands: ``config``, ``effects``, ``cache``, ``materials`` (use cases of ``api.admin``; the cache's of ``warmup``)."""
 from __future__ import annotations
 
-import contextlib
-import os
-from pathlib import Path
 from typing import Optional
 
 import typer
@@ -22,25 +19,18 @@ def config_show(twin: Optional[str] = TWIN[1]):
     """Print the twin file (the embedded default machine, or --twin FILE with defaults filled in)."""
     import sys
 
-    from ..config import load_twin_file
-    from ..twin.files import load_machine
-    from ..twin.machine import machine_toml
+    from ..api.admin import twin_toml
 
-    sys.stdout.write(machine_toml(load_machine(twin), load_twin_file(twin)))
+    sys.stdout.write(twin_toml(twin))
 
 
 @config_app.command("check")
 @reports_errors
 def config_check(path: str = typer.Argument(..., help="Twin file to validate.")):
     """Validate a twin file: exit 0 if it is valid, 2 with a message naming the key if not."""
-    from ..config import load_twin_file
-    from ..twin.files import load_cutting, load_effects, load_machine
+    from ..api.admin import check_twin
 
-    load_twin_file(path)
-    m = load_machine(path)
-    load_cutting(path)
-    load_effects(path)
-    err.print(f"{path}: valid ({m.name})")
+    err.print(f"{path}: valid ({check_twin(path)})")
 
 
 effects_app = typer.Typer(help="The physical effects a twin can be given.",
@@ -48,36 +38,25 @@ effects_app = typer.Typer(help="The physical effects a twin can be given.",
 app.add_typer(effects_app, name="effects")
 
 
-def _load_effect_files(files) -> None:
-    from ..effects import load_file
-
-    for f in files or ():
-        load_file(f)
-
-
 @effects_app.callback()
 @reports_errors
 def effects_list(ctx: typer.Context, effect_file: Optional[list[str]] = EFFECT_FILES, json_out: bool = JSON):
     """List the effects: name, where it acts, what it changes."""
-    _load_effect_files(effect_file)
+    from ..api.admin import effects
+
+    found = effects(effect_file)
     if ctx.invoked_subcommand is not None:
         return
-    from ..effects import BUILTIN, available
     from .render import table
 
-    builtin = {c.name for c in BUILTIN}
-    rows = [{"name": n, "stage": c.stage, "origin": "built-in" if n in builtin else "user",
-             "description": c.description, "signals": list(c.signals),
-             "params": [p.name for p in c.params]} for n, c in available().items()]
     if json_out:
-        emit_json(rows)
+        emit_json([e.as_dict() for e in found])
         return
     t = table("name", "acts", "what it is", title="effects (mtwin effects show NAME for one)")
     t.columns[0].no_wrap = t.columns[1].no_wrap = True
-    for r in rows:
-        t.add_row(r["name"] + ("" if r["origin"] == "built-in" else " (user)"),
-                  {"loop": "in the loop", "plan": "before planning"}.get(r["stage"], "on observation"),
-                  r["description"])
+    for e in found:
+        t.add_row(e.name + ("" if e.origin == "built-in" else " (user)"),
+                  {"loop": "in the loop", "plan": "before planning"}.get(e.stage, "on observation"), e.description)
     err.print(t)
 
 
@@ -88,10 +67,9 @@ def effects_show(name: str = typer.Argument(..., help="An effect's name."),
     """One effect: what it is, how it acts, its parameters with units, bounds and defaults."""
     import sys
 
-    from ..effects import get
+    from ..api.admin import effect
 
-    _load_effect_files(effect_file)
-    c = get(name)
+    c = effect(name, effect_file)
     lines = [f"{c.name}: {c.description}",
              "acts " + {"loop": "in the loop (the drives and the process feel it)",
                         "plan": "before planning (the controller's timing: the whole run follows it)"}.get(
@@ -115,22 +93,14 @@ def cache_warm(quiet: bool = typer.Option(False, "--quiet", help="No progress li
                background: bool = typer.Option(False, "--background", hidden=True,
                                                help="Run as the background warm-up a first run starts.")):
     """Compile every kernel into the cache now (once per install; for container images)."""
-    import time
-
-    from ..warmup import AlreadyWarming, background_lock, cache_dir, compiled_count, set_notices, warm
+    from ..warmup import cache_warm as warm, cache_warm_background
 
     if background:
-        # the detached warm-up a first run started: low priority, one at a time, silent
-        set_notices(None, None)
-        with contextlib.suppress(OSError, AttributeError):
-            os.nice(10)
-        with contextlib.suppress(AlreadyWarming), background_lock():
-            warm()
+        cache_warm_background()
         return
-    t0 = time.perf_counter()
-    warm(lambda what: None if quiet else err.print(f"warming: {what}"))
+    n, seconds, where = warm(None if quiet else lambda what: err.print(f"warming: {what}"))
     if not quiet:
-        err.print(f"{compiled_count()} kernel(s) compiled in {time.perf_counter() - t0:.1f} s; cache: {cache_dir()}")
+        err.print(f"{n} kernel(s) compiled in {seconds:.1f} s; cache: {where}")
 
 
 @cache_app.command("info")
@@ -139,26 +109,19 @@ def cache_info():
     """Where the cache is and how much it holds."""
     import sys
 
-    from ..warmup import cache_dir
+    from ..warmup import cache_info as info
 
-    d = Path(cache_dir())
-    files = [p for p in d.rglob("*") if p.is_file()] if d.is_dir() else []
-    size = sum(p.stat().st_size for p in files)
-    sys.stdout.write(f"{d}\n{len(files)} files, {size / 1e6:.1f} MB\n")
+    c = info()
+    sys.stdout.write(f"{c.path}\n{c.files} files, {c.bytes / 1e6:.1f} MB\n")
 
 
 @cache_app.command("clear")
 @reports_errors
 def cache_clear():
     """Delete the compiled kernels (the next run compiles what it needs again)."""
-    import shutil
+    from ..warmup import cache_clear as clear
 
-    from ..warmup import cache_dir
-
-    d = Path(cache_dir())
-    if d.is_dir():
-        shutil.rmtree(d)
-    err.print(f"removed {d}")
+    err.print(f"removed {clear()}")
 
 
 @app.command("materials")
@@ -169,21 +132,10 @@ def materials(name: Optional[str] = typer.Argument(None, help="One material (any
     """The cutting-data catalogue: materials and their sources.
 
     The names --material and cutting.material take (docs/catalogue.md)."""
-    from ..cutting import catalogue as C
+    from ..api.admin import materials as catalogue
     from .render import table
 
-    cat = C.catalogue()
-    keys = [C.resolve(name, "mtwin materials")] if name is not None else list(cat.materials)
-    rows = []
-    for k in keys:
-        m = cat.materials[k]
-        co = C.material_coefficients(k)
-        rows.append({"name": k, "title": m.title, "iso_group": m.iso, "names": list(m.names), "kc11": m.kc11,
-                     "mc": m.mc, "kc_source": cat.source_text(m.kc_source),
-                     "coefficients": {"ktc": co.ktc, "krc": co.krc, "kac": co.kac, "kte": co.kte, "kre": co.kre,
-                                      "kae": co.kae, "source": co.source},
-                     "chip_load": {f"{d:g}": C.chip_load(k, d) for d in (3.0, 6.0, 10.0, 12.0, 20.0)},
-                     "chip_source": C.chip_source(k)})
+    rows = catalogue(name)
     if json_out:
         emit_json(rows if name is None else rows[0])
         return

@@ -7,7 +7,6 @@ command's own parser before anything runs); a manifest's ``options`` column adds
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 from typing import Optional
 
 import typer
@@ -47,7 +46,7 @@ def _command(name: str):
                 workers: Optional[int] = WORKERS, scheduler: Optional[str] = SCHEDULER,
                 scheduler_file: Optional[str] = SCHEDULER_FILE, retries: int = RETRIES, json_out: bool = JSON_OUT,
                 recipe: Optional[str] = RECIPE):
-        from ..fleet import read_batch_jobs
+        from ..fleet import check_out_dir, choose_runner, read_batch_jobs
         from .batchargs import check_common, split_args
 
         programs, common = split_args(name, ctx.args)
@@ -63,11 +62,11 @@ def _command(name: str):
                     for j in jobs]
         if retries < 0:
             raise MtwinError(f"--retries {retries}: give 0 or more")
-        _check_out_dir(output, jobs, [manifest, recipe])
+        check_out_dir(output, jobs, [manifest, recipe])
         import time
 
         jobs = [replace(j, date_epoch=int(time.time())) for j in jobs]
-        runner = _runner(workers, scheduler, scheduler_file, retries, len(jobs))
+        runner = choose_runner(workers, scheduler, scheduler_file, retries, len(jobs), say)
         try:
             b = _run(name, jobs, output, tuple(common), runner)
         finally:
@@ -94,61 +93,13 @@ def _with_recipe(name, jobs, recipe, common):
         return jobs
     if name != "calibrate":
         raise MtwinError("--recipe is a calibration procedure: batch calibrate")
-    from ..fleet.manifest import read_recipe
+    from ..fleet import read_recipe
     from .batchargs import check_common
 
     steps = read_recipe(recipe)
     for k, opts in enumerate(steps, start=1):
         check_common(name, list(common) + list(opts), f"{recipe}: step {k}")
     return [replace(j, steps=steps) for j in jobs]
-
-
-def _check_out_dir(output: str, jobs=(), others=()) -> None:
-    """The output folder: a folder (made) or a name not yet taken, in a folder that exists, and
-    none of the batch's inputs inside it — each job's folder there is written whole (a job
-    named ``j`` whose program is ``j/ga.nc`` beside the manifest would be replaced by its
-    optimised self), and the summary files beside them."""
-    p = Path(output)
-    if p.exists() and not p.is_dir():
-        raise MtwinError(f"-o {output}: a file, not a folder")
-    if not p.exists() and not p.resolve().parent.is_dir():
-        raise MtwinError(f"-o {output}: the folder {p.resolve().parent} does not exist")
-    if not p.exists():
-        return
-    root = p.resolve()
-    inputs = [Path(j.base, f) for j in jobs for f in j.files()] + [Path(x) for x in others if x]
-    for f in inputs:
-        if f.resolve().is_relative_to(root):
-            raise MtwinError(f"-o {output}: the output folder holds an input of the batch ({f}); its job folders "
-                             f"and summary files would be written over it — give another -o folder")
-
-
-def _runner(workers, scheduler, scheduler_file, retries, n_jobs):
-    """A Dask cluster, or None (one job at a time here): without Dask, say how to get it."""
-    from ..fleet.runner import FLEET_HINT, Cluster, have_dask
-
-    if scheduler and scheduler_file:
-        raise MtwinError("give --scheduler or --scheduler-file, not both")
-    if scheduler_file:  # (Dask reads it to the end: a regular file of a manifest's size, like every input)
-        from ..io import check_input
-
-        check_input(scheduler_file, "manifest")
-    if workers is not None and (scheduler or scheduler_file):
-        raise MtwinError("--workers makes a local cluster; an existing cluster's workers are its own")
-    if workers is not None and workers < 0:
-        raise MtwinError(f"--workers {workers}: give 0 (in this process) or more")
-    if not have_dask():
-        if scheduler or scheduler_file or workers:
-            raise MtwinError(f"running on Dask needs its packages: {FLEET_HINT}")
-        say(f"note: Dask is not installed: the jobs run one at a time in this process (for one per core, or a "
-            f"cluster: {FLEET_HINT})")
-        return None
-    if workers == 0 and not (scheduler or scheduler_file):
-        return None
-    from ..fleet.runner import cores
-
-    return Cluster(workers=min(workers or cores(), n_jobs) if not (scheduler or scheduler_file) else None,
-                   scheduler=scheduler, scheduler_file=scheduler_file, retries=retries)
 
 
 def _run(name, jobs, output, common, runner):

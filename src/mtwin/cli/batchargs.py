@@ -4,7 +4,7 @@ exit 2, not every job with exit 1)."""
 from __future__ import annotations
 
 from ..errors import MtwinError
-from ..fleet.manifest import NEEDS_MEASUREMENT, own_options
+from ..fleet import NEEDS_MEASUREMENT, own_options
 
 
 def option_arity(name: str) -> dict:

@@ -93,13 +93,12 @@ def simulate(
     """Run a given cycle on the nominal part: time, size error, roundness, roughness proxy,
     burn and force, each against its limit, and the trace."""
     from ..grind import simulate as run_cycle
-    from ..motion.trace import write_columns
     from .render import table
 
     check_outputs(output)
     r = run_cycle(cycle, twin)
     if output:
-        write_columns(output, r.trace_columns(), {"source": "mtwin grind simulate", "cycle": cycle})
+        r.write_trace(output, cycle)
     if json_out:
         emit_json(r.as_dict(), indent=1)
         return
@@ -131,7 +130,6 @@ def calibrate(
     """Fit grinding parameters (compliance and stress intensity by default) to a recorded
     cycle by bounded least squares on the actual feed and the radial force."""
     from ..grind import calibrate as run_calibrate
-    from ..grind.model import BY_NAME
 
     check_outputs(output)
     c = run_calibrate(cycle, measurement, tuple(param), twin)
@@ -141,6 +139,6 @@ def calibrate(
         emit_json(c.as_dict(), indent=1)
         return
     for k, v in c.result["values"].items():
-        err.print(f"{k}: {c.twin[k]:.6g} -> {v:.6g} {BY_NAME[k].unit}", highlight=False)
+        err.print(f"{k}: {c.twin[k]:.6g} -> {v:.6g} {c.unit(k)}", highlight=False)
     err.print(f"normalised RMS of feed and force residuals: {c.result['rms_before']:.4g} -> {c.result['rms_after']:.4g}",
               highlight=False)

@@ -102,7 +102,7 @@ def compare(
     """How far the twin is from a measurement of PART, signal by signal, and the program lines
     where it is farthest."""
     from ..api import compare as run_compare
-    from ..loop.journal import read_journal
+    from ..api import journal as read_journal
     from ..report.compare_html import compare_html
 
     check_report(report, stdout_ok=True)
@@ -120,7 +120,7 @@ def compare(
 
 
 def _print_comparison(c, measurement: str) -> None:
-    from ..loop.measurement import signal_unit
+    from ..api import signal_unit
     from .render import table
 
     res, prog, blocks = c.result, c.program, c.result.blocks

@@ -27,7 +27,7 @@ GA = Group({"seed": (int, typer.Option(0, "--seed", help="GA random seed (same s
 
 def _limit_options(force_limit, chip_limit, tolerance, rough_tolerance, finish_feed, ramp_feed, limits,
                    limit_scale) -> dict:
-    from ..optimize.run import parse_force_limit
+    from ..optimize import parse_force_limit
 
     return {"force_limit": parse_force_limit(force_limit) if force_limit is not None else None,
             "chip_limit": chip_limit, "tolerance": tolerance, "rough_tolerance": rough_tolerance,
@@ -158,7 +158,7 @@ def optimize(
 
 def _max_layers(layers: str, max_layers) -> int:
     """--layers and --max-layers as OptimizeOptions.max_layers (0: off)."""
-    from ..optimize.layers import MAX_LAYERS
+    from ..optimize import MAX_LAYERS
 
     if layers not in ("off", "auto"):
         raise MtwinError(f"--layers must be off or auto, got {layers!r}")
@@ -220,7 +220,7 @@ def _run_with_progress(setup, part, opts, generations: int):
 
 
 def _print_optimize(res, path: str) -> None:
-    from ..optimize.guards import line_ranges
+    from ..optimize import line_ranges
 
     b, a = res.before, res.after
     verdict, change = res.verdict

@@ -100,7 +100,7 @@ def twin_options(effects: bool = False, stock: bool = False, planner: bool = Fal
     options.update(twin=TWIN, dialect=DIALECT, lenient=LENIENT, block_delete=BLOCK_DELETE)
 
     def build(**values):
-        from ..twin.setup import TwinSetup
+        from ..api import TwinSetup
 
         return TwinSetup(**{k: tuple(v or ()) if k in ("effects", "effect_files", "tools", "tool_ids") else v
                             for k, v in values.items()})

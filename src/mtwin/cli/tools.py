@@ -24,7 +24,7 @@ def tools_list(ctx: typer.Context, ledger: str = LEDGER, vb_limit: Optional[floa
                json_out: bool = JSON):
     """List the ledger's tools: runs, path cut, the land now and the parts left to the limit."""
     from ..api.tools import tools
-    from ..ledger import VB_LIMIT as LIMIT
+    from ..api.tools import VB_LIMIT as LIMIT
 
     limit = vb_limit if vb_limit is not None else LIMIT
     ctx.obj = {"ledger": ledger, "vb_limit": limit, "json": json_out}

@@ -304,8 +304,12 @@ def _scan(data: bytes):
 
 class ProgramCuttings:
     """Each program's cutting set-up (``for_program``), per cutting part it was made from: a
-    twin owns one (``Twin.cutting_cache``), so a program loaded once is read for its tools once.
-    An entry lives as long as its program."""
+    twin owns one (``Twin.cutting_cache``, shared by its copies), so a program loaded once is
+    read for its tools once.  An entry lives as long as its program, and holds the set-ups of
+    the last ``PER_PROGRAM`` cutting parts it met: a calibration that tries a twin copy per
+    evaluation (each with a cutting part of its own) keeps a few, not one per evaluation."""
+
+    PER_PROGRAM = 4
 
     def __init__(self):
         self._entries: dict = {}
@@ -315,16 +319,28 @@ class ProgramCuttings:
         if e is None or e[0]() is not program:
             return None
         hit = e[1].get(id(cutting))
-        return hit[1] if hit is not None and hit[0] is cutting else None
+        if hit is None or hit[0] is not cutting:
+            return None
+        e[1].move_to_end(id(cutting))
+        return hit[1]
 
     def put(self, program, cutting: Cutting, cut: Cutting) -> None:
         import weakref
+        from collections import OrderedDict
 
         key, entries = id(program), self._entries
         e = entries.get(key)
         if e is None or e[0]() is not program:
-            e = entries[key] = (weakref.ref(program, lambda _ref: entries.pop(key, None)), {})
-        e[1][id(cutting)] = (cutting, cut)  # (the cutting part held: its id stays its own)
+            e = entries[key] = (weakref.ref(program, lambda _ref: entries.pop(key, None)), OrderedDict())
+        parts = e[1]
+        parts[id(cutting)] = (cutting, cut)  # (the cutting part held: its id stays its own)
+        parts.move_to_end(id(cutting))
+        while len(parts) > self.PER_PROGRAM:
+            parts.popitem(last=False)
+
+    def __len__(self) -> int:
+        """The set-ups held, over every live program."""
+        return sum(len(e[1]) for e in self._entries.values() if e[0]() is not None)
 
 
 def for_program(cutting: Cutting, program) -> Cutting:

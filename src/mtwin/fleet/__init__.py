@@ -7,12 +7,14 @@ and the summary).  ``mtwin batch`` is the command line over it (docs/fleet.md).
 """
 from __future__ import annotations
 
-from .batch import Batch, run_batch
+from .batch import Batch, check_out_dir, run_batch
 from .job import Outcome, run_job
-from .manifest import COMMANDS, Job, ManifestError, jobs_from_paths, read_manifest
+from .manifest import COMMANDS, NEEDS_MEASUREMENT, Job, ManifestError, jobs_from_paths, own_options, read_manifest, read_recipe
+from .runner import choose_runner
 
-__all__ = ["Batch", "COMMANDS", "Job", "ManifestError", "Outcome", "jobs_from_paths", "read_batch_jobs",
-           "read_manifest", "run_batch", "run_job"]
+__all__ = ["Batch", "COMMANDS", "Job", "ManifestError", "NEEDS_MEASUREMENT", "Outcome", "check_out_dir",
+           "choose_runner", "jobs_from_paths", "own_options", "read_batch_jobs", "read_manifest", "read_recipe",
+           "run_batch", "run_job"]
 
 
 def read_batch_jobs(command: str, manifest=None, programs=(), twins=(), measurements=()) -> list:

@@ -19,8 +19,10 @@ import os
 import statistics
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable, Optional
 
+from ..errors import MtwinError
 from ..io import write_bytes
 from .job import Outcome
 from .manifest import Job
@@ -259,3 +261,23 @@ def _fit_error(before, after):
         return None, None, None
     k = min(both, key=lambda n: after[n] / before[n] if before[n] else 1.0)
     return k, float(before[k]), float(after[k])
+
+
+def check_out_dir(output: str, jobs=(), others=()) -> None:
+    """The output folder: a folder (made) or a name not yet taken, in a folder that exists, and
+    none of the batch's inputs inside it — each job's folder there is written whole (a job
+    named ``j`` whose program is ``j/ga.nc`` beside the manifest would be replaced by its
+    optimised self), and the summary files beside them."""
+    p = Path(output)
+    if p.exists() and not p.is_dir():
+        raise MtwinError(f"-o {output}: a file, not a folder")
+    if not p.exists() and not p.resolve().parent.is_dir():
+        raise MtwinError(f"-o {output}: the folder {p.resolve().parent} does not exist")
+    if not p.exists():
+        return
+    root = p.resolve()
+    inputs = [Path(j.base, f) for j in jobs for f in j.files()] + [Path(x) for x in others if x]
+    for f in inputs:
+        if f.resolve().is_relative_to(root):
+            raise MtwinError(f"-o {output}: the output folder holds an input of the batch ({f}); its job folders "
+                             f"and summary files would be written over it — give another -o folder")

@@ -207,3 +207,32 @@ class Cluster:
         finally:
             if self.cluster is not None:
                 self.cluster.close()
+
+
+def choose_runner(workers: Optional[int], scheduler: Optional[str], scheduler_file: Optional[str], retries: int,
+                  n_jobs: int, on_message: Callable[[str], None] = lambda text: None) -> Optional["Cluster"]:
+    """Where ``mtwin batch`` runs its jobs, from its options: a Dask cluster (local, of
+    ``workers`` processes, one per core by default; or an existing one's ``scheduler`` or
+    ``scheduler_file``), or None — one job at a time in this process (``workers`` 0, or Dask
+    not installed: ``on_message`` says how to get it)."""
+
+    if scheduler and scheduler_file:
+        raise MtwinError("give --scheduler or --scheduler-file, not both")
+    if scheduler_file:  # (Dask reads it to the end: a regular file of a manifest's size, like every input)
+        from ..io import check_input
+
+        check_input(scheduler_file, "manifest")
+    if workers is not None and (scheduler or scheduler_file):
+        raise MtwinError("--workers makes a local cluster; an existing cluster's workers are its own")
+    if workers is not None and workers < 0:
+        raise MtwinError(f"--workers {workers}: give 0 (in this process) or more")
+    if not have_dask():
+        if scheduler or scheduler_file or workers:
+            raise MtwinError(f"running on Dask needs its packages: {FLEET_HINT}")
+        on_message(f"note: Dask is not installed: the jobs run one at a time in this process (for one per core, or a "
+            f"cluster: {FLEET_HINT})")
+        return None
+    if workers == 0 and not (scheduler or scheduler_file):
+        return None
+    return Cluster(workers=min(workers or cores(), n_jobs) if not (scheduler or scheduler_file) else None,
+                   scheduler=scheduler, scheduler_file=scheduler_file, retries=retries)

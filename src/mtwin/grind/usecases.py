@@ -101,6 +101,13 @@ class GrindRun:
     def trace_columns(self) -> dict:
         return trace_columns(self.twin, self.stages)
 
+    def write_trace(self, path: str, cycle: str) -> None:
+        """The trace as a measurement-format file (``mtwin grind simulate -o``; ``-``: stdout),
+        its header naming the cycle file it ran."""
+        from ..motion.trace import write_columns
+
+        write_columns(path, self.trace_columns(), {"source": "mtwin grind simulate", "cycle": cycle})
+
     def as_dict(self) -> dict:
         return {**self.figures, "limit_ratios": self.ratios, "stage_times": self.stage_times}
 
@@ -131,6 +138,11 @@ class GrindCalibration:
 
     def cycle_toml(self, source: str) -> str:
         return cycle_toml(self.fitted, self.stages, f"calibrated by mtwin grind calibrate on {source}")
+
+    @staticmethod
+    def unit(name: str) -> str:
+        """A fitted parameter's unit."""
+        return BY_NAME[name].unit
 
     def as_dict(self) -> dict:
         return self.result

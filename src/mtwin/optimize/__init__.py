@@ -11,7 +11,9 @@ use case as the other use cases are functions of ``mtwin`` (``mtwin.simulate``, 
 import sys
 import types
 
-from .run import InfeasibleError, OptimizeOptions, OptimizeResult, optimize, record_optimised
+from .guards import line_ranges
+from .layers import MAX_LAYERS
+from .run import InfeasibleError, OptimizeOptions, OptimizeResult, optimize, parse_force_limit, record_optimised
 from .search import GAOptions
 
 
@@ -22,4 +24,5 @@ class _CallablePackage(types.ModuleType):
 
 sys.modules[__name__].__class__ = _CallablePackage
 
-__all__ = ["optimize", "OptimizeOptions", "OptimizeResult", "GAOptions", "InfeasibleError", "record_optimised"]
+__all__ = ["optimize", "OptimizeOptions", "OptimizeResult", "GAOptions", "InfeasibleError", "MAX_LAYERS",
+           "line_ranges", "parse_force_limit", "record_optimised"]
