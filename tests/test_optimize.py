@@ -356,3 +356,38 @@ def test_a_power_limit_stops_the_speed_where_it_binds():
     prog = tw.load(str(SAMPLES / "slots.nc"))
     res = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
     assert res.after.peak_power <= 300.0 * 1.0001
+
+
+SHARED_SUB = b"""(T1 D=6. CR=0. - FLAT END MILL)
+(T2 D=6. CR=0. - FLAT END MILL)
+(MTWIN STOCK -10,-10,-10,70,50,0)
+G21 G90 G17 G94
+o100 sub
+G0 Z2.
+G1 Z-1. F300.
+G1 X#1 F600.
+G0 Z5.
+o100 endsub
+T1 M6
+S3000 M3
+G0 X0 Y10.
+o100 call [50.]
+T2 M6
+S3000 M3
+G0 X0 Y30.
+o100 call [50.]
+M30
+"""
+
+
+def test_a_speed_that_cannot_be_written_stays_and_says_so():
+    """Found on LinuxCNC's mmount.ngc: with --spindle-range, a tool whose moves run in a
+    subprogram other tools call too got a new S written into the subprogram, the writer's
+    own check refused it, and the run failed ("internal check failed").  Such a tool keeps
+    its programmed speed, with a warning, and the answer is written."""
+    tw = mtwin.Twin()
+    prog = tw.load(SHARED_SUB, path="shared.ngc")
+    res = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
+    assert res.spindle == {1: 3000.0, 2: 3000.0}
+    assert any("keep the programmed speed" in w for w in res.warnings)
+    assert compare(prog, tw.load(res.output, path="o.ngc")) is None

@@ -56,6 +56,7 @@ class InfeasibleError(MtwinError):
 MAX_TOLERANCE = 10.0
 MAX_POPULATION = 10_000
 MAX_GENERATIONS = 100_000
+MAX_SPIN_TRIALS = 64  # spindle variables tried one by one for a speed the writer can place
 
 
 @dataclass
@@ -666,6 +667,8 @@ def _limits(run: _Run) -> OptimizeResult | None:
     limits = Limits(None, m.spindle.rated_power, m.spindle.base_speed, feed_range, spindle_range, opts.margin)
     prob = build_problem(model, segs, times, power0, program, limits, rates, opts.spindle_per,
                          before.summary.cycle_time, cut.spindle_loss, m.spindle.max_speed, force_of_tool)
+    if spindle_range is not None:
+        prob = _lock_unwritable_spins(prob, program, segs, warnings)
     seg_given = np.array([given_for(int(t)) is not None for t in prob.seg_tool], bool)
     # finishing passes, and the last pass over a floor or a wall read off the stock the
     # program leaves: the segments that leave a final surface (the guards' and the deflection's)
@@ -1852,6 +1855,46 @@ def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarr
     out = np.where((out < f0) & (f >= f0), f0, out)
     # a raise under 1 % is not worth an F word (nor a split move): the program's own
     return np.where((np.abs(f - f0) < 0.5 * step) | ((f > f0) & (f < 1.01 * f0)), f0, out)
+
+
+def _lock_unwritable_spins(prob, program, segs, warnings: list):
+    """With a spindle range: the spindle variables whose new speed cannot be written.  Where a
+    line runs more than once (a subprogram, a loop) a tool's first move may be on a line other
+    tools run too; an S word there would change their speed as well, and the writer refuses
+    it.  Each variable is tried alone with a changed speed (only in such programs: elsewhere
+    every line runs once); a refused one keeps the program's speed, with a warning."""
+    from ..gcode.records import FL_FIRST_IN_LINE
+    from ..gcode.writer import WriteError, rewrite
+
+    rec = program.records
+    first = rec["line"][(rec["flags"] & FL_FIRST_IN_LINE) != 0]
+    if not prob.nspin or len(np.unique(first)) == len(first):
+        return prob
+    locked = np.zeros(prob.nspin, bool)
+    keep_all = np.ones(prob.nvar, bool)
+
+    def writable(spins) -> bool:
+        _, _, spins_rec = _expand(program, segs, prob.f0_var, spins, prob, True, keep_all)
+        try:
+            rewrite(program, None, np.where(np.isnan(spins_rec), np.nan, np.round(spins_rec)), {})
+        except WriteError:
+            return False
+        return True
+
+    # (any other speed: the writer's placement is what is tried; each variable its own)
+    other = prob.n0_spin + 100.0 * (1 + np.arange(prob.nspin))
+    if prob.nspin > MAX_SPIN_TRIALS:
+        locked[:] = True  # (a speed per segment in such a program: none is tried)
+    for v in range(prob.nspin) if prob.nspin <= MAX_SPIN_TRIALS else ():
+        locked[v] = not writable(np.where(np.arange(prob.nspin) == v, other, prob.n0_spin))
+    if not locked.all() and not writable(np.where(locked, prob.n0_spin, other)):
+        locked[:] = True  # (each alone, but not together)
+    if locked.any():
+        tools = sorted({int(t) for t, s in zip(prob.seg_tool, prob.seg_spin) if locked[s]})
+        warnings.append(f"{program.path}: warning: --spindle-range: {', '.join(f'T{t}' for t in tools)} "
+                        f"keep{'s' if len(tools) == 1 else ''} the programmed speed — a new S word would fall on a "
+                        f"line the program also runs for other tools (a subprogram or a loop)")
+    return replace(prob, spin_locked=locked)
 
 
 def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndarray, entries: dict | None = None,

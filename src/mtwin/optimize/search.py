@@ -48,6 +48,8 @@ def fixed_spins(p: Problem) -> np.ndarray:
     n = p.n0_spin.copy()
     if p.limits.spindle:
         n = np.clip(n, *p.limits.spindle)
+        if p.spin_locked is not None:
+            n = np.where(p.spin_locked, p.n0_spin, n)
     return n
 
 
@@ -60,6 +62,8 @@ def start_spins(p: Problem) -> np.ndarray:
         from .chatter import stable_spins
 
         n = stable_spins(p.chatter, p, n)
+        if p.spin_locked is not None:
+            n = np.where(p.spin_locked, p.n0_spin, n)
     return n
 
 
@@ -89,6 +93,8 @@ def best_spins(p: Problem, objective: str, start: np.ndarray) -> np.ndarray:
         bad = np.where(cut, ev["violation"][0], 0.0) + np.isnan(fmax[p.seg_var])
         scores.append(np.bincount(p.seg_spin, weights=seg + 1e9 * bad, minlength=p.nspin))
     pick = np.argmin(np.array(scores), axis=0)
+    if p.spin_locked is not None:
+        pick[p.spin_locked] = 0  # (the start: the program's own speed)
     chosen = np.array([cands[k][i] for i, k in enumerate(pick)], float)
 
     def total(spins):
@@ -169,6 +175,10 @@ def genetic(p: Problem, objective: str, opts: GAOptions, seeds: list, target_pow
         hi += [math.log(p.limits.spindle[1])] * p.nspin
     lo = np.array(lo)
     hi = np.array(hi)
+    if opt_spin and p.spin_locked is not None:
+        own = np.log(np.maximum(p.n0_spin, 1e-9))
+        lo[p.nvar:] = np.where(p.spin_locked, own, lo[p.nvar:])
+        hi[p.nvar:] = np.where(p.spin_locked, own, hi[p.nvar:])
     ng = len(lo)
     spins_fixed = fixed_spins(p)
 
@@ -190,7 +200,7 @@ def genetic(p: Problem, objective: str, opts: GAOptions, seeds: list, target_pow
     for k, (f, n) in enumerate(seeds[:P]):
         row = np.log(np.clip(f, lo_f, hi_f))
         if opt_spin:
-            row = np.concatenate([row, np.log(np.clip(n, *p.limits.spindle))])
+            row = np.concatenate([row, np.clip(np.log(np.maximum(n, 1e-9)), lo[p.nvar:], hi[p.nvar:])])
         X[k] = row
     fit = score(X)
     best_hist = [float(fit.min())]
