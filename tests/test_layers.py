@@ -12,7 +12,7 @@ from conftest import SAMPLES
 import mtwin
 from mtwin.optimize.run import InfeasibleError, OptimizeOptions, optimize
 
-SLOTS = SAMPLES / "slots.nc"  # three slots in 1045; the 6 mm deep one is 82 N at 100 mm/min
+SLOTS = SAMPLES / "slots.nc"  # three slots (the default material); the 6 mm deep one is 82 N at 100 mm/min
 LIMIT = dict(force_limit=60.0, feed_range=(100.0, 3000.0))
 
 
