@@ -730,7 +730,7 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         e_word = has[_E]  # only G76 uses E (its taper length); checked once the mode is known
 
         nwarn_line = nwarn  # codes ignored by --lenient may own words we cannot check
-        # ---- classify G codes ----
+        # ---- classify G and M codes ----
         g_feedmode = -1
         g_plane = -1
         g_units = -1
@@ -758,26 +758,62 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
         g_dwell = False
         g_cancel = False
         g_exact_stop_once = False
+        m_tc = False
+        m_spindle = -2
+        m_cool = -1
+        m_end = False
+        m_sub = False
+        m_ret = False
+        m61 = False
+        m_io = False
+        m_save = -1  # M70/M73 save (1), M71 invalidate (2), M72 restore (3)
         g_seen[:] = False
+        m_seen[:] = False
         drow = 0 if dialect == 0 else 1
-        for q in range(ng):
-            code = gcodes[q]
-            kw = gword[q]
-            slot = G_TABLE[drow, code, 0] if code < 1000 else -1
-            group = G_TABLE[drow, code, 1] if code < 1000 else -1
-            if slot == GS_GEOMETRY:
+        # the G codes, then the M codes, each looked up in its table (G_TABLE, M_TABLE): an
+        # unknown code is an error (--lenient passes over it), one code per modal group
+        for q in range(ng + nm):
+            is_m = q >= ng
+            code = mcodes[q - ng] if is_m else gcodes[q]
+            kw = mword[q - ng] if is_m else gword[q]
+            table = M_TABLE if is_m else G_TABLE
+            slot = table[drow, code, 0] if code < 1000 else -1
+            group = table[drow, code, 1] if code < 1000 else -1
+            if slot == GS_GEOMETRY and not is_m:
                 return n, E_GEOMETRY_G, kw, li, err_vals, nwarn
             if slot < 0:
-                # --lenient passes over an unknown code only on a block without axis words: with
-                # them it may be a motion of its own (a lathe cycle, a probe, a macro call)
-                if lenient and not (has[_X] or has[_Y] or has[_Z] or has[_AT] or has[_CARET]):
-                    nwarn = _warn(warn_code, warn_word, nwarn, W_IGNORED_G, kw)
+                # --lenient passes over an unknown M code, and an unknown G code on a block without
+                # axis words: with them it may be a motion of its own (a lathe cycle, a probe, a
+                # macro call)
+                if lenient and (is_m or not (has[_X] or has[_Y] or has[_Z] or has[_AT] or has[_CARET])):
+                    nwarn = _warn(warn_code, warn_word, nwarn, W_IGNORED_M if is_m else W_IGNORED_G, kw)
                     continue
-                return n, E_UNSUPPORTED_G, kw, li, err_vals, nwarn
-            if _taken(g_seen, group):  # two codes of one modal group in a block
+                return n, E_UNSUPPORTED_M if is_m else E_UNSUPPORTED_G, kw, li, err_vals, nwarn
+            if _taken(m_seen if is_m else g_seen, group):  # two codes of one modal group in a block
                 return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-            # what each group's code sets
-            if slot == GS_CANCEL:
+            # what the code sets: an M code by its slot, a G code by its group's slot
+            if is_m:
+                if slot == MS_TOOLCHANGE:
+                    m_tc = True
+                elif slot == MS_SET_TOOL:
+                    m61 = True
+                elif slot == MS_SAVE:
+                    # M70/M73 save (M73 restored at the subroutine's return), M71 forget, M72 restore;
+                    # L is the call level (given by the macro executor)
+                    m_save = 1 if (code == 700 or code == 730) else (2 if code == 710 else 3)
+                elif slot == MS_IO:
+                    m_io = True  # M62-M65 outputs (P), M66 wait (P/E, L, Q), M67/M68 analog (E, Q)
+                elif slot == MS_SPINDLE:
+                    m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
+                elif slot == MS_COOLANT:
+                    m_cool = 1 if code == 70 else (2 if code == 80 else 0)
+                elif slot == MS_END:
+                    m_end = True
+                elif slot == MS_CALL:
+                    m_sub = True
+                elif slot == MS_RETURN:
+                    m_ret = True
+            elif slot == GS_CANCEL:
                 g_cancel = True
             elif slot == GS_MOTION:
                 g_motion = code
@@ -827,50 +863,6 @@ def interp_kernel(line_w0, line_nw, line_flags, w_letter, w_value, w_ndec,
                 g_lookahead = True
             elif slot == GS_DIAM:
                 g_diam = 1 if code == 70 else 0
-
-        # ---- classify M codes ----
-        m_tc = False
-        m_spindle = -2
-        m_cool = -1
-        m_end = False
-        m_sub = False
-        m_ret = False
-        m61 = False
-        m_io = False
-        m_save = -1  # M70/M73 save (1), M71 invalidate (2), M72 restore (3)
-        m_seen[:] = False
-        for q in range(nm):
-            code = mcodes[q]
-            kw = mword[q]
-            slot = M_TABLE[drow, code, 0] if code < 1000 else -1
-            group = M_TABLE[drow, code, 1] if code < 1000 else -1
-            if slot < 0:
-                if lenient:
-                    nwarn = _warn(warn_code, warn_word, nwarn, W_IGNORED_M, kw)
-                    continue
-                return n, E_UNSUPPORTED_M, kw, li, err_vals, nwarn
-            if _taken(m_seen, group):  # two codes of one modal group in a block
-                return n, E_MODAL_CONFLICT, kw, li, err_vals, nwarn
-            if slot == MS_TOOLCHANGE:
-                m_tc = True
-            elif slot == MS_SET_TOOL:
-                m61 = True
-            elif slot == MS_SAVE:
-                # M70/M73 save (M73 restored at the subroutine's return), M71 forget, M72 restore;
-                # L is the call level (given by the macro executor)
-                m_save = 1 if (code == 700 or code == 730) else (2 if code == 710 else 3)
-            elif slot == MS_IO:
-                m_io = True  # M62-M65 outputs (P), M66 wait (P/E, L, Q), M67/M68 analog (E, Q)
-            elif slot == MS_SPINDLE:
-                m_spindle = 1 if code == 30 else (-1 if code == 40 else 0)
-            elif slot == MS_COOLANT:
-                m_cool = 1 if code == 70 else (2 if code == 80 else 0)
-            elif slot == MS_END:
-                m_end = True
-            elif slot == MS_CALL:
-                m_sub = True
-            elif slot == MS_RETURN:
-                m_ret = True
 
         # ---- Fanuc G16: X and Y become the polar words (the LinuxCNC @ ^ path interprets them)
         if g_polar >= 0:
