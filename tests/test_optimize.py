@@ -391,3 +391,30 @@ def test_a_speed_that_cannot_be_written_stays_and_says_so():
     assert res.spindle == {1: 3000.0, 2: 3000.0}
     assert any("keep the programmed speed" in w for w in res.warnings)
     assert compare(prog, tw.load(res.output, path="o.ngc")) is None
+
+
+def test_a_locked_tool_keeps_every_s_word_as_written():
+    """The review of the change above: T1 runs the shared subprogram at S3000 and again at
+    S4000, T2 at S5000.  A locked tool was written at one speed (its lowest) over its S4000
+    run, and the writer's check failed again; now a locked tool's S words stay as written."""
+    text = SHARED_SUB.replace(b"o100 call [50.]\nT2 M6\nS3000 M3",
+                              b"o100 call [50.]\nS4000 M3\nG0 X0 Y20.\no100 call [50.]\nT2 M6\nS5000 M3")
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="shared4.ngc")
+    res = optimize(tw, prog, OptimizeOptions(spindle_range=(1000.0, 8000.0)))
+    new = tw.load(res.output, path="o.ngc")
+    assert (new.records["spindle"] == prog.records["spindle"]).all()
+    assert any("keep the programmed speed" in w for w in res.warnings)
+
+
+def test_a_spindle_range_never_costs_more_than_none():
+    """The review again: under the cost objective the speed choice counted a segment's own
+    overshoot of its learned level (which the rounds allow) as a violation, and took a dearer
+    speed that cured it — then a lower one than the program's, which the learned levels
+    forbid.  With a range the answer is at most as dear as without one."""
+    tw = mtwin.Twin().with_params({"cost.taylor_c": 300.0, "cost.tool_price": 500.0})
+    prog = tw.load(str(SAMPLES / "slots.nc"))
+    ranged = optimize(tw, prog, OptimizeOptions(objective="cost", spindle_range=(1000.0, 8000.0)))
+    plain = optimize(tw, prog, OptimizeOptions(objective="cost"))
+    assert ranged.after.cost <= plain.after.cost * 1.001
+    assert all(v >= 3000.0 for v in ranged.spindle.values())  # (never below the program's own)

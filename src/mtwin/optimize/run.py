@@ -998,7 +998,8 @@ def _rounds(run: _Run) -> OptimizeResult | None:
         f_try = _round_feeds(np.minimum(np.maximum(cur, floor), cap), f0, program, segs, prob)
         f_try = np.where(keep, f0, f_try)
         s_try = np.round(spins)
-        feeds_rec, splits, spins_rec = _expand(program, segs, f_try, s_try, prob, spindle_range is not None, keep,
+        feeds_rec, splits, spins_rec = _expand(program, segs, f_try, _unlocked(prob, s_try), prob,
+                                               spindle_range is not None, keep,
                                                entries, feed_range[1])
         out = rewrite(program, feeds_rec, spins_rec, splits)
         new = twin.load(out, path=program.path)
@@ -1857,12 +1858,20 @@ def _round_feeds(f: np.ndarray, f0: np.ndarray, program, segs, prob) -> np.ndarr
     return np.where((np.abs(f - f0) < 0.5 * step) | ((f > f0) & (f < 1.01 * f0)), f0, out)
 
 
+def _unlocked(prob, spins: np.ndarray) -> np.ndarray:
+    """The speeds to write: NaN (the program's own, every S word as written) for the locked
+    spindle variables."""
+    return spins if prob.spin_locked is None else np.where(prob.spin_locked, np.nan, spins)
+
+
 def _lock_unwritable_spins(prob, program, segs, warnings: list):
     """With a spindle range: the spindle variables whose new speed cannot be written.  Where a
-    line runs more than once (a subprogram, a loop) a tool's first move may be on a line other
-    tools run too; an S word there would change their speed as well, and the writer refuses
-    it.  Each variable is tried alone with a changed speed (only in such programs: elsewhere
-    every line runs once); a refused one keeps the program's speed, with a warning."""
+    line runs more than once (a subprogram, a loop), a variable's first move may be on a line
+    that also runs for another tool, or at another speed; an S word there would change that
+    run too, and the writer refuses it.  Each variable is tried alone with a changed speed
+    (the others writing nothing), then all of them together (only in such programs:
+    elsewhere every line runs once).  A refused one keeps the program's speeds, every S word
+    as written, with a warning; with a speed per segment, one refused keeps them all."""
     from ..gcode.records import FL_FIRST_IN_LINE
     from ..gcode.writer import WriteError, rewrite
 
@@ -1870,7 +1879,6 @@ def _lock_unwritable_spins(prob, program, segs, warnings: list):
     first = rec["line"][(rec["flags"] & FL_FIRST_IN_LINE) != 0]
     if not prob.nspin or len(np.unique(first)) == len(first):
         return prob
-    locked = np.zeros(prob.nspin, bool)
     keep_all = np.ones(prob.nvar, bool)
 
     def writable(spins) -> bool:
@@ -1883,23 +1891,30 @@ def _lock_unwritable_spins(prob, program, segs, warnings: list):
 
     # (any other speed: the writer's placement is what is tried; each variable its own)
     other = prob.n0_spin + 100.0 * (1 + np.arange(prob.nspin))
-    if prob.nspin > MAX_SPIN_TRIALS:
+    per_tool = prob.nspin == len(np.unique(prob.seg_tool))
+    locked = np.zeros(prob.nspin, bool)
+    if not per_tool and prob.nspin > MAX_SPIN_TRIALS:
         locked[:] = True  # (a speed per segment in such a program: none is tried)
-    for v in range(prob.nspin) if prob.nspin <= MAX_SPIN_TRIALS else ():
-        locked[v] = not writable(np.where(np.arange(prob.nspin) == v, other, prob.n0_spin))
-    if not locked.all() and not writable(np.where(locked, prob.n0_spin, other)):
+    else:
+        for v in range(prob.nspin):
+            locked[v] = not writable(np.where(np.arange(prob.nspin) == v, other, np.nan))
+    if not locked.all() and not writable(np.where(locked, np.nan, other)):
         locked[:] = True  # (each alone, but not together)
+    if locked.any() and not per_tool:
+        locked[:] = True
     if locked.any():
         tools = sorted({int(t) for t, s in zip(prob.seg_tool, prob.seg_spin) if locked[s]})
         warnings.append(f"{program.path}: warning: --spindle-range: {', '.join(f'T{t}' for t in tools)} "
-                        f"keep{'s' if len(tools) == 1 else ''} the programmed speed — a new S word would fall on a "
-                        f"line the program also runs for other tools (a subprogram or a loop)")
+                        f"keep{'s' if len(tools) == 1 else ''} the programmed speed{'' if per_tool else 's'} — a "
+                        f"new S word would fall on a line the program runs more than once (a subprogram or a "
+                        f"loop) at another speed or for another tool")
     return replace(prob, spin_locked=locked)
 
 
 def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndarray, entries: dict | None = None,
             air_feed: float = 0.0):
-    """Per-record feeds (NaN: keep), splits and spindle speeds of a candidate; ``entries``: the
+    """Per-record feeds (NaN: keep), splits and spindle speeds of a candidate (a spindle
+    variable at NaN keeps the program's own speeds, every S word as written); ``entries``: the
     plunges whose upper part runs at ``air_feed`` (guards.AirEntry)."""
     from ..gcode.writer import Split
 
@@ -1960,7 +1975,8 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
         order_s = np.argsort(first_rec, kind="stable")
         want = np.full(n, np.nan)
         for s in order_s:
-            want[first_rec[s]] = spins[prob.seg_spin[s]]
+            v = spins[prob.seg_spin[s]]
+            want[first_rec[s]] = -1.0 if np.isnan(v) else v  # (NaN, -1 here: the program's own speeds)
         tool = rec["tool"]
         # (carried forward within each run of one tool: a tool change starts with none)
         fresh = ~np.isnan(want) | np.r_[True, tool[1:] != tool[:-1]]
@@ -1972,7 +1988,7 @@ def _expand(program, segs, feeds, spins, prob, spin_changes: bool, keep: np.ndar
             if len(ok):
                 want[m[m < ok[0]]] = want[ok[0]]
         # (stopped records too: S is modal, M5 does not clear it)
-        change = ~np.isnan(want) & (want != rec["spindle"])
+        change = (want >= 0) & (want != rec["spindle"])
         spindles[change] = want[change]
     return out, splits, spindles
 
@@ -2186,7 +2202,8 @@ def _scale_tradeoff(run: _Run, est, fig_after) -> list:
         resim = None
         if len(program.records) <= TRADEOFF_MAX_RECORDS:
             fr = _round_feeds(f, prob.f0_var, program, segs, prob)
-            feeds_rec, splits, spins_rec = _expand(program, segs, np.where(keep, prob.f0_var, fr), np.round(s_try),
+            feeds_rec, splits, spins_rec = _expand(program, segs, np.where(keep, prob.f0_var, fr),
+                                                   _unlocked(prob, np.round(s_try)),
                                                    prob, False, keep, run.entries, run.feed_range[1])
             text = rewrite(program, feeds_rec, spins_rec, splits)
             resim = float(tw_after.simulate(twin.load(text, path=program.path), stock=stock,

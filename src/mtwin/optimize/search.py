@@ -82,25 +82,37 @@ def best_spins(p: Problem, objective: str, start: np.ndarray) -> np.ndarray:
     lo_f = p.limits.feed[0]
     cut = ~p.seg_air
     cands = [start] + [np.full(p.nspin, s) for s in np.geomspace(*p.limits.spindle, SPEED_GRID)]
-    scores = []
-    for spins in cands:
+    if p.f_floor is not None:
+        # on the program's own (learned) levels no tool runs below its programmed speed: its
+        # feeds are the floor, a larger feed per tooth there (optimize.run keeps the rule)
+        cands = [np.maximum(c, start) for c in cands]
+
+    def figures(spins):
+        """Per segment: the objective and how far it is over a limit at its highest feed."""
         fmax = p.max_feasible_feed(spins)
         ev = p.evaluate(np.where(np.isnan(fmax), lo_f, fmax)[None, :], spins[None, :])
         ts = ev["seg_time"][0]
         seg = ts if objective == "time" else p.rates.cost(ts, ev["seg_lives"][0])
-        # a speed under which a segment breaks a limit even at the lowest feed loses to any
-        # that keeps them all
-        bad = np.where(cut, ev["violation"][0], 0.0) + np.isnan(fmax[p.seg_var])
-        scores.append(np.bincount(p.seg_spin, weights=seg + 1e9 * bad, minlength=p.nspin))
+        over = np.where(cut, ev["violation"][0], 0.0) + np.isnan(fmax[p.seg_var])
+        return seg, over, ev
+
+    # what a segment runs over a limit at the start (its own feed floor, a chatter no speed
+    # cures) it may keep, as the rounds allow it; a speed that adds to any of it loses to one
+    # that adds nothing
+    _, over0, _ = figures(start)
+    scores = []
+    for spins in cands:
+        seg, over, _ = figures(spins)
+        worse = np.maximum(over - over0, 0.0)
+        scores.append(np.bincount(p.seg_spin, weights=seg + 1e9 * worse, minlength=p.nspin))
     pick = np.argmin(np.array(scores), axis=0)
     if p.spin_locked is not None:
         pick[p.spin_locked] = 0  # (the start: the program's own speed)
     chosen = np.array([cands[k][i] for i, k in enumerate(pick)], float)
 
     def total(spins):
-        fmax = p.max_feasible_feed(spins)
-        ev = p.evaluate(np.where(np.isnan(fmax), lo_f, fmax)[None, :], spins[None, :])
-        return float(ev[objective][0] + 1e9 * ev["violation"][0].sum())
+        seg, over, ev = figures(spins)
+        return float(ev[objective][0] + 1e9 * np.maximum(over - over0, 0.0).sum())
 
     return chosen if total(chosen) < total(start) else start
 
@@ -109,11 +121,13 @@ def bisect(p: Problem, objective: str, target_power: float | None = None, tolera
     """Per-segment bisection on the feed, as in the power-smoothing reference.
 
     ``time`` and ``cost``: the highest feed within the range and the limits, at the speeds
-    :func:`best_spins` chooses when a spindle range is given; ``smooth``: the feed whose
+    :func:`best_spins` chooses when a spindle range is given (without chatter tables); ``smooth``: the feed whose
     segment mean power is the target within ``tolerance`` (relative), capped by the limits;
     the spindle speeds stay (in range)."""
     spins = start_spins(p)
-    if p.limits.spindle and objective in ("time", "cost"):
+    if p.limits.spindle and objective in ("time", "cost") and p.chatter is None:
+        # (with the tools' dynamics known the speed is the most stable one, a lobe's peak:
+        # the headroom there also holds the moves outside the segments, which no search sees)
         spins = best_spins(p, objective, spins)
     fmax = p.max_feasible_feed(spins)
     lo_f, hi_f = p.limits.feed
