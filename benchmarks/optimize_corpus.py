@@ -262,7 +262,8 @@ def check_one(path: Path, timeout: int, tol: float = 0.1, twin_file: str | None 
 
 def _machine_broken(tw, before, after) -> list:
     """The spindle's rated power and its torque curve, checked on the re-simulated answer:
-    over them where the program was not (a higher speed carries a chip at more power)."""
+    over them, unless the program itself already was (whole-program peaks: a higher speed
+    carries a chip at more power)."""
     sp = tw.machine.spindle
     out = []
     cb, ca = before.summary.cutting, after.summary.cutting
@@ -429,7 +430,7 @@ def _totals(recs: list, files: list, factor, materials: bool = False) -> None:
             print(f"programs whose cutting tools the twin describes: {len(desc)}; change %: min {desc.min():+.1f}, "
                   f"median {np.median(desc):+.1f}, max {desc.max():+.1f}; >= 5 % faster: {int((desc <= -5).sum())}")
         print(f"spindle speed changed: {sum(bool(r.get('spindle')) for r in done)}; "
-              f"spindle power or torque over the machine's where the program was not: "
+              f"spindle power or torque over the machine's (the program itself under it): "
               f"{sum(bool(r.get('machine_broken')) for r in done)}")
         print(f"physics limits used: {sum(bool(r.get('physics')) for r in done)}; a physics limit broken on the "
               f"re-simulated answer: {sum(bool(r.get('physics_broken')) for r in done)}")
