@@ -58,24 +58,29 @@ def _info(c, builtin: set) -> EffectInfo:
                       tuple(c.params))
 
 
-def effects(effect_files=()) -> list:
-    """``mtwin effects``: the built-in effects and those of ``effect_files`` (user effects),
-    as :class:`EffectInfo`."""
-    from ..effects import BUILTIN, available, load_file
+def _with_files(effect_files) -> set:
+    """The user effects of ``effect_files`` registered; the built-in effects' names."""
+    from ..effects import BUILTIN, load_file
 
     for f in effect_files or ():
         load_file(f)
-    builtin = {c.name for c in BUILTIN}
+    return {c.name for c in BUILTIN}
+
+
+def effects(effect_files=()) -> list:
+    """``mtwin effects``: the built-in effects and those of ``effect_files`` (user effects),
+    as :class:`EffectInfo`."""
+    from ..effects import available
+
+    builtin = _with_files(effect_files)
     return [_info(c, builtin) for c in available().values()]
 
 
 def effect(name: str, effect_files=()) -> EffectInfo:
     """``mtwin effects show NAME``: one effect (an unknown name lists the known ones)."""
-    from ..effects import BUILTIN, get, load_file
+    from ..effects import get
 
-    for f in effect_files or ():
-        load_file(f)
-    return _info(get(name), {c.name for c in BUILTIN})
+    return _info(get(name), _with_files(effect_files))
 
 
 # ---------------------------------------------------------------------- materials

@@ -101,6 +101,11 @@ class Material:
     kae: float = P(0.0, "N/mm", "axial edge coefficient", "nonneg")
     source: str = P("", "str", "where the values come from", "any")
 
+    @property
+    def coefficients(self) -> tuple:
+        """(ktc, krc, kac, kte, kre, kae): the order the kernels and the fast model read them in."""
+        return (self.ktc, self.krc, self.kac, self.kte, self.kre, self.kae)
+
 
 # PHYSICS.md section 1 table: the materials whose mechanistic coefficients were identified
 # (the catalogue's other materials are fitted to their Kienzle constants: catalogue.py)

@@ -126,7 +126,7 @@ def _cutting_args(m, cut, program, plan, stock, enabled: bool, tooth: bool = Fal
 
     eng = engagement_for(plan, program, cut, stock, tooth=tooth, cache=engagement_cache)
     mat = cut.material
-    kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
+    kc = np.array(mat.coefficients)
     prof = eng.prof if tooth else np.zeros((0, 1, 1), np.float32)
     tfx = step_effects(eng, plan, loop_effects, program, tool_state, mat)
     return eng, RK.CuttingInputs(eng.first, eng.count, eng.sums, eng.q, eng.tool_index, eng.tools, kc, tfx.coefficients,
@@ -167,8 +167,7 @@ def step_effects(eng, plan, loop_effects, program=None, start=None, material=Non
         return ToolEffects(np.zeros((0, 6)), None, None)
     kc = np.zeros(6)
     if material is not None:
-        mat = material
-        kc = np.array([mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae])
+        kc = np.array(material.coefficients)
     steps = StepInfo.from_engagement(eng, plan, program, kc=kc, start=start)
     scale = np.ones((len(eng.q), 6))
     changed = False
@@ -420,7 +419,6 @@ def simulate_plan(machine, program, plan, *, cut_part, effects=(), tool_state=No
     if eng is not None:
         from ..cutting.library import tools_used
 
-        cutting_part = cut_part
         cut_time = cstats[RK.CS_CUT_TIME]
         feed_moves = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
         # (feed moves that meet the stock with the spindle stopped were named above: the stock
@@ -440,15 +438,15 @@ def simulate_plan(machine, program, plan, *, cut_part, effects=(), tool_state=No
             peak_spindle_torque=float(cstats[RK.CS_TORQUE]), peak_spindle_torque_line=int(cstats[RK.CS_TORQUE_LINE]),
             cutting_energy=float(cstats[RK.CS_ENERGY]), engaged_time=float(cut_time),
             peak_mrr=float(cstats[RK.CS_MRR]), peak_spindle_load=float(cstats[RK.CS_SPINDLE_LOAD]),
-            material=cutting_part.material_name,
+            material=cut_part.material_name,
             stock=list(eng.stock.box), stock_source=eng.stock.source, resolution=eng.stock.resolution,
             engagement_steps=eng.steps, engagement_seconds=eng.seconds,
-            defaults=list(cutting_part.defaults_used), tools=tools_used(cutting_part, program),
+            defaults=list(cut_part.defaults_used), tools=tools_used(cut_part, program),
             spindle_stopped_line=int(cstats[RK.CS_SPINDLE_STOPPED_LINE]))
     if eng is not None and chatter:  # (not on an optimiser's intermediate re-simulation, as the margins)
         from ..cutting.catalogue import shank_checks
 
-        summary.cutting.shank = shank_checks(cutting_part, program, force, record)
+        summary.cutting.shank = shank_checks(cut_part, program, force, record)
         for c in summary.cutting.shank:
             if c["over"]:
                 warnings.append(warning_text(

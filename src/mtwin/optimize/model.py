@@ -83,8 +83,7 @@ def path_model(twin, program, plan, eng, kstep=None) -> PathModel:
     length = seg_len[step_seg] / cnt
 
     S, q = eng.sums, eng.q  # (float32 step tables: only the columns used are widened)
-    mat = program_cutting(twin, program).material
-    k = (mat.ktc, mat.krc, mat.kac, mat.kte, mat.kre, mat.kae)
+    k = program_cutting(twin, program).material.coefficients
     if kstep is not None and len(kstep):
         k = tuple(kstep[:, j] for j in range(6))  # (tool wear: the edge ones grow along the path)
     ax = k[0] * _f64(S, EK.SX_TC) + k[1] * _f64(S, EK.SX_RC) + k[2] * _f64(S, EK.SX_AC)

@@ -117,8 +117,8 @@ class Problem:
     # (S,) the chip ceilings the re-simulation checks too (physics; inf elsewhere), mm
     seg_hchecked: np.ndarray | None = None
     # (nspin,) with a spindle range, the spindle variables whose new speed the writer could not
-    # put on a line of its own (their S word would fall on a line the program runs for other
-    # tools too, in a subprogram or a loop): they keep the program's speed
+    # place (its S word would fall on a line the program runs more than once, at another speed
+    # or for another tool): they keep the program's speeds, every S word as written
     spin_locked: np.ndarray | None = None
     # per variable, the lowest feed the answer may have (0: the feed range's; the program's
     # own feed when the limits are learned from it: nothing is slowed)

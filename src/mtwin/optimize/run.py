@@ -1226,7 +1226,7 @@ def _result(run: _Run) -> OptimizeResult | None:
         n0 = prob.n0_spin[prob.var_spin]
         off_range = (n0 < spindle_range[0] - 0.5) | (n0 > spindle_range[1] + 0.5)
     required = (f_try < f0 * (1 - 1e-9)) & (broken | off_range) & ~keep
-    own_load = _ratios(loads_before, segs, prob, seg_before, machine=False)
+    own_load = _ratio_pair(loads_before, prob, seg_before)[0]
     slower_because = _slower_because(prob, segs, program, required, own_load, var_given, off_range, spindle_range,
                                      learned and worn)
     if not fixes_chatter and _worse(opts.objective, fig_before, fig_after) and opts.objective in ("time", "cost"):
@@ -1741,18 +1741,6 @@ def _ratio_pair(loads: _Loads, prob, seg_of: np.ndarray) -> tuple[np.ndarray, np
     _max_into(load, var, loads.load[inside] / prob.seg_force[seg_of[inside]])
     _max_into(machine, var, loads.machine[inside])
     return load, machine
-
-
-def _ratios(loads: _Loads, segs, prob, seg_of: np.ndarray, machine: bool = True) -> np.ndarray:
-    """Per variable, the largest ratio of load, spindle power or torque to its limit on a
-    simulated trace (``seg_of``: the segment of every sample); ``machine=False``: the load's alone."""
-    ratio = loads.load / prob.seg_force[np.maximum(seg_of, 0)]
-    if machine:
-        ratio = np.maximum(ratio, loads.machine)
-    inside = seg_of >= 0
-    out = np.zeros(prob.nvar)
-    _max_into(out, prob.seg_var[seg_of[inside]], ratio[inside])
-    return out
 
 
 def _air_entries(run: _Run, clear_z: float, stock_top: float | None) -> dict:

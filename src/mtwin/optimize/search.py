@@ -47,10 +47,13 @@ def fixed_spins(p: Problem) -> np.ndarray:
     """The program's speeds, moved into the spindle range when one is given."""
     n = p.n0_spin.copy()
     if p.limits.spindle:
-        n = np.clip(n, *p.limits.spindle)
-        if p.spin_locked is not None:
-            n = np.where(p.spin_locked, p.n0_spin, n)
+        n = _keep_locked(p, np.clip(n, *p.limits.spindle))
     return n
+
+
+def _keep_locked(p: Problem, n: np.ndarray) -> np.ndarray:
+    """Speeds with the locked spindle variables at the program's own (Problem.spin_locked)."""
+    return n if p.spin_locked is None else np.where(p.spin_locked, p.n0_spin, n)
 
 
 def start_spins(p: Problem) -> np.ndarray:
@@ -61,9 +64,7 @@ def start_spins(p: Problem) -> np.ndarray:
     if p.limits.spindle and p.chatter is not None:
         from .chatter import stable_spins
 
-        n = stable_spins(p.chatter, p, n)
-        if p.spin_locked is not None:
-            n = np.where(p.spin_locked, p.n0_spin, n)
+        n = _keep_locked(p, stable_spins(p.chatter, p, n))
     return n
 
 
@@ -99,31 +100,29 @@ def best_spins(p: Problem, objective: str, start: np.ndarray) -> np.ndarray:
     # what a segment runs over a limit at the start (its own feed floor, a chatter no speed
     # cures) it may keep, as the rounds allow it; a speed that adds to any of it loses to one
     # that adds nothing
-    _, over0, _ = figures(start)
-    scores = []
-    for spins in cands:
-        seg, over, _ = figures(spins)
-        worse = np.maximum(over - over0, 0.0)
-        scores.append(np.bincount(p.seg_spin, weights=seg + 1e9 * worse, minlength=p.nspin))
+    found = [figures(spins) for spins in cands]
+    over0 = found[0][1]
+    scores = [np.bincount(p.seg_spin, weights=seg + 1e9 * np.maximum(over - over0, 0.0), minlength=p.nspin)
+              for seg, over, _ in found]
     pick = np.argmin(np.array(scores), axis=0)
     if p.spin_locked is not None:
         pick[p.spin_locked] = 0  # (the start: the program's own speed)
     chosen = np.array([cands[k][i] for i, k in enumerate(pick)], float)
 
-    def total(spins):
-        seg, over, ev = figures(spins)
+    def total(fig):
+        _, over, ev = fig
         return float(ev[objective][0] + 1e9 * np.maximum(over - over0, 0.0).sum())
 
-    return chosen if total(chosen) < total(start) else start
+    return chosen if total(figures(chosen)) < total(found[0]) else start
 
 
 def bisect(p: Problem, objective: str, target_power: float | None = None, tolerance: float = 0.05) -> SearchResult:
     """Per-segment bisection on the feed, as in the power-smoothing reference.
 
     ``time`` and ``cost``: the highest feed within the range and the limits, at the speeds
-    :func:`best_spins` chooses when a spindle range is given (without chatter tables); ``smooth``: the feed whose
-    segment mean power is the target within ``tolerance`` (relative), capped by the limits;
-    the spindle speeds stay (in range)."""
+    :func:`best_spins` chooses when a spindle range is given (without chatter tables);
+    ``smooth``: the feed whose segment mean power is the target within ``tolerance``
+    (relative), capped by the limits; the spindle speeds stay (in range)."""
     spins = start_spins(p)
     if p.limits.spindle and objective in ("time", "cost") and p.chatter is None:
         # (with the tools' dynamics known the speed is the most stable one, a lobe's peak:
