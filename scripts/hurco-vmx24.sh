@@ -30,9 +30,11 @@ cat > "$work/0.toml" <<'TOML'
 #     (the tool-change retracts run G28 to a home position the programs do not give).
 # Everything else below the [spindle] table comes from the calibration steps:
 #   1 spindle-runup (its rate, and the speed above which the drive is at its power limit:
-#   plate 12 runs S12000, 13 and 14 S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration (the order
-#   mtwin diagnose ranks them on the default twin), 5 the axes: rapid rates (read off the logged
-#   rapids), feed accelerations, jerk (controller.bell_time) and the in-position width.
+#   plate 12 runs S12000, 13 and 14 S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
+#   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
+#   circle: the control runs them slower than true circles) (the order mtwin diagnose ranks them on
+#   the default twin), 6 the axes: rapid rates (read off the logged rapids), feed accelerations,
+#   jerk (controller.bell_time) and the in-position width.
 # The servos keep the default machine's velocity feed-forward: fitted without it (0), the
 # in-position waits after every rapid take ~70 ms the log does not show, and the fit buys them
 # back with unphysical values (Y accelerating 4x X, no arc limit at all).
@@ -62,9 +64,10 @@ cal --twin "$work/0.toml" -o "$work/1.toml" --fit spindle-runup
 cal --twin "$work/1.toml" -o "$work/2.toml" --fit toolchange-time --refit
 cal --twin "$work/2.toml" -o "$work/3.toml" --fit rapid-acceleration --refit
 cal --twin "$work/3.toml" -o "$work/4.toml" --fit arc-acceleration --refit
-cal --twin "$work/4.toml" -o "$work/5.toml" --refit \
+cal --twin "$work/4.toml" -o "$work/5.toml" --fit spiral-acceleration --refit
+cal --twin "$work/5.toml" -o "$work/6.toml" --refit \
     --param axes.x.max_velocity --param axes.y.max_velocity \
     --param axes.x.max_acceleration --param axes.y.max_acceleration --param axes.z.max_acceleration \
     --param controller.bell_time --param controller.in_position
-cp "$work/5.toml" "$out"
+cp "$work/6.toml" "$out"
 mtwin journal "$out"

@@ -22,7 +22,8 @@ PLATES = (12, 13, 14)
 PROFILE = ROOT / "samples" / "machines" / "hurco-vmx24.toml"
 BASE = {"spindle.max_speed": 12000.0, "axes.z.max_velocity": 10560.0,
         **{f"axes.{a}.{k}": v for a in "xyz" for k, v in (("min_travel", -1000.0), ("max_travel", 1000.0))}}
-RECIPE = ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration")  # scripts/hurco-vmx24.sh
+RECIPE = ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
+          "spiral-acceleration")  # scripts/hurco-vmx24.sh
 FIT_PARAMS = ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration", "axes.y.max_acceleration",
               "axes.z.max_acceleration", "controller.bell_time", "controller.in_position"]
 

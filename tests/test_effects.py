@@ -337,6 +337,60 @@ def test_arc_acceleration_limits_arcs_to_the_root_of_a_r():
     assert slow.dur[i] >= 2 * math.pi / math.sqrt(300) and slow.total_time > base.total_time
 
 
+def test_arc_acceleration_is_the_arcs_own_limit_up_to_the_axes():
+    # above the axes' split (√0.75·a) a control's own arc limit raises small circles' speed,
+    # never past what the axes give (v²/r <= a)
+    import math
+
+    from mtwin.motion.path import ARC
+
+    tw = mtwin.Twin().with_params({"axes.x.max_acceleration": 400.0, "axes.y.max_acceleration": 400.0})
+    prog = tw.load(b"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG1 X1 F3000\nG2 X1 Y0 I-1 J0\nG0 Z5\nM30\n", path="a.nc")
+    i = int(np.flatnonzero(tw.plan(prog).seg["kind"] == ARC)[0])
+    vmax = lambda spec: float(tw.with_effects(spec).plan(prog).seg["vmax"][i])
+    assert float(tw.plan(prog).seg["vmax"][i]) == pytest.approx(math.sqrt(math.sqrt(0.75) * 400.0))
+    assert vmax("arc-acceleration:acceleration=380") == pytest.approx(math.sqrt(380.0))
+    assert vmax("arc-acceleration:acceleration=900") == pytest.approx(math.sqrt(400.0))
+
+
+# a helix of half circles, r = 0.35 mm, as CAM writes it rounded to 0.0001 in: the centre
+# halfway (true circles) or, as the NIST plates have it, 2.5 µm off the middle (a spiral)
+_HELIX = "G20 G90 G94 S9000 M3\nG0 X0.6034 Y0 Z0.1\nG1 Z0 F36\n{}G0 Z0.1\nM30\n"
+
+
+def _helix(i_down: str, i_up: str) -> bytes:
+    rows = []
+    for k in range(40):
+        z = -0.005 * (k + 1)
+        rows.append(f"G3 X0.6309 Z{z:.4f} I{i_up} J0\n" if k % 2 == 0 else f"G3 X0.6034 Z{z:.4f} I{i_down} J0\n")
+    return _HELIX.format("".join(rows)).encode()
+
+
+def test_spiral_acceleration_slows_spirals_to_the_root_of_a_r_and_leaves_circles():
+    import math
+
+    from mtwin.motion.path import ARC
+
+    tw = mtwin.Twin().with_effects("arc-acceleration:acceleration=370")
+    slow = tw.with_effects("spiral-acceleration:acceleration=290")
+    spiral = tw.load(_helix("-.0138", ".0137"), path="s.nc")  # the plates' own words
+    circle = tw.load(_helix("-.01375", ".01375"), path="c.nc")
+    for prog, a in ((spiral, 290.0), (circle, 370.0)):
+        seg = slow.plan(prog).seg
+        arcs = seg[seg["kind"] == ARC]
+        r = np.minimum(arcs["r0"], arcs["r1"])
+        assert arcs["vmax"] == pytest.approx(np.sqrt(a * r), rel=1e-9)  # F36 (15.2 mm/s) is above both
+    # the same spiral without the effect runs as a circle would
+    arcs = tw.plan(spiral).seg
+    arcs = arcs[arcs["kind"] == ARC]
+    assert arcs["vmax"] == pytest.approx(np.sqrt(370.0 * np.minimum(arcs["r0"], arcs["r1"])), rel=1e-9)
+    # the whole helix: time along the path at that speed (40 half turns at a constant speed)
+    plan = slow.plan(spiral)
+    on = plan.seg["kind"] == ARC
+    length = float(plan.seg["length"][on].sum())
+    assert float(plan.dur[on].sum()) == pytest.approx(length / math.sqrt(290.0 * 0.35), rel=0.03)
+
+
 def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():
     # a long rapid without jerk: t = L/v + v/a (accelerate and brake at a, cruise between);
     # the feed move after it keeps the axes' acceleration

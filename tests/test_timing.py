@@ -222,7 +222,8 @@ def test_leave_one_out_predicts_the_third_plate_within_3_percent(left_out):
                                      **{f"axes.{a}.{k}": v for a in "xyz" for k, v in
                                         (("min_travel", -1000.0), ("max_travel", 1000.0))}})
     cases = [_case(base, p) for p in (12, 13, 14) if p != left_out]
-    effects = [get(n)() for n in ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration")]
+    effects = [get(n)() for n in ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
+                                  "spiral-acceleration")]
     fr = T.fit_timing(base, cases, effects, ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration",
                                              "axes.y.max_acceleration", "controller.bell_time",
                                              "controller.in_position"])

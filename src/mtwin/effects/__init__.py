@@ -18,7 +18,7 @@ from .observation import Backlash, Runout, ServoDelay, SpindleNoLoad, ThermalDri
 from .process import SizeEffect, ToolWear
 from .wear import FlankWear
 from .timing import (ArcAcceleration, BlockTime, CornerSlowdown, FeedOverride, RapidAcceleration, SpindleRunup,
-                     ToolChangeTime)
+                     SpiralAcceleration, ToolChangeTime)
 
 __all__ = ["Effect", "StepInfo", "ToolHistory", "available", "get", "load_file", "register", "parse_effect_spec"]
 
@@ -27,7 +27,8 @@ ENTRY_POINT_GROUP = "mtwin.effects"
 BUILTIN: tuple[type[Effect], ...] = (
     SpindleNoLoad, ToolWear, FlankWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
     Backlash, ServoDelay, ThermalDrift, Inertia,
-    ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration, RapidAcceleration, FeedOverride,
+    ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration, SpiralAcceleration, RapidAcceleration,
+    FeedOverride,
 )
 
 # effects registered in this process (files, tests, register()): name -> class

@@ -80,13 +80,27 @@ class CornerSlowdown(Effect):
 
 class ArcAcceleration(Effect):
     name = "arc-acceleration"
-    description = "the control limits the normal acceleration v²/r on arcs below the axes' (small arcs run slower)"
+    description = ("the control has its own normal-acceleration limit v²/r on feed arcs, in place of the axes' "
+                   "share of it (small arcs run at it)")
     stage = "plan"
     params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0, "normal-acceleration limit on arcs, 0 = none"),)
     signals = ("feed",)
 
     def machine(self, m, p):
         return _controller_set(m, "arc_acceleration", p["acceleration"])
+
+
+class SpiralAcceleration(Effect):
+    name = "spiral-acceleration"
+    description = ("arcs whose end point is off the programmed circle (a rounded centre: the control runs a "
+                   "spiral) take a lower normal acceleration v²/r than true circles")
+    stage = "plan"
+    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
+                    "normal-acceleration limit on spiral arcs, 0 = as circles"),)
+    signals = ("feed",)
+
+    def machine(self, m, p):
+        return _controller_set(m, "spiral_acceleration", p["acceleration"])
 
 
 class RapidAcceleration(Effect):

@@ -373,6 +373,8 @@ def _plan_starts(twin, effects) -> dict:
            "corner-slowdown.corner_velocity": m.controller.corner_velocity,
            "arc-acceleration.acceleration": (m.controller.arc_acceleration
                                              or min(a.max_acceleration for a in m.axes)),
+           "spiral-acceleration.acceleration": (m.controller.spiral_acceleration or m.controller.arc_acceleration
+                                                or min(a.max_acceleration for a in m.axes)),
            "rapid-acceleration.acceleration": (m.controller.rapid_acceleration
                                                or min(a.max_acceleration for a in m.axes))}
     out = {}

@@ -29,6 +29,9 @@ from .path import (ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, CATEGORY_NAMES, LINE, 
 
 STYLE_CODES = {"fanuc": K.STYLE_FANUC, "linuxcnc": K.STYLE_LINUXCNC, "grbl": K.STYLE_GRBL}
 _MIN_LENGTH = 1e-9  # mm: moves shorter than this are dropped (a nanometre is below any servo)
+# mm: an arc whose end radius differs from its start radius by more than this is a spiral (a
+# program's rounded centre: 0.0001 in leaves 2.5 µm, 0.001 mm up to 1 µm; float noise is ~1e-12)
+SPIRAL_MIN = 1e-4
 
 
 @dataclass
@@ -131,21 +134,26 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     vmax = np.where((seg["rapid"] == 0) & (feed > 0), np.minimum(vmax, feed), vmax)
     if arc.any():
         # centripetal limit: v²/r <= a·√(1 − 0.5²) and the tangential acceleration left over
-        # (LinuxCNC's split of the acceleration budget on circles; the total stays <= a)
-        r = np.minimum(seg["r0"], seg["r1"])[arc]
+        # (LinuxCNC's split of the acceleration budget on circles; the total stays <= a).  A
+        # control with its own normal-acceleration limit on feed arcs (Fanuc's AI contour
+        # control sets it apart, parameter 1735) uses that instead, up to what the axes give;
+        # a spiral (an end point off the circle, tolerated by the interpreter) may have its own
+        a = seg[arc]
+        r = np.minimum(a["r0"], a["r1"])
         a_axis = amax[arc]
-        v_cut = np.sqrt(K._ACC_RATIO_NORMAL * a_axis * r)
-        v = vmax[arc]
+        a_normal = K._ACC_RATIO_NORMAL * a_axis
+        cut = a["rapid"] == 0
+        if c.arc_acceleration > 0:
+            a_normal = np.where(cut, np.minimum(c.arc_acceleration, a_axis), a_normal)
+        if c.spiral_acceleration > 0:
+            spiral = cut & (np.abs(a["r1"] - a["r0"]) > SPIRAL_MIN)
+            a_normal = np.where(spiral, np.minimum(c.spiral_acceleration, a_axis), a_normal)
+        v = np.minimum(vmax[arc], np.sqrt(a_normal * r))
         a_n = v * v / np.maximum(r, 1e-300)
         ratio = np.where(a_n > K._ACC_RATIO_NORMAL * a_axis, K._ACC_RATIO_TAN,
                          np.sqrt(np.clip(1.0 - (a_n / a_axis) ** 2, 0.0, 1.0)))
-        vmax[arc] = np.minimum(v, v_cut)
+        vmax[arc] = v
         amax[arc] = a_axis * (K._ACC_RATIO_TAN if linuxcnc else ratio)
-    if arc.any() and getattr(c, "arc_acceleration", 0.0) > 0:
-        # a control's own normal-acceleration limit on arcs, below the axes' (small arcs)
-        r = np.minimum(seg["r0"], seg["r1"])[arc]
-        cut = seg["rapid"][arc] == 0
-        vmax[arc] = np.where(cut, np.minimum(vmax[arc], np.sqrt(c.arc_acceleration * np.maximum(r, 0.0))), vmax[arc])
     if c.min_block_time > 0:
         vmax = np.minimum(vmax, seg["length"] / c.min_block_time)
     seg["vmax"] = vmax

@@ -57,8 +57,15 @@ class Controller:
     # rapids harder than it lets its feed moves (which carry the contour's accuracy)
     rapid_acceleration: float = P(0.0, "mm/s^2", "acceleration of each axis on rapids, 0 = its max_acceleration "
                                   "[S: separate rapid and cutting acc/dec, Fanuc parameters 1620/1622]", "nonneg")
-    arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), 0 = the axes' "
-                                "limits only [E: small arcs on a Hurco VMX24 run at 250-340 mm/s^2]", "nonneg")
+    arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), in place of the "
+                                "axes' share (sqrt(0.75) of their acceleration) and up to their whole, 0 = the axes' "
+                                "share [E: small circles on a Hurco VMX24 run at ~370 mm/s^2]", "nonneg")
+    # a CAM that rounds an arc's centre leaves its end point off the circle (radius mismatch, e.g.
+    # 0.0001 in): the control runs it as a spiral, outside its circular interpolation, and the
+    # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
+    spiral_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs whose end radius differs "
+                                   "from their start radius (a spiral: a rounded centre), 0 = as circles [E: a Hurco "
+                                   "VMX24 runs them at ~290 mm/s^2, true circles at ~370]", "nonneg")
     feed_override: float = P(100.0, "", "feed override in % in force for the whole run (a run's, not the "
                              "machine's: what effects.feed-override fits to a log that did not record it)",
                              lo=1.0, hi=1000.0)
