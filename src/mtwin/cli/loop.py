@@ -159,8 +159,9 @@ def _print_blocks(b: dict) -> None:
     t = Table(title=f"per-block timing: {b['groups']:,} logged block groups, RMS {b['rms']:.3f} s "
                     f"(noise floor ≈ {b['noise_floor_per_group']:.2f} s per group)", title_justify="left")
     ratio = any(k.get("logged_over_programmed_feed") is not None for k in b["by_kind"])
-    # "as logged": the simulation's group boundaries moved by the log's own reporting delays
-    # (loop/blocks.py), the fair sum by kind; the raw one keeps the log's bias between kinds
+    # "as logged": the simulation's group boundaries moved by the log's own reporting delays,
+    # less what the twin's own run shows logged the same way (loop/blocks.py), the fair sum by
+    # kind; the raw one keeps the log's bias between kinds
     cols = ("kind", "groups", "measured s", "simulated s", "simulated − measured s", "as logged s", "RMS s") + \
         (("logged F / programmed F",) if ratio else ())
     for col in cols:
@@ -173,7 +174,8 @@ def _print_blocks(b: dict) -> None:
     err.print(t)
     err.print("  as logged: the simulated groups as a log sampling every "
               f"{b.get('report_period') or 0:.2f} s would show them (a short line is reported late by about half "
-              "its length, a long one by half the interval)")
+              "its length, a long one by half the interval), less what logs of the twin's own run show by kind "
+              "(how the groups are cut depends on where the samples fall)")
     w = Table(title="worst blocks", title_justify="left")
     for col in ("lines", "kind", "measured s", "simulated s", "error s", "G-code"):
         w.add_column(col, justify="right" if col.endswith(" s") else "left")

@@ -14,8 +14,9 @@ simulated with the fitted twin.
 Residuals are per window of consecutive block groups (≈ 10 s of measured time):
 (simulated − measured time) / the noise of a window's length, the noise floor (0.15 s) × √2 —
 only its two ends' report jitter — and per block kind of each log, the error summed over the
-kind's groups (simulated as logged, :func:`.blocks.simulated_as_logged`) / its report jitter
-(the sampling interval / √12 at each of the kind's boundaries with another kind).  Windows
+kind's groups (simulated as logged, :func:`.blocks.simulated_as_logged`, less what logs of the
+twin's own run show, :func:`.blocks.logging_bias`) / its report jitter (the sampling interval
+/ √12 at each of the kind's boundaries with another kind).  Windows
 alone let errors of opposite sign cancel — rapids long, short feed moves short — wherever the
 kinds share a window; the sums by kind do not.  The fit is bounded least squares (scipy's trust-region
 reflective) from a start found by scanning each parameter over its range — timing
@@ -34,8 +35,8 @@ import numpy as np
 from ..errors import ConfigError, MtwinError
 from ..params import effect_param, is_effect_param
 from ..fitting import delta_bic, solve, verdict
-from .blocks import (NOISE_FLOOR, Groups, measurement_groups, set_apart_stops, simulated_as_logged,
-                     simulated_durations)
+from .blocks import (NOISE_FLOOR, Groups, logging_bias, measurement_groups, set_apart_stops,
+                     simulated_as_logged, simulated_durations)
 
 SIGNAL = "window_time"  # the name a timing fit's error (RMS over the windows) goes by in the journal
 WINDOW = 10.0  # s: block groups are summed into windows of at least this much measured time…
@@ -71,6 +72,7 @@ class TimingCase:
     kinds: tuple = ()  # the block kinds fitted by their sums
     kind_index: np.ndarray = field(default=None)  # (groups,) index into kinds, -1 for a kind not fitted
     kind_noise: np.ndarray = field(default=None)  # (kinds,) s, the report jitter of each kind's sum
+    kind_bias: np.ndarray = field(default=None)  # (kinds,) s, what the sums show of the twin's own run logged
 
 
 def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
@@ -89,6 +91,7 @@ def timing_case(twin, program, meas, label: str | None = None) -> TimingCase:
     length = min(WINDOW, max(1.0, float(np.sum(g.measured)) / WINDOWS))
     case.groups, case.window = g, windows(g.measured, length)
     case.kinds, case.kind_index, case.kind_noise = _kind_sums(g)
+    refresh_bias(twin, case)
     # (the run as the program made it: the feed holds, logged stops and operator waits taken out)
     case.cycle_measured = end - g.hold_time - g.stop_time - g.wait_time
     return case
@@ -107,6 +110,16 @@ def _kind_sums(g: Groups):
     starts = np.concatenate(([True], idx[1:] != idx[:-1])) if len(idx) else np.zeros(0, bool)
     runs = np.bincount(idx[starts & (idx >= 0)], minlength=len(kinds))
     return kinds, idx, jitter * np.sqrt(2.0 * np.maximum(runs, 1))
+
+
+def refresh_bias(twin, case: TimingCase) -> None:
+    """What the sums by kind show of ``twin``'s own run, logged as the case's log samples
+    (:func:`.blocks.logging_bias`): taken off the case's sums, so that they compare like with
+    like.  It depends little on the parameters, so a fit takes it from the twin of each pass."""
+    plan = twin.plan(case.program)
+    lines, starts, end = plan_starts(plan, case.wait_line, case_waits(twin, case))
+    bias = logging_bias(case.program, case.groups, lines, starts, end)[0]
+    case.kind_bias = np.array([bias.get(k, 0.0) for k in case.kinds], np.float64)
 
 
 def refresh_waits(twin, case: TimingCase) -> None:
@@ -186,6 +199,8 @@ def _errors(twin, case: TimingCase):
     e = np.where(np.isfinite(d), d - case.groups.measured, 0.0)
     fitted = case.kind_index >= 0
     by_kind = np.bincount(case.kind_index[fitted], weights=e[fitted], minlength=len(case.kinds))
+    if case.kind_bias is not None:
+        by_kind = by_kind - case.kind_bias
     return e, np.bincount(case.window, weights=e), by_kind, cyc
 
 
@@ -352,8 +367,9 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
                 raise
             x = best[1].copy()
             tw, fitted = build_fitted(twin, effects, keys, x)
-        for c in cases:  # the waits as the fitted twin has them
+        for c in cases:  # the waits, and the logging's bias by kind, as the fitted twin has them
             refresh_waits(tw.with_effects(*fitted), c)
+            refresh_bias(tw.with_effects(*fitted), c)
     tw, fitted = build_fitted(twin, effects, keys, x)
     after = summary(tw.with_effects(*fitted), cases)
     unc = sol.uncertainty
