@@ -241,8 +241,8 @@ def test_diagnose_names_the_timing_effects_the_profile_adds_in_order():
     names = [c["effect"] for c in d["candidates"]]
     profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
     assert names[:len(profile)] == profile, (names, profile)
-    # the ones it does not add remove far less than the last one it adds (on plate 13: 27.9 %
-    # for arc-acceleration, 7 % each for corner-slowdown and block-time)
+    # the ones it does not add remove far less than the last one it adds (on plate 13: 25.9 %
+    # for spiral-acceleration, 7 % each for corner-slowdown and block-time)
     weakest = d["candidates"][len(profile) - 1]["explained_variance"]
     assert all(c["explained_variance"] < 0.5 * weakest for c in d["candidates"][len(profile):])
 
