@@ -173,8 +173,11 @@ def test_sigterm_leaves_no_temporary_file(files, signame):
     lines += [f"G1 X{(i % 2) * 50} Y{i * 0.05:.2f} F3000" for i in range(400)]  # (a 6.7-min trace)
     big.write_text("\n".join(lines + ["M30"]) + "\n")
     out = d / "trace.csv"
+    # (the child starts with the signal's default action: under nohup SIGHUP comes ignored, and
+    # mtwin leaves an ignored SIGHUP ignored on purpose)
     p = subprocess.Popen([sys.executable, "-m", "mtwin", "simulate", str(big), "-o", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         preexec_fn=lambda: signal.signal(getattr(signal, signame), signal.SIG_DFL))
     # wait until the output's temporary file (.trace.csv.XXXX.tmp) exists, then terminate
     t0 = time.monotonic()
     seen = False

@@ -149,11 +149,16 @@ def atomic_output(out: str | os.PathLike, binary: bool = False, inputs: tuple = 
     directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
         raise MtwinError(f"output directory {directory} does not exist")
+    # the signals that end a run are held while the temporary file is made, and let through
+    # inside the try that removes it: one arriving in between would leave the file behind
+    held = _hold_signals()
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
     except OSError as exc:
+        _release_signals(held)
         raise MtwinError(f"{out}: cannot write in {directory}: {exc.strerror}") from None
     try:
+        _release_signals(held)
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8", "newline": "\n"})) as fh:
             yield fh
         if target.exists():
@@ -177,6 +182,23 @@ def _write_through(out: str, binary: bool):
             yield fh
     except OSError as exc:
         raise MtwinError(f"{out}: cannot write it: {exc.strerror}") from None
+
+
+def _hold_signals():
+    """Block SIGINT, SIGTERM and SIGHUP (where the platform can): the mask to restore."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):
+        return None
+    sigs = {getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)}
+    return signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+
+
+def _release_signals(mask) -> None:
+    if mask is not None:
+        import signal
+
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _umask() -> int:
