@@ -32,7 +32,7 @@ def main(realdata: Path) -> None:
     import mtwin
     from mtwin.effects import get
     from mtwin.loop import timing as T
-    from mtwin.loop.blocks import measurement_block_timing
+    from mtwin.loop.blocks import line_starts, measurement_block_timing
     from mtwin.loop.compare import compare
     from mtwin.loop.measurement import read_measurement
 
@@ -59,9 +59,10 @@ def main(realdata: Path) -> None:
             kinds[(p, name)] = {k["kind"]: k["error_as_logged"] for k in b.by_kind()}
             if name == "profile":
                 row["bias"] = max(abs(v) for v in b.bias.values()) if b.bias else 0.0
-                row["helices"] = _helices(prog, meas)
-                row["rapids"] = _rapid_sequences(prog, meas, tr)
-                row["passes"] = _passes(prog, meas, tr)
+                seen, sim = (line_starts(np.asarray(x.t), np.asarray(x.line)) for x in (meas, tr))
+                row["helices"] = _helices(prog, seen)
+                row["rapids"] = _rapid_sequences(prog, seen, sim)
+                row["passes"] = _passes(prog, seen, sim)
             row[f"{name}_feed_nrmse"] = compare(tr, meas, "auto").signals["feed"]["nrmse"]
             traces[(p, name)] = tr
         rows.append(row)
@@ -88,17 +89,16 @@ def main(realdata: Path) -> None:
     print(f"wrote docs/validation.md and docs/validation-plate13.svg in {elapsed:.0f} s", file=sys.stderr)
 
 
-def _helices(prog, meas, least: int = 20) -> list:
+def _helices(prog, seen: dict, least: int = 20) -> list:
     """Runs of at least ``least`` consecutive helical half circles of one radius and feed: (radius
     mm, spiral, F mm/s, logged speed mm/s) — the speed the path length over the time from the
-    first report of the run's first line to the first report of the line after it.  A spiral
-    has its end point off the circle (|end radius − start radius| > SPIRAL_MIN)."""
+    first report (``seen``: line -> s) of the run's first line to the first report of the line
+    after it.  A spiral has its end point off the circle (|end radius − start radius| >
+    SPIRAL_MIN)."""
     from mtwin.gcode import records as R
-    from mtwin.loop.blocks import line_starts
     from mtwin.motion.planner import SPIRAL_MIN
 
     rec = prog.records
-    seen = line_starts(np.asarray(meas.t), np.asarray(meas.line))
     reported = np.array(sorted(seen), np.int64)
 
     def first_report(ln):
@@ -124,43 +124,44 @@ def _helices(prog, meas, least: int = 20) -> list:
     return out
 
 
-def _rapid_sequences(prog, meas, trace) -> tuple:
+def _line_kinds(rec) -> dict:
+    """line -> the set of its records' kinds (records.KIND_NAMES), -1 for a drilling cycle's."""
+    from mtwin.gcode import records as R
+
+    kinds: dict = {}
+    for ln, k, fl in zip(rec["line"], rec["kind"], rec["flags"]):
+        kinds.setdefault(int(ln), set()).add(-1 if fl & R.FL_CANNED else int(k))
+    return kinds
+
+
+def _rapid_sequences(prog, seen: dict, sim: dict) -> tuple:
     """(sequences, summed error s, sd per sequence s) of every retract-reposition-approach: three
     rapid lines without M words between a feed move and the next one, timed from the first
-    report of the first rapid to that of the feed line after them (two report delays, whose
-    expectations cancel over many sequences: no group cutting or kind involved)."""
+    report (``seen``, and ``sim`` for the twin: line -> s) of the first rapid to that of the feed
+    line after them (two report delays, whose expectations cancel over many sequences: no group
+    cutting or kind involved)."""
     from mtwin.gcode import records as R
-    from mtwin.loop.blocks import line_starts
 
-    rec = prog.records
-    seen = line_starts(np.asarray(meas.t), np.asarray(meas.line))
-    sim = line_starts(np.asarray(trace.t), np.asarray(trace.line))
     text = prog.data.split(b"\n")
-    kinds: dict = {}
-    for ln, k in zip(rec["line"], rec["kind"]):
-        kinds.setdefault(int(ln), set()).add(int(k))
+    kinds = _line_kinds(prog.records)
     err = []
     for a in sorted(kinds):
         rapid = all(kinds.get(a + i) == {R.RAPID} and b"M" not in text[a + i - 1].upper() for i in range(3))
-        if rapid and R.RAPID not in kinds.get(a + 3, {R.RAPID}) and all(x in d for x in (a, a + 3)
+        after = kinds.get(a + 3, {R.RAPID})
+        if rapid and R.RAPID not in after and -1 not in after and all(x in d for x in (a, a + 3)
                                                                           for d in (seen, sim)):
             err.append((sim[a + 3] - sim[a]) - (seen[a + 3] - seen[a]))
     return len(err), float(np.sum(err)), float(np.std(err)) if err else 0.0
 
 
-def _passes(prog, meas, trace) -> dict:
+def _passes(prog, seen: dict, sim: dict) -> dict:
     """{F mm/min: (passes, measured s, error s)} of every cutting pass — consecutive feed lines
-    (no drilling cycle) between two rapids — timed from the first report of its first line to
-    that of the rapid after it, grouped by the feed of the pass's first line."""
+    (no drilling cycle) between two rapids — timed from the first report (``seen``, ``sim``) of
+    its first line to that of the rapid after it, grouped by the feed of the pass's first line."""
     from mtwin.gcode import records as R
-    from mtwin.loop.blocks import line_starts
 
     rec = prog.records
-    seen = line_starts(np.asarray(meas.t), np.asarray(meas.line))
-    sim = line_starts(np.asarray(trace.t), np.asarray(trace.line))
-    kinds: dict = {}
-    for ln, k, fl in zip(rec["line"], rec["kind"], rec["flags"]):
-        kinds.setdefault(int(ln), set()).add(-1 if fl & R.FL_CANNED else int(k))
+    kinds = _line_kinds(rec)
     lines = sorted(kinds)
     out: dict = {}
     i = 0

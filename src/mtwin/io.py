@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import stat
 import sys
 import tempfile
@@ -186,8 +187,6 @@ def _write_through(out: str, binary: bool):
 
 def _hold_signals():
     """Block SIGINT, SIGTERM and SIGHUP (where the platform can): the mask to restore."""
-    import signal
-
     if not hasattr(signal, "pthread_sigmask"):
         return None
     sigs = {getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)}
@@ -196,8 +195,6 @@ def _hold_signals():
 
 def _release_signals(mask) -> None:
     if mask is not None:
-        import signal
-
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 

@@ -204,8 +204,7 @@ def report_period(t: np.ndarray, line: np.ndarray, least: int = 20) -> float:
     t, line = np.asarray(t, np.float64), np.asarray(line)
     if len(t) < 2:
         return 0.0
-    dt = np.diff(t[np.flatnonzero(np.diff(line) != 0) + 1])
-    dt = dt[dt > 0]
+    dt = _change_intervals(t, line)
     if len(dt) < least:
         return 0.0
     q = float(np.percentile(dt, 25))
@@ -216,15 +215,20 @@ def report_period(t: np.ndarray, line: np.ndarray, least: int = 20) -> float:
     return step if step < 0.5 * period else period
 
 
-def report_jitter(t: np.ndarray, line: np.ndarray, least: int = 20) -> float:
-    """How much the sampling interval of :func:`report_period` varies, as the half-width of a
-    uniform spread relative to it (the 10th to 90th percentile of the first cluster spans 80 %
-    of it): ±0.14 on the NIST Hurco logs (0.16–0.20 s around 0.18 s).  0.1 when not known."""
-    period = report_period(t, line, least)
-    t, line = np.asarray(t, np.float64), np.asarray(line)
-    if period <= 0:
-        return 0.1
+def _change_intervals(t: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """The (positive) times between consecutive changes of the logged line."""
     dt = np.diff(t[np.flatnonzero(np.diff(line) != 0) + 1])
+    return dt[dt > 0]
+
+
+def report_jitter(t: np.ndarray, line: np.ndarray, period: float, least: int = 20) -> float:
+    """How much the sampling interval ``period`` (:func:`report_period`) varies, as the
+    half-width of a uniform spread relative to it (the 10th to 90th percentile of the first
+    cluster spans 80 % of it): ±0.10–0.16 on the NIST Hurco logs (0.16–0.20 s around 0.19 s).
+    0.1 when not known."""
+    if period <= 0 or len(t) < 2:
+        return 0.1
+    dt = _change_intervals(np.asarray(t, np.float64), np.asarray(line))
     one = dt[(dt > 0.5 * period) & (dt < 1.5 * period)]
     if len(one) < least:
         return 0.1
@@ -262,20 +266,20 @@ MIN_LOG_PERIOD = 0.05  # s: a log sampling the line faster shows too little bias
 
 
 def logging_bias(program, groups: Groups, lines: np.ndarray, starts: np.ndarray, sim_end: float,
-                 seeds: int = LOG_SEEDS) -> tuple[dict, dict]:
-    """({kind: mean}, {kind: sd}) of the as-logged error summed by kind that a log of the twin's
-    own run shows — where the true error is zero.
+                 seeds: int = LOG_SEEDS) -> dict:
+    """{kind: s}: the as-logged error summed by kind that a log of the twin's own run shows —
+    where the true error is zero — averaged over ``seeds`` logs.
 
     The delays of :func:`simulated_as_logged` are a first-order picture: which lines a log
     reports, and so how the groups are cut and which kind each takes, depends on where its
     samples fall.  On the NIST Hurco plates the sums by kind of the twin's own run, logged every
     0.19 s, still show up to ±2.2 s (sd 0.05–1.4 s between logs).  So the twin's run is logged
     ``seeds`` times at ``groups.period`` (each interval uniform within ±``groups.jitter``, the
-    first sample anywhere in the first interval), cut and classified as the real log is, and the mean of the
-    sums is what a by-kind comparison takes off; the sd is the sum's own sampling noise."""
+    first sample anywhere in the first interval), cut and classified as the real log is, and the
+    mean of the sums is what a by-kind comparison takes off."""
     period = groups.period
     if period < MIN_LOG_PERIOD or not len(lines):
-        return {}, {}
+        return {}
     order = np.argsort(starts, kind="stable")
     st, ln = starts[order], lines[order]
     h = groups.jitter
@@ -296,7 +300,7 @@ def logging_bias(program, groups: Groups, lines: np.ndarray, starts: np.ndarray,
         for k in set(g.kind):
             m = ok & np.array([x == k for x in g.kind], bool)
             sums.setdefault(k, [0.0] * seeds)[seed] = float(err[m].sum())
-    return ({k: float(np.mean(v)) for k, v in sums.items()}, {k: float(np.std(v)) for k, v in sums.items()})
+    return {k: float(np.mean(v)) for k, v in sums.items()}
 
 
 def set_apart_stops(g: Groups, simulated: np.ndarray) -> Groups:
@@ -368,10 +372,10 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
                 kinds_seen[key] = kind
         kinds.append(kind)
     logged = [{"t0": a, "t1": min(b, end), "state": st} for a, b, st in stops if a < end]
+    period = report_period(meas_t, meas_line)
     return Groups(np.array(firsts, np.int64), np.array(nexts, np.int64), np.array(lasts, np.int64),
                   np.array(meas, np.float64), kinds, excluded, _overlap(0.0, end, holds), logged, codes, at_lines,
-                  np.array(starts, np.float64), period=report_period(meas_t, meas_line),
-                  jitter=report_jitter(meas_t, meas_line))
+                  np.array(starts, np.float64), period=period, jitter=report_jitter(meas_t, meas_line, period))
 
 
 def _stop_code(text: list) -> tuple[str, int]:
@@ -438,7 +442,7 @@ def _against(g: Groups, sim_t, sim_line, program=None) -> BlockTiming:
     stops = [{"state": x["state"], "t0": x["t0"], "t1": x["t1"], "wait": x["t1"] - x["t0"]} for x in g.logged_stops]
     stops += kept.stop_groups
     logged = simulated_as_logged(kept, sim, lines, starts, end)
-    bias = logging_bias(program, kept, lines, starts, end)[0] if program is not None else {}
+    bias = logging_bias(program, kept, lines, starts, end) if program is not None else {}
     return BlockTiming(kept.first_line[ok], kept.last_line[ok], kept.measured[ok], sim[ok],
                        [k for k, o in zip(kept.kind, ok) if o], g.excluded, g.hold_time, stops, logged=logged[ok],
                        period=g.period, bias=bias)

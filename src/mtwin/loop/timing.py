@@ -118,7 +118,7 @@ def refresh_bias(twin, case: TimingCase) -> None:
     like.  It depends little on the parameters, so a fit takes it from the twin of each pass."""
     plan = twin.plan(case.program)
     lines, starts, end = plan_starts(plan, case.wait_line, case_waits(twin, case))
-    bias = logging_bias(case.program, case.groups, lines, starts, end)[0]
+    bias = logging_bias(case.program, case.groups, lines, starts, end)
     case.kind_bias = np.array([bias.get(k, 0.0) for k in case.kinds], np.float64)
 
 
@@ -367,9 +367,10 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
                 raise
             x = best[1].copy()
             tw, fitted = build_fitted(twin, effects, keys, x)
+        now = tw.with_effects(*fitted)
         for c in cases:  # the waits, and the logging's bias by kind, as the fitted twin has them
-            refresh_waits(tw.with_effects(*fitted), c)
-            refresh_bias(tw.with_effects(*fitted), c)
+            refresh_waits(now, c)
+            refresh_bias(now, c)
     tw, fitted = build_fitted(twin, effects, keys, x)
     after = summary(tw.with_effects(*fitted), cases)
     unc = sol.uncertainty
