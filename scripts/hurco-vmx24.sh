@@ -28,13 +28,20 @@ cat > "$work/0.toml" <<'TOML'
 #   travel +-1,000 mm: the programs' work offsets (G54/G58) are not known, so no travel check;
 #   axes.z.max_velocity = X's and Y's rapid rate: the logs hold no long Z rapid to read it from
 #     (the tool-change retracts run G28 to a home position the programs do not give).
+#   controller.in_position 0.2 mm: the logs show no standstill at the rapids' ends (each
+#     retract-reposition-approach, timed report to report, is within 0.03 s of the log on average
+#     without one); a narrow width, fitted, made the twin wait ~50 ms after every rapid;
+#   controller.stop_angle 120 degrees: the plates' zig-zag passes turn by 150-170 degrees and
+#     lose a near constant 0.09 s per turn from F508 to F1016 mm/min, as a full stop does (an
+#     allowable velocity change per axis carries speed through and loses 0.01-0.07 s, growing
+#     with the feed); their other corners turn by 90-100 degrees, none by 100-150.
 # Everything else below the [spindle] table comes from the calibration steps:
 #   1 spindle-runup (its rate, and the speed above which the drive is at its power limit:
 #   plate 12 runs S12000, 13 and 14 S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
 #   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
 #   circle: the control runs them slower than true circles) (the order mtwin diagnose ranks them on
 #   the default twin), 6 the axes: rapid rates (read off the logged rapids), feed accelerations,
-#   jerk (controller.bell_time) and the in-position width.
+#   jerk (controller.bell_time).
 # The servos keep the default machine's velocity feed-forward: fitted without it (0), the
 # in-position waits after every rapid take ~70 ms the log does not show, and the fit buys them
 # back with unphysical values (Y accelerating 4x X, no arc limit at all).
@@ -57,6 +64,10 @@ max_travel = 1000.0
 min_travel = -1000.0
 max_travel = 1000.0
 max_velocity = 10560.0
+
+[controller]
+in_position = 0.2
+stop_angle = 120.0
 TOML
 
 cal() { mtwin calibrate "${runs[@]}" --objective timing "$@"; }
@@ -68,6 +79,6 @@ cal --twin "$work/4.toml" -o "$work/5.toml" --fit spiral-acceleration --refit
 cal --twin "$work/5.toml" -o "$work/6.toml" --refit \
     --param axes.x.max_velocity --param axes.y.max_velocity \
     --param axes.x.max_acceleration --param axes.y.max_acceleration --param axes.z.max_acceleration \
-    --param controller.bell_time --param controller.in_position
+    --param controller.bell_time
 cp "$work/6.toml" "$out"
 mtwin journal "$out"

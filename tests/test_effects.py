@@ -337,9 +337,9 @@ def test_arc_acceleration_limits_arcs_to_the_root_of_a_r():
     assert slow.dur[i] >= 2 * math.pi / math.sqrt(300) and slow.total_time > base.total_time
 
 
-def test_arc_acceleration_is_the_arcs_own_limit_up_to_the_axes():
-    # above the axes' split (√0.75·a) a control's own arc limit raises small circles' speed,
-    # never past what the axes give (v²/r <= a)
+def test_arc_acceleration_is_the_arcs_own_limit_set_apart_from_the_axes():
+    # a control's own arc limit replaces the axes' split (√0.75·a) on feed arcs, below the axes'
+    # acceleration or above it (Fanuc sets it apart, parameter 1735): small circles run at √(a·r)
     import math
 
     from mtwin.motion.path import ARC
@@ -349,8 +349,22 @@ def test_arc_acceleration_is_the_arcs_own_limit_up_to_the_axes():
     i = int(np.flatnonzero(tw.plan(prog).seg["kind"] == ARC)[0])
     vmax = lambda spec: float(tw.with_effects(spec).plan(prog).seg["vmax"][i])
     assert float(tw.plan(prog).seg["vmax"][i]) == pytest.approx(math.sqrt(math.sqrt(0.75) * 400.0))
-    assert vmax("arc-acceleration:acceleration=380") == pytest.approx(math.sqrt(380.0))
-    assert vmax("arc-acceleration:acceleration=900") == pytest.approx(math.sqrt(400.0))
+    assert vmax("arc-acceleration:acceleration=300") == pytest.approx(math.sqrt(300.0))
+    assert vmax("arc-acceleration:acceleration=900") == pytest.approx(math.sqrt(900.0))
+
+
+def test_a_spiral_is_an_arc_off_its_circle_by_more_than_2_3_micrometres():
+    # one 0.0001-in increment (2.54 µm) off the circle is a spiral; 2 µm (what rounding both
+    # the end point and the centre leaves on the plates' large arcs) runs as a circle
+    import math
+
+    from mtwin.motion.path import ARC
+
+    tw = mtwin.Twin().with_effects("arc-acceleration:acceleration=400", "spiral-acceleration:acceleration=250")
+    for end, a in (("2.002", 400.0), ("2.00254", 250.0), ("2.0", 400.0)):
+        prog = tw.load(f"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG2 X{end} Y0 I1 J0 F6000\nG0 Z5\nM30\n".encode(), path="s.nc")
+        seg = tw.plan(prog).seg
+        assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx(math.sqrt(a * 1.0), rel=1e-9), end
 
 
 # a helix of half circles, r = 0.35 mm, as CAM writes it rounded to 0.0001 in: the centre
@@ -478,3 +492,22 @@ def test_an_effects_dotted_parameter_name_is_built_and_split_in_one_place():
     assert not is_effect_param("x.servo.kpp")
     with pytest.raises(ConfigError):
         split_effect_param("x.servo.kpp")
+
+
+def test_stop_angle_stops_at_reversals_as_g9_does_and_blends_the_rest():
+    # a zig-zag: two reversals (174°) and a straight run; with stop_angle the plan is the one
+    # the interpreter makes of G9 on the blocks that end at the reversals, and nothing else moves
+    tw = mtwin.Twin()
+    body = "{g9}G1 X10 F1000\n{g9}X0 Y1\nX10 Y2\nX20 Y3\nX30 Y4.5\nG0 Z5\nM30\n"
+    head = "G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\n"
+    plain = tw.load((head + body.format(g9="")).encode(), path="z.nc")
+    g9 = tw.load((head + body.format(g9="G9 ")).encode(), path="z9.nc")
+    stop = tw.with_params({"controller.stop_angle": 120.0})
+    a, b, base = stop.plan(plain), tw.plan(g9), tw.plan(plain)
+    np.testing.assert_allclose(a.dur, b.dur, rtol=1e-12, atol=1e-12)
+    assert a.total_time > base.total_time + 0.02  # the reversals cost the stops
+    # the straight run and the shallow corner (5.7°) after the last reversal are untouched
+    last = lambda plan: float(plan.dur[plan.seg["line"] == 7].sum())
+    assert last(a) == pytest.approx(last(base), rel=1e-12)
+    # only turns sharper than the angle stop: at 175° none of these does
+    np.testing.assert_allclose(tw.with_params({"controller.stop_angle": 175.0}).plan(plain).dur, base.dur)

@@ -29,9 +29,11 @@ from .path import (ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, CATEGORY_NAMES, LINE, 
 
 STYLE_CODES = {"fanuc": K.STYLE_FANUC, "linuxcnc": K.STYLE_LINUXCNC, "grbl": K.STYLE_GRBL}
 _MIN_LENGTH = 1e-9  # mm: moves shorter than this are dropped (a nanometre is below any servo)
-# mm: an arc whose end radius differs from its start radius by more than this is a spiral (a
-# program's rounded centre: 0.0001 in leaves 2.5 µm, 0.001 mm up to 1 µm; float noise is ~1e-12)
-SPIRAL_MIN = 1e-4
+# mm: an arc whose end radius differs from its start radius by more than this is a spiral.  A
+# centre rounded to 0.0001 in leaves the end point off by one such increment (2.54 µm); the
+# Hurco VMX24's logs show these arcs run slower than true circles, while arcs off by up to
+# 2.2 µm (end point and centre both rounded) run as circles (docs/validation.md)
+SPIRAL_MIN = 2.3e-3
 
 
 @dataclass
@@ -135,19 +137,20 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     if arc.any():
         # centripetal limit: v²/r <= a·√(1 − 0.5²) and the tangential acceleration left over
         # (LinuxCNC's split of the acceleration budget on circles; the total stays <= a).  A
-        # control with its own normal-acceleration limit on feed arcs (Fanuc's AI contour
-        # control sets it apart, parameter 1735) uses that instead, up to what the axes give;
-        # a spiral (an end point off the circle, tolerated by the interpreter) may have its own
+        # control with its own normal-acceleration limit on feed arcs uses that instead: Fanuc's
+        # AI contour control sets it apart (parameter 1735) from the acceleration along the path
+        # (parameter 1660), and it may be the higher of the two; a spiral (an end point off the
+        # circle, tolerated by the interpreter) may have its own
         a = seg[arc]
         r = np.minimum(a["r0"], a["r1"])
         a_axis = amax[arc]
         a_normal = K._ACC_RATIO_NORMAL * a_axis
         cut = a["rapid"] == 0
         if c.arc_acceleration > 0:
-            a_normal = np.where(cut, np.minimum(c.arc_acceleration, a_axis), a_normal)
+            a_normal = np.where(cut, c.arc_acceleration, a_normal)
         if c.spiral_acceleration > 0:
             spiral = cut & (np.abs(a["r1"] - a["r0"]) > SPIRAL_MIN)
-            a_normal = np.where(spiral, np.minimum(c.spiral_acceleration, a_axis), a_normal)
+            a_normal = np.where(spiral, c.spiral_acceleration, a_normal)
         v = np.minimum(vmax[arc], np.sqrt(a_normal * r))
         a_n = v * v / np.maximum(r, 1e-300)
         ratio = np.where(a_n > K._ACC_RATIO_NORMAL * a_axis, K._ACC_RATIO_TAN,
@@ -557,6 +560,8 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
         # drilling cycles position with an exact stop at every point (LinuxCNC runs them
         # in exact-path mode)
         seg["path_mode"][canned & (seg["kind"] != PAUSE)] = 1 if style == K.STYLE_LINUXCNC else 2
+    if c.stop_angle > 0:
+        _stop_at_sharp_corners(seg, c.stop_angle)
     if style == K.STYLE_LINUXCNC:
         seg = _naive_cam(seg, rec)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
@@ -587,6 +592,19 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
                                  seg["duration"])
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
     return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift, feed_box, geometry)
+
+
+def _stop_at_sharp_corners(seg: np.ndarray, angle: float) -> None:
+    """An exact stop (as G9 on the block) at the end of every feed segment whose direction
+    turns by more than ``angle`` degrees into the next feed segment's: a control that will not
+    blend a reversal however slow, where the corner rule alone (an allowable velocity change
+    per axis) would carry a little speed through it."""
+    if len(seg) < 2:
+        return
+    feed = (seg["kind"] != PAUSE) & (seg["rapid"] == 0)
+    turn = np.einsum("ij,ij->i", seg["u1"][:-1], seg["u0"][1:])
+    sharp = feed[:-1] & feed[1:] & (turn < math.cos(math.radians(angle)))
+    seg["path_mode"][:-1][sharp] = R.PATH_EXACT_STOP
 
 
 def _feed_box(seg: np.ndarray, shift) -> np.ndarray | None:

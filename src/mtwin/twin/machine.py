@@ -47,6 +47,11 @@ class Controller:
                           hi=1.0)
     corner_velocity: float = P(400.0, "mm/min",
                                "fanuc: allowable velocity change per axis at a corner [E]")
+    # a control may refuse to blend a reversal at any speed: the NIST Hurco VMX24 loses a near
+    # constant ~0.09 s at each of its plates' 150-170 degree zig-zag turns from F508 to F1016
+    # mm/min, as a full stop does, where an allowable velocity change carries speed through
+    stop_angle: float = P(0.0, "deg", "feed corners that turn by more than this are exact stops (as G9 on the "
+                          "block), 0 = none [E: 120 on a Hurco VMX24, docs/validation.md]", "nonneg", hi=180.0)
     junction_deviation: float = P(0.01, "mm", "grbl: junction deviation [S: Grbl default 0.01 mm]")
     exact_stop_rapids: bool = P(True, "bool", "decelerate to a stop at the end of every rapid (in-position check)", "bool")
     in_position: float = P(0.02, "mm", "in-position width: at an exact stop the next block waits until every "
@@ -58,8 +63,9 @@ class Controller:
     rapid_acceleration: float = P(0.0, "mm/s^2", "acceleration of each axis on rapids, 0 = its max_acceleration "
                                   "[S: separate rapid and cutting acc/dec, Fanuc parameters 1620/1622]", "nonneg")
     arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), in place of the "
-                                "axes' share (sqrt(0.75) of their acceleration) and up to their whole, 0 = the axes' "
-                                "share [E: small circles on a Hurco VMX24 run at ~370 mm/s^2]", "nonneg")
+                                "axes' share (sqrt(0.75) of their acceleration) and set apart from it as Fanuc's "
+                                "parameter 1735 is, 0 = the axes' share [E: circles of 0.35-6.5 mm radius on a Hurco "
+                                "VMX24 run at ~370-400 mm/s^2]", "nonneg")
     # a CAM that rounds an arc's centre leaves its end point off the circle (radius mismatch, e.g.
     # 0.0001 in): the control runs it as a spiral, outside its circular interpolation, and the
     # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
