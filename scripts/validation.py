@@ -72,7 +72,7 @@ def main(realdata: Path) -> None:
                 # the longest pass (the contour with 6.5-mm corner arcs whose end points are 0.3-2.2 µm
                 # off their circles), and the same twin running those arcs as spirals
                 longest = max(_pass_list(prog, seen, sim), key=lambda x: x[2])
-                row["contour"] = (longest[1], longest[3], longest[4], _as_spirals(tw, nc, seen, longest[0]))
+                row["contour"] = (longest[5], longest[3], longest[4], _as_spirals(tw, nc, seen, longest[0]))
             row[f"{name}_feed_nrmse"] = compare(tr, meas, "auto").signals["feed"]["nrmse"]
             traces[(p, name)] = tr
         rows.append(row)
@@ -113,7 +113,7 @@ def _as_spirals(tw, nc: str, seen: dict, first: int) -> float:
     finally:
         planner.SPIRAL_MIN = keep
     sim = line_starts(np.asarray(tr.t), np.asarray(tr.line))
-    return next(e for a, _, _, _, e in _pass_list(prog, seen, sim) if a == first)
+    return next(e for a, _, _, _, e, _ in _pass_list(prog, seen, sim) if a == first)
 
 
 def _helices(prog, seen: dict, least: int = 20) -> list:
@@ -182,7 +182,7 @@ def _rapid_sequences(prog, seen: dict, sim: dict) -> tuple:
 
 
 def _pass_list(prog, seen: dict, sim: dict) -> list:
-    """(first line, F mm/min, path mm, measured s, error s) of every cutting pass — consecutive
+    """(first line, F mm/min, path mm, measured s, error s, highest F mm/min) of every cutting pass — consecutive
     feed lines (no drilling cycle) between two rapids — timed from the first report (``seen``,
     ``sim``) of its first line to that of the rapid after it; F is the pass's first line's."""
     from mtwin.gcode import records as R
@@ -205,7 +205,8 @@ def _pass_list(prog, seen: dict, sim: dict) -> list:
         if all(x in d for x in (a, b) for d in (seen, sim)):
             on = (rec["line"] >= a) & (rec["line"] < b)
             out.append((a, int(round(float(rec["feed"][rec["line"] == a].max()))), float(lengths[on].sum()),
-                        seen[b] - seen[a], (sim[b] - sim[a]) - (seen[b] - seen[a])))
+                        seen[b] - seen[a], (sim[b] - sim[a]) - (seen[b] - seen[a]),
+                        int(round(float(rec["feed"][on].max())))))
         i = j + 1
     return out
 
@@ -214,7 +215,7 @@ def _passes(prog, seen: dict, sim: dict) -> dict:
     """{F mm/min: (passes, measured s, error s)} of the cutting passes (:func:`_pass_list`),
     grouped by the feed of the pass's first line."""
     out: dict = {}
-    for _, f, _, m, e in _pass_list(prog, seen, sim):
+    for _, f, _, m, e, _ in _pass_list(prog, seen, sim):
         n, mm, ee = out.get(f, (0, 0.0, 0.0))
         out[f] = (n + 1, mm + m, ee + e)
     return out
@@ -339,7 +340,7 @@ def _markdown(rows, kinds, elapsed) -> str:
             "54 of them).  Rounding both the end points and the centres leaves those arcs' end points 0.3–2.2 µm off "
             "their circles, where the helices' spirals are off by one 0.0001-in increment (2.54 µm).  Timed report to "
             "report over the pass (simulated − measured):", "",
-            "| plate | F mm/min | measured s | profile | the same, these arcs as spirals |", "|---|---:|---:|---:|---:|"]
+            "| plate | F mm/min (its lines and arcs) | measured s | profile | the same, these arcs as spirals |", "|---|---:|---:|---:|---:|"]
     for r in rows:
         if r["plate"] in (13, 14):
             f, meas, e, e_spiral = r["contour"]
@@ -381,36 +382,38 @@ def _markdown(rows, kinds, elapsed) -> str:
             "acc/dec apart.  Before it was separate, "
             "rapids ran ≈ 21 s long per plate while small arcs and short lines ran 8–13 s short each, errors that "
             "cancelled in the cycle time; the calibration now also fits the error summed by block kind.",
-            "- The spindle's run-up and braking follow its drive: torque-limited to ≈ 6,100 rpm, power-limited "
+            "- The spindle's run-up and braking follow its drive: torque-limited to ≈ 6,000 rpm, power-limited "
             "above (the rate falls as 1/n; `spindle-runup`'s `power_speed`).  Plate 12 runs S12000, plates 13 and "
             "14 S9000: with a constant rate its tool changes ran 4.5 s short and theirs 2.5 s long.  Fitted on "
             "plates 13 and 14 alone, the power speed cannot be seen (both run one speed), so the leave-one-out "
-            "prediction of plate 12's tool changes is 8 s short.",
-            "- Below the spiral limit, spirals still run 3–10 % under F where circles reach it (plate 14's "
-            "0.43-mm helices at 10.3–10.7 mm/s against F 11.4; plate 12's at 7.9–8.5 against 8.5): the control "
-            "slows somewhere along a spiral in a way a limit on v²/r does not describe, and the small arcs of "
-            "plates 12 and 14 stay ≈ 3 s short.  A fixed speed at each spiral's end was tried: it cost the "
-            "large-radius spirals (1.7 mm, F 34 mm/s) 2 s each, which the log does not show.",
-            "- Still off by more than 2 s with the profile: feed moves, short lines and small arcs 2–4 s short on "
-            "plates 12 and 14 and rapids 2–4 s long on all three.  The rapids' own time is right: timed from report "
+            f"prediction of plate 12's tool changes is {kinds[(12, 'loo')].get('tool change', 0):+.1f} s off.",
+            "- Below the spiral limit, spirals still run 3–10 % under F where circles reach it (the table above: "
+            "plate 14's 0.42-mm helices, plate 12's): the control slows somewhere along a spiral in a way a limit on "
+            "v²/r does not describe; the small arcs, with the profile, are off by "
+            + " / ".join(f"{kinds[(r['plate'], 'profile')].get('small arc', 0):+.1f}" for r in rows)
+            + " s (plates " + " / ".join(str(r["plate"]) for r in rows) + ").",
+            "- Still off by more than 2 s with the profile: "
+            + "; ".join(f"plate {r['plate']}: " + ", ".join(f"{k} {v:+.1f} s" for k, v in
+                                                          kinds[(r["plate"], "profile")].items()
+                                                          if abs(v) > 2.0 and k != "program end")
+                        for r in rows if any(abs(v) > 2.0 for k, v in kinds[(r["plate"], "profile")].items()
+                                             if k != "program end"))
+            + ".  The rapids' own time is right: timed from report "
             "to report over each retract–reposition–approach (three rapids between a feed move and the next, no "
             "groups or kinds involved) the profile is off by "
             + ", ".join(f"{r['rapids'][1]:+.1f} s over {r['rapids'][0]} sequences (plate {r['plate']})" for r in rows)
             + f", sd {max(r['rapids'][2] for r in rows):.2f} s per sequence, the two reports' jitter.  What puts "
-            "2–4 s into the rapid kind's sum is how the time is split between the rapid groups and their "
+            "the rest into the rapid kind's sum is how the time is split between the rapid groups and their "
             "neighbours, which is not located yet; the fit, holding both the ~10-s windows and the sums by kind, "
-            "cannot move it either.  Adding "
-            "`corner-slowdown` (111 mm/min) brought the short lines within 2.3 s but moved plate 13's cycle to "
-            "+0.8 %, so it is not in the profile.",
+            "cannot move it either.",
             "- Where the cycle-time error sits, timed report to report over whole cutting passes (consecutive "
             "feed lines between two rapids; the pass's first feed): "
             + "; ".join(f"plate {r['plate']}: " + ", ".join(f"F{f} {e:+.1f} s of {m:.0f} s ({n} passes)"
                                                            for f, (n, m, e) in sorted(r["passes"].items())
                                                            if abs(e) >= 1.0)
                         for r in rows)
-            + " (simulated − measured).  The many short passes at the plates' slow feeds take longer on the "
-            "machine than in the twin, plate 13's fastest pass (F144 in/min) less.  One feed acceleration, fitted "
-            "as the control's effective one on these programs' short moves, cannot give both.",
+            + " (simulated − measured).  The many passes at the plates' slowest feeds still take longer on the "
+            "machine than in the twin.",
             "- Per-group RMS rises slightly with the profile (the waits after M3/M5 sit on the line the twin runs "
             "them on, the control reports the next one): the error moves between neighbouring groups, which the "
             "windows absorb.",
