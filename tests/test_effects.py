@@ -405,6 +405,23 @@ def test_spiral_acceleration_slows_spirals_to_the_root_of_a_r_and_leaves_circles
     assert float(plan.dur[on].sum()) == pytest.approx(length / math.sqrt(290.0 * 0.35), rel=0.03)
 
 
+def test_spiral_block_time_adds_its_time_to_every_spiral_block_and_none_to_circles():
+    # below the spiral limit (F20 in/min, 8.5 mm/s) each spiral half circle takes L/F + t: the
+    # helix of 40 takes 40·t longer; the same helix drawn true is untouched
+    tw = mtwin.Twin()
+    slow = tw.with_effects("spiral-acceleration:acceleration=290,block_time=0.006")
+    from mtwin.motion.path import ARC
+
+    for words, extra in ((("-.0138", ".0137"), 0.006), (("-.01375", ".01375"), 0.0)):
+        prog = tw.load(_helix(*words).replace(b"F36", b"F20"), path="h.nc")
+        base, plan = tw.plan(prog), slow.plan(prog)
+        on = plan.seg["kind"] == ARC
+        length = plan.seg["length"][on]
+        v = plan.seg["vmax"][on]
+        np.testing.assert_allclose(length / v, length / (20 * 25.4 / 60.0) + extra, rtol=1e-9)
+        assert float(plan.dur[on].sum() - base.dur[on].sum()) == pytest.approx(40 * extra, abs=2e-3)
+
+
 def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():
     # a long rapid without jerk: t = L/v + v/a (accelerate and brake at a, cruise between);
     # the feed move after it keeps the axes' acceleration

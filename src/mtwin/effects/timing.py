@@ -93,14 +93,20 @@ class ArcAcceleration(Effect):
 class SpiralAcceleration(Effect):
     name = "spiral-acceleration"
     description = ("arcs whose end point is off the programmed circle (a rounded centre: the control runs a "
-                   "spiral) take a lower normal acceleration v²/r than true circles")
+                   "spiral) take a lower normal acceleration v²/r than true circles, and longer per block")
     stage = "plan"
     params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
-                    "normal-acceleration limit on spiral arcs, 0 = as circles"),)
+                    "normal-acceleration limit on spiral arcs, 0 = as circles"),
+              Param("block_time", "s", 0.0, 0.0, 0.05,
+                    "time the control spends on each spiral block beyond its path's, 0 = none"))
     signals = ("feed",)
+    # where the spiral limit binds, the block times cannot tell the two apart: the time per block
+    # is measured where the feed is below the limit (fit=acceleration+block_time to fit both)
+    fitted = ("acceleration",)
 
     def machine(self, m, p):
-        return _controller_set(m, "spiral_acceleration", p["acceleration"])
+        m = _controller_set(m, "spiral_acceleration", p["acceleration"])
+        return _controller_set(m, "spiral_block_time", p["block_time"])
 
 
 class RapidAcceleration(Effect):

@@ -148,10 +148,14 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
         cut = a["rapid"] == 0
         if c.arc_acceleration > 0:
             a_normal = np.where(cut, c.arc_acceleration, a_normal)
+        spiral = cut & (np.abs(a["r1"] - a["r0"]) > SPIRAL_MIN)
         if c.spiral_acceleration > 0:
-            spiral = cut & (np.abs(a["r1"] - a["r0"]) > SPIRAL_MIN)
             a_normal = np.where(spiral, c.spiral_acceleration, a_normal)
         v = np.minimum(vmax[arc], np.sqrt(a_normal * r))
+        if c.spiral_block_time > 0:
+            # the control spends this much longer on each spiral block than its path takes: a
+            # block of length L run at v takes L/v + t, i.e. runs at L/(L/v + t)
+            v = np.where(spiral, a["length"] / (a["length"] / np.maximum(v, 1e-300) + c.spiral_block_time), v)
         a_n = v * v / np.maximum(r, 1e-300)
         ratio = np.where(a_n > K._ACC_RATIO_NORMAL * a_axis, K._ACC_RATIO_TAN,
                          np.sqrt(np.clip(1.0 - (a_n / a_axis) ** 2, 0.0, 1.0)))
