@@ -37,7 +37,7 @@ cat > "$work/0.toml" <<'TOML'
 #     cannot tell this time from the limit, so step 5 fits the limit alone;
 #   controller.stop_angle 120 degrees: the plates' zig-zag passes turn by 150-170 degrees and
 #     lose a near constant 0.09 s per turn from F508 to F1016 mm/min, as a full stop does (an
-#     allowable velocity change per axis carries speed through and loses 0.01-0.07 s, growing
+#     allowable velocity change per axis carries speed through and loses 0.03-0.07 s, growing
 #     with the feed); their other corners turn by 90-100 degrees, none by 100-150.
 # Everything else below the [spindle] table comes from the calibration steps:
 #   1 spindle-runup (its rate, and the speed above which the drive is at its power limit:

@@ -361,7 +361,7 @@ def test_a_spiral_is_an_arc_off_its_circle_by_more_than_2_3_micrometres():
     from mtwin.motion.path import ARC
 
     tw = mtwin.Twin().with_effects("arc-acceleration:acceleration=400", "spiral-acceleration:acceleration=250")
-    for end, a in (("2.002", 400.0), ("2.00254", 250.0), ("2.0", 400.0)):
+    for end, a in (("2.002", 400.0), ("2.0022", 400.0), ("2.00254", 250.0), ("2.0", 400.0)):
         prog = tw.load(f"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG2 X{end} Y0 I1 J0 F6000\nG0 Z5\nM30\n".encode(), path="s.nc")
         seg = tw.plan(prog).seg
         assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx(math.sqrt(a * 1.0), rel=1e-9), end
@@ -409,7 +409,7 @@ def test_spiral_block_time_adds_its_time_to_every_spiral_block_and_none_to_circl
     # below the spiral limit (F20 in/min, 8.5 mm/s) each spiral half circle takes L/F + t: the
     # helix of 40 takes 40·t longer; the same helix drawn true is untouched
     tw = mtwin.Twin()
-    slow = tw.with_effects("spiral-acceleration:acceleration=290,block_time=0.006")
+    slow = tw.with_effects("spiral-acceleration:block_time=0.006")  # the time alone, no limit
     from mtwin.motion.path import ARC
 
     for words, extra in ((("-.0138", ".0137"), 0.006), (("-.01375", ".01375"), 0.0)):
@@ -512,8 +512,8 @@ def test_an_effects_dotted_parameter_name_is_built_and_split_in_one_place():
 
 
 def test_stop_angle_stops_at_reversals_as_g9_does_and_blends_the_rest():
-    # a zig-zag: two reversals (174°) and a straight run; with stop_angle the plan is the one
-    # the interpreter makes of G9 on the blocks that end at the reversals, and nothing else moves
+    # a zig-zag: two reversals (174.3° and 168.6°) and a straight run; with stop_angle the plan is
+    # the one the interpreter makes of G9 on the blocks that end at the reversals, nothing else moves
     tw = mtwin.Twin()
     body = "{g9}G1 X10 F1000\n{g9}X0 Y1\nX10 Y2\nX20 Y3\nX30 Y4.5\nG0 Z5\nM30\n"
     head = "G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\n"
@@ -523,8 +523,16 @@ def test_stop_angle_stops_at_reversals_as_g9_does_and_blends_the_rest():
     a, b, base = stop.plan(plain), tw.plan(g9), tw.plan(plain)
     np.testing.assert_allclose(a.dur, b.dur, rtol=1e-12, atol=1e-12)
     assert a.total_time > base.total_time + 0.02  # the reversals cost the stops
-    # the straight run and the shallow corner (5.7°) after the last reversal are untouched
+    # the straight run and the shallow corner (2.8°) after the last reversal are untouched
     last = lambda plan: float(plan.dur[plan.seg["line"] == 7].sum())
     assert last(a) == pytest.approx(last(base), rel=1e-12)
     # only turns sharper than the angle stop: at 175° none of these does
     np.testing.assert_allclose(tw.with_params({"controller.stop_angle": 175.0}).plan(plain).dur, base.dur)
+    # an arc's end tangent, not its chord, decides: a half circle ending heading -X, then a line
+    # back along +X (a 180° turn) stops; the same half circle then a line on along -X does not
+    arc = "G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG1 X10 F1000\n{g9}G3 X10 Y10 I0 J5\nG1 X{x}\nG0 Z5\nM30\n"
+    back, on = (tw.load(arc.format(g9="", x=x).encode(), path="a.nc") for x in (20, 0))
+    back9 = tw.load(arc.format(g9="G9 ", x=20).encode(), path="a9.nc")
+    np.testing.assert_allclose(stop.plan(back).dur, tw.plan(back9).dur, rtol=1e-12, atol=1e-12)
+    assert stop.plan(back).total_time > tw.plan(back).total_time
+    np.testing.assert_allclose(stop.plan(on).dur, tw.plan(on).dur, rtol=1e-12, atol=1e-12)

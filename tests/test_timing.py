@@ -217,16 +217,21 @@ def test_the_profile_predicts_each_plates_cycle_time_within_2_percent():
 @need_hurco
 @pytest.mark.parametrize("left_out", [12, 13, 14])
 def test_leave_one_out_predicts_the_third_plate_within_3_percent(left_out):
-    # the profile's recipe in one fit, from its hand-set base, on two plates; the third predicted
+    # the profile's recipe in one fit, from its hand-set base (scripts/hurco-vmx24.sh), on two
+    # plates; the third predicted.  The spiral block time is measured on plate 12 only (its
+    # helices run below both limits), so it is taken only when plate 12 is a training plate
     base = mtwin.Twin().with_params({"spindle.max_speed": 12000.0, "axes.z.max_velocity": 10560.0,
+                                     "controller.in_position": 0.2, "controller.stop_angle": 120.0,
                                      **{f"axes.{a}.{k}": v for a in "xyz" for k, v in
                                         (("min_travel", -1000.0), ("max_travel", 1000.0))}})
     cases = [_case(base, p) for p in (12, 13, 14) if p != left_out]
-    effects = [get(n)() for n in ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
-                                  "spiral-acceleration")]
+    block_time = 0.0052 if left_out != 12 else 0.0
+    effects = [get(n)(block_time=block_time) if n == "spiral-acceleration" else get(n)()
+               for n in ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
+                         "spiral-acceleration")]
     fr = T.fit_timing(base, cases, effects, ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration",
-                                             "axes.y.max_acceleration", "controller.bell_time",
-                                             "controller.in_position"])
+                                             "axes.y.max_acceleration", "axes.z.max_acceleration",
+                                             "controller.bell_time"])
     fitted = base.with_params({k: v for k, v in fr.params.items() if not k.startswith("effects.")}) \
         .with_effects(*fr.effects)
     s = T.summary(fitted, [_case(fitted, left_out)])
@@ -241,7 +246,7 @@ def test_diagnose_names_the_timing_effects_the_profile_adds_in_order():
     names = [c["effect"] for c in d["candidates"]]
     profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
     assert names[:len(profile)] == profile, (names, profile)
-    # the ones it does not add remove far less than the last one it adds (on plate 13: 25.9 %
+    # the ones it does not add remove far less than the last one it adds (on plate 13: 25 %
     # for spiral-acceleration, 7 % each for corner-slowdown and block-time)
     weakest = d["candidates"][len(profile) - 1]["explained_variance"]
     assert all(c["explained_variance"] < 0.5 * weakest for c in d["candidates"][len(profile):])

@@ -137,7 +137,8 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     if arc.any():
         # centripetal limit: v²/r <= a·√(1 − 0.5²) and the tangential acceleration left over
         # (LinuxCNC's split of the acceleration budget on circles; the total stays <= a).  A
-        # control with its own normal-acceleration limit on feed arcs uses that instead: Fanuc's
+        # control with its own normal-acceleration limit on feed arcs uses that instead (and the
+        # total may then exceed the axes' a along the path, as on the Hurco): Fanuc's
         # AI contour control sets it apart (parameter 1735) from the acceleration along the path
         # (parameter 1660), and it may be the higher of the two; a spiral (an end point off the
         # circle, tolerated by the interpreter) may have its own
@@ -564,10 +565,10 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
         # drilling cycles position with an exact stop at every point (LinuxCNC runs them
         # in exact-path mode)
         seg["path_mode"][canned & (seg["kind"] != PAUSE)] = 1 if style == K.STYLE_LINUXCNC else 2
-    if c.stop_angle > 0:
-        _stop_at_sharp_corners(seg, c.stop_angle)
     if style == K.STYLE_LINUXCNC:
         seg = _naive_cam(seg, rec)
+    if c.stop_angle > 0:  # (on the path as merged: LinuxCNC's naive CAM joins tiny steps first)
+        _stop_at_sharp_corners(seg, c.stop_angle)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
     is_pause = seg["kind"] == PAUSE
     _clamp_cutting_feed(seg, is_pause, machine, warnings, path)

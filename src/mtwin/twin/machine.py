@@ -70,13 +70,14 @@ class Controller:
     # 0.0001 in): the control runs it as a spiral, outside its circular interpolation, and the
     # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
     spiral_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs whose end radius differs "
-                                   "from their start radius (a spiral: a rounded centre), 0 = as circles [E: a Hurco "
-                                   "VMX24 runs them at ~290 mm/s^2, true circles at ~370]", "nonneg")
-    # below that limit the same spirals still run 3-6 % under F where true circles reach it: on
-    # the plates' 0.35-0.42 mm helices, ~6 ms more per half circle, at F508 as at F686
+                                   "from their start radius by more than 2.3 um (a spiral: a rounded centre), 0 = as "
+                                   "circles [E: a Hurco VMX24 runs them at ~290-330 mm/s^2, true circles at ~370-400]",
+                                   "nonneg")
+    # below that limit the same spirals still run 3-4 % under F where true circles reach it: on
+    # the NIST plate 12's 0.35-0.42 mm helices at F508, 4.8-5.6 ms more per half circle
     spiral_block_time: float = P(0.0, "s", "time the control spends on each spiral block beyond what its path takes "
-                                 "(the block runs that much slower), 0 = none [E: ~6 ms on a Hurco VMX24's 1-mm "
-                                 "spiral blocks]", "nonneg", hi=1.0)
+                                 "(the block runs at L/(L/v + t): t whole where it reaches its speed), 0 = none "
+                                 "[E: ~5 ms on a Hurco VMX24's 1-mm spiral blocks]", "nonneg", hi=0.05)
     feed_override: float = P(100.0, "", "feed override in % in force for the whole run (a run's, not the "
                              "machine's: what effects.feed-override fits to a log that did not record it)",
                              lo=1.0, hi=1000.0)
