@@ -132,16 +132,11 @@ def _spiral_block_time(helices: list) -> float:
 def _as_spirals(tw, nc: str, seen: dict, first: int) -> float:
     """The error (s) of the pass starting at line ``first`` when every arc off its circle by
     more than 0.1 µm is run as a spiral (the spiral threshold before it was measured)."""
-    import mtwin.motion.planner as planner
     from mtwin.loop.blocks import line_starts
 
-    keep = planner.SPIRAL_MIN
-    planner.SPIRAL_MIN = 1e-4
-    try:
-        prog = tw.load(nc)
-        tr = tw.simulate(prog)
-    finally:
-        planner.SPIRAL_MIN = keep
+    tw = tw.with_params({"controller.spiral_min": 1e-4})
+    prog = tw.load(nc)
+    tr = tw.simulate(prog)
     sim = line_starts(np.asarray(tr.t), np.asarray(tr.line))
     return next(e for a, _, _, _, e, _ in _pass_list(prog, seen, sim) if a == first)
 
@@ -151,9 +146,11 @@ def _helices(prog, seen: dict, least: int = 20) -> list:
     mm, spiral, F mm/s, logged speed mm/s) — the speed the path length over the time from the
     first report (``seen``: line -> s) of the run's first line to the first report of the line
     after it.  A spiral has its end point off the circle (|end radius − start radius| >
-    SPIRAL_MIN)."""
+    controller.spiral_min)."""
     from mtwin.gcode import records as R
-    from mtwin.motion.planner import SPIRAL_MIN
+    import mtwin
+
+    spiral_min = mtwin.Twin.from_toml(str(PROFILE)).machine.controller.spiral_min
 
     rec = prog.records
     reported = np.array(sorted(seen), np.int64)
@@ -175,7 +172,7 @@ def _helices(prog, seen: dict, least: int = 20) -> list:
             run = rec[i:j + 1]
             dt = first_report(int(run["line"][-1]) + 1) - first_report(int(run["line"][0]))
             out.append((float(np.median(np.minimum(r0, r1)[i:j + 1])),
-                        bool(np.median(np.abs(r1 - r0)[i:j + 1]) > SPIRAL_MIN), float(run["feed"][0]) / 60.0,
+                        bool(np.median(np.abs(r1 - r0)[i:j + 1]) > spiral_min), float(run["feed"][0]) / 60.0,
                         float(R.move_lengths(run).sum()) / dt))
         i = j + 1
     return out
@@ -380,7 +377,7 @@ def _markdown(rows, kinds, elapsed) -> str:
         if r["plate"] in (13, 14):
             f, meas, e, e_spiral = r["contour"]
             out.append(f"| {r['plate']} | {f} | {meas:.1f} | {e:+.2f} s | {e_spiral:+.2f} s |")
-    out += ["", "So an arc counts as a spiral only from 2.3 µm off its circle (`motion.planner.SPIRAL_MIN`).  At "
+    out += ["", "So an arc counts as a spiral only from 2.3 µm off its circle (`controller.spiral_min`).  At "
             "F144 in/min (61 mm/s) these arcs run at the circles' limit, v²/r ≈ "
             f"{m.controller.arc_acceleration:.0f} mm/s², above the path acceleration the short moves fit "
             f"({acc_xy:.0f}): the arc limit is the control's own, not a share of the axes'.",

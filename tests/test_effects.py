@@ -365,6 +365,10 @@ def test_a_spiral_is_an_arc_off_its_circle_by_more_than_2_3_micrometres():
         prog = tw.load(f"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG2 X{end} Y0 I1 J0 F6000\nG0 Z5\nM30\n".encode(), path="s.nc")
         seg = tw.plan(prog).seg
         assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx(math.sqrt(a * 1.0), rel=1e-9), end
+    # the threshold is the twin file's (controller.spiral_min): at 1 µm the 2-µm arc is a spiral
+    prog = tw.load(b"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG2 X2.002 Y0 I1 J0 F6000\nG0 Z5\nM30\n", path="s.nc")
+    seg = tw.with_params({"controller.spiral_min": 0.001}).plan(prog).seg
+    assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx(math.sqrt(250.0), rel=1e-9)
 
 
 # a helix of half circles, r = 0.35 mm, as CAM writes it rounded to 0.0001 in: the centre

@@ -29,11 +29,6 @@ from .path import (ARC, CAT_DWELL, CAT_SPINDLE, CAT_TOOL, CATEGORY_NAMES, LINE, 
 
 STYLE_CODES = {"fanuc": K.STYLE_FANUC, "linuxcnc": K.STYLE_LINUXCNC, "grbl": K.STYLE_GRBL}
 _MIN_LENGTH = 1e-9  # mm: moves shorter than this are dropped (a nanometre is below any servo)
-# mm: an arc whose end radius differs from its start radius by more than this is a spiral.  A
-# centre rounded to 0.0001 in leaves the end point off by one such increment (2.54 µm); the
-# Hurco VMX24's logs show these arcs run slower than true circles, while arcs off by up to
-# 2.2 µm (end point and centre both rounded) run as circles (docs/validation.md)
-SPIRAL_MIN = 2.3e-3
 
 
 @dataclass
@@ -149,7 +144,7 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
         cut = a["rapid"] == 0
         if c.arc_acceleration > 0:
             a_normal = np.where(cut, c.arc_acceleration, a_normal)
-        spiral = cut & (np.abs(a["r1"] - a["r0"]) > SPIRAL_MIN)
+        spiral = cut & (np.abs(a["r1"] - a["r0"]) > c.spiral_min)
         if c.spiral_acceleration > 0:
             a_normal = np.where(spiral, c.spiral_acceleration, a_normal)
         v = np.minimum(vmax[arc], np.sqrt(a_normal * r))
