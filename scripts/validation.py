@@ -66,7 +66,7 @@ def main(realdata: Path) -> None:
             if name == "profile":
                 row["bias"] = max(abs(v) for v in b.bias.values()) if b.bias else 0.0
                 seen, sim = (line_starts(np.asarray(x.t), np.asarray(x.line)) for x in (meas, tr))
-                row["helices"] = _helices(prog, seen)
+                row["helices"] = _helices(prog, seen, tw.machine.controller.spiral_min)
                 row["rapids"] = _rapid_sequences(prog, seen, sim)
                 row["passes"] = _passes(prog, seen, sim)
                 row["reversals"] = _reversals(prog, seen, sim)
@@ -95,9 +95,9 @@ def main(realdata: Path) -> None:
         p = row["plate"]
         # the time per spiral block only from a training plate that shows it, else none
         known = [v for q, v in measured_block_time.items() if q != p]
-        recipe = [get(n)(block_time=float(np.mean(known)) if known else 0.0) if n == "spiral-acceleration"
-                  else get(n)() for n in RECIPE]
         row["loo_block_time"] = float(np.mean(known)) if known else 0.0
+        recipe = [get(n)(block_time=row["loo_block_time"]) if n == "spiral-acceleration" else get(n)()
+                  for n in RECIPE]
         fr = T.fit_timing(base, [cases[q] for q in PLATES if q != p], recipe, FIT_PARAMS)
         tw = base.with_params({k: v for k, v in fr.params.items() if not k.startswith("effects.")}).with_effects(
             *fr.effects)
@@ -118,14 +118,24 @@ def _half_circle(radius: float) -> float:
     return float(np.hypot(np.pi * radius, 0.0075 * 25.4))
 
 
+def _both_ways(helices: list) -> dict:
+    """{(radius mm, F mm/s): {spiral: [logged speeds]}} of :func:`_helices`' runs, for the radii and
+    feeds that run both as spirals and as true circles."""
+    by: dict = {}
+    for rad, spiral, f, v in helices:
+        by.setdefault((round(rad, 2), round(f, 2)), {}).setdefault(spiral, []).append(v)
+    return {k: d for k, d in sorted(by.items()) if True in d and False in d}
+
+
+def _spiral_extra(radius: float, speeds: dict) -> float:
+    """s a spiral half circle takes beyond the same half circle drawn true (median speeds)."""
+    return _half_circle(radius) / np.median(speeds[True]) - _half_circle(radius) / np.median(speeds[False])
+
+
 def _spiral_block_time(helices: list) -> float:
     """s a spiral half circle takes beyond the same half circle drawn true, mean over the radii
-    that run both ways (:func:`_helices`' runs, medians of their speeds)."""
-    by: dict = {}
-    for rad, spiral, _, v in helices:
-        by.setdefault(round(rad, 2), {}).setdefault(spiral, []).append(v)
-    extra = [_half_circle(r) / np.median(d[True]) - _half_circle(r) / np.median(d[False])
-             for r, d in by.items() if True in d and False in d]
+    that run both ways."""
+    extra = [_spiral_extra(rad, d) for (rad, _), d in _both_ways(helices).items()]
     return float(np.mean(extra)) if extra else 0.0
 
 
@@ -141,16 +151,13 @@ def _as_spirals(tw, nc: str, seen: dict, first: int) -> float:
     return next(e for a, _, _, _, e, _ in _pass_list(prog, seen, sim) if a == first)
 
 
-def _helices(prog, seen: dict, least: int = 20) -> list:
+def _helices(prog, seen: dict, spiral_min: float, least: int = 20) -> list:
     """Runs of at least ``least`` consecutive helical half circles of one radius and feed: (radius
     mm, spiral, F mm/s, logged speed mm/s) — the speed the path length over the time from the
     first report (``seen``: line -> s) of the run's first line to the first report of the line
     after it.  A spiral has its end point off the circle (|end radius − start radius| >
-    controller.spiral_min)."""
+    ``spiral_min``, the twin's controller.spiral_min)."""
     from mtwin.gcode import records as R
-    import mtwin
-
-    spiral_min = mtwin.Twin.from_toml(str(PROFILE)).machine.controller.spiral_min
 
     rec = prog.records
     reported = np.array(sorted(seen), np.int64)
@@ -353,15 +360,11 @@ def _markdown(rows, kinds, elapsed) -> str:
             "", "| plate | F mm/s | radius mm | true circles: speed, v²/r | spirals: speed, v²/r | spiral − circle, per "
             "half circle |", "|---|---:|---:|---|---|---:|"]
     for r in rows:
-        by = {}
-        for rad, spiral, f, v in r["helices"]:
-            by.setdefault((round(rad, 2), round(f, 2)), {}).setdefault(spiral, []).append(v)
-        for (rad, f), d in sorted(by.items()):
-            if True in d and False in d:
-                cells = [f"{np.median(d[s]):.1f} mm/s, {np.median(d[s]) ** 2 / rad:.0f} mm/s² ({len(d[s])} runs)"
-                         for s in (False, True)]
-                extra = _half_circle(rad) / np.median(d[True]) - _half_circle(rad) / np.median(d[False])
-                out.append(f"| {r['plate']} | {f:.1f} | {rad:.2f} | {cells[0]} | {cells[1]} | {extra * 1000:.1f} ms |")
+        for (rad, f), d in _both_ways(r["helices"]).items():
+            cells = [f"{np.median(d[s]):.1f} mm/s, {np.median(d[s]) ** 2 / rad:.0f} mm/s² ({len(d[s])} runs)"
+                     for s in (False, True)]
+            out.append(f"| {r['plate']} | {f:.1f} | {rad:.2f} | {cells[0]} | {cells[1]} | "
+                       f"{_spiral_extra(rad, d) * 1000:.1f} ms |")
     out += ["", "Where the feed is above what either allows (plate 13) spirals run at 15–22 % less v²/r than true circles.  The "
             f"profile runs true circles at {m.controller.arc_acceleration:.0f} mm/s² (`arc-acceleration`, set apart "
             f"from the axes' {acc_xy:.0f} along the path, as Fanuc's parameter 1735 is from 1660) and spirals at "

@@ -225,7 +225,8 @@ def test_leave_one_out_predicts_the_third_plate_within_3_percent(left_out):
                                      **{f"axes.{a}.{k}": v for a in "xyz" for k, v in
                                         (("min_travel", -1000.0), ("max_travel", 1000.0))}})
     cases = [_case(base, p) for p in (12, 13, 14) if p != left_out]
-    block_time = 0.0052 if left_out != 12 else 0.0
+    block_time = (mtwin.Twin.from_toml(str(PROFILE)).planned_machine.controller.spiral_block_time
+                  if left_out != 12 else 0.0)
     effects = [get(n)(block_time=block_time) if n == "spiral-acceleration" else get(n)()
                for n in ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
                          "spiral-acceleration")]

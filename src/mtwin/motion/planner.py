@@ -132,10 +132,9 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     if arc.any():
         # centripetal limit: v²/r <= a·√(1 − 0.5²) and the tangential acceleration left over
         # (LinuxCNC's split of the acceleration budget on circles; the total stays <= a).  A
-        # control with its own normal-acceleration limit on feed arcs uses that instead (and the
-        # total may then exceed the axes' a along the path, as on the Hurco): Fanuc's
-        # AI contour control sets it apart (parameter 1735) from the acceleration along the path
-        # (parameter 1660), and it may be the higher of the two; a spiral (an end point off the
+        # control with its own normal-acceleration limit on feed arcs uses that instead, set apart
+        # from the acceleration along the path as Fanuc's AI contour control sets parameter 1735
+        # apart from 1660, so it may exceed a (the Hurco's does); a spiral (an end point off the
         # circle, tolerated by the interpreter) may have its own
         a = seg[arc]
         r = np.minimum(a["r0"], a["r1"])

@@ -66,15 +66,15 @@ class Controller:
                                 "axes' share (sqrt(0.75) of their acceleration) and set apart from it as Fanuc's "
                                 "parameter 1735 is, 0 = the axes' share [E: circles of 0.35-6.5 mm radius on a Hurco "
                                 "VMX24 run at ~370-400 mm/s^2]", "nonneg")
-    # a CAM that rounds an arc's centre leaves its end point off the circle (radius mismatch, e.g.
-    # 0.0001 in): the control runs it as a spiral, outside its circular interpolation, and the
-    # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
     # a centre rounded to 0.0001 in leaves the end point off by one such increment (2.54 um): the
     # Hurco VMX24's logs show these arcs run slower than true circles, while arcs off by up to
     # 2.2 um (end point and centre both rounded) run as circles (docs/validation.md)
     spiral_min: float = P(0.0023, "mm", "an arc whose end radius differs from its start radius by more than this is "
                           "a spiral (spiral_acceleration, spiral_block_time) [E: between 2.2 and 2.54 um on a Hurco "
                           "VMX24]", "positive", hi=1.0)
+    # a CAM that rounds an arc's centre leaves its end point off the circle (radius mismatch, e.g.
+    # 0.0001 in): the control runs it as a spiral, outside its circular interpolation, and the
+    # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
     spiral_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs whose end radius differs "
                                    "from their start radius by more than spiral_min (a spiral: a rounded centre), 0 = as "
                                    "circles [E: a Hurco VMX24 runs them at ~290-330 mm/s^2, true circles at ~370-400]",
