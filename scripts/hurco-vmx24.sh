@@ -25,9 +25,20 @@ cat > "$work/0.toml" <<'TOML'
 #
 # Set by hand before calibrating (not fitted):
 #   spindle.max_speed 12,000 rpm: the programs' S12000 runs at 12,000 (the log's Spindle_Speed);
-#   travel +-1,000 mm: the programs' work offsets (G54/G58) are not known, so no travel check;
-#   axes.z.max_velocity = X's and Y's rapid rate: the logs hold no long Z rapid to read it from
-#     (the tool-change retracts run G28 to a home position the programs do not give).
+#   travel +-1,000 mm: the programs' work offsets (G54/G58) are not fully known, so no travel check;
+#   axes.z.max_velocity = X's and Y's rapid rate: the logs hold no Z rapid of known length to
+#     read it from (the retracts' length below is derived from it).
+#   work offset G54 Z -411 mm (X, Y unknown: 0): the G28 Z retracts run 2.3-2.8 s (2.5 s on
+#     average) at the logged rapid rate of 176 mm/s, the first approach after a tool change
+#     ~2.0 s beyond its spindle wait: ~400 mm from Z home to the part, so that these moves
+#     have their length (with no offset they have none, and the tool-change time took them up);
+#   spindle.wait_for_stop false: after M5 the Hurco starts the G28 retract at once, while the
+#     logged Spindle_Speed still falls, and stands at the M01 before the next tool change for
+#     the rest of the braking (0.2 s from S3750, 2.1-2.5 s from S9000, 5.2-5.5 s from S12000);
+#     at the program's end it does not wait at all (M30 comes while the spindle brakes);
+#   spindle.runup_overlap true: it rapids to X/Y on the block that starts the spindle
+#     (G0 X Y S M3) and stands at the next block (Z.25 M8) for the rest of the run-up before
+#     the Z approach (none after S750-S5000, 2.0-2.6 s after S9000, 5.1-5.6 s after S12000);
 #   controller.in_position 0.2 mm: the logs show no standstill at the rapids' ends (each
 #     retract-reposition-approach, timed report to report, is within 0.03 s of the log on average
 #     without one); a narrow width, fitted, made the twin wait ~50 ms after every rapid;
@@ -53,8 +64,13 @@ cat > "$work/0.toml" <<'TOML'
 TOML
 cat >> "$work/0.toml" <<'TOML'
 
+[work_offsets]
+G54 = [0.0, 0.0, -411.0]
+
 [spindle]
 max_speed = 12000.0
+wait_for_stop = false
+runup_overlap = true
 
 [axes.x]
 min_travel = -1000.0

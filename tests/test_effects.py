@@ -466,6 +466,54 @@ def test_a_spindle_at_its_power_limit_takes_the_square_of_the_speed_to_get_there
     assert w[0] == pytest.approx(3.0, rel=1e-6) and w[1] - w[0] == pytest.approx((12000**2 - 6000**2) / (2 * a * nb))
 
 
+def test_without_wait_for_stop_the_moves_after_m5_run_while_the_spindle_brakes():
+    # M5 then a retract: waited, the braking (3 s from 6,000 rpm at 2,000 rpm/s) comes before
+    # the retract; not waited (the Hurco), none does when no tool change follows — the run-up
+    # after M3 still waits
+    from mtwin.motion.path import PAUSE
+
+    tw = mtwin.Twin().with_effects("spindle-runup:acceleration=2000")
+    prog = tw.load(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nS6000 M3\nG1 X0\nM30\n", path="b.nc")
+    waited = float(tw.plan(prog).category_times()["spindle_wait"])
+    free = tw.with_params({"spindle.wait_for_stop": False}).plan(prog)
+    assert waited == pytest.approx(3.0 * 3, rel=1e-6)  # up, down, up
+    assert float(free.category_times()["spindle_wait"]) == pytest.approx(3.0 * 2, rel=1e-6)
+    assert tw.plan(prog).total_time - free.total_time == pytest.approx(3.0, rel=1e-6)
+    # a tool change after it waits, on the M6's line, for what is left of the braking when the
+    # retract is done
+    prog = tw.load(b"G21 G90 G94\nT1 M6\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nT2 M6\nG1 X0 F1000\nM30\n",
+                   path="t.nc")
+    free = tw.with_params({"spindle.wait_for_stop": False}).plan(prog)
+    retract = float(free.dur[(free.seg["line"] == 6) & (free.seg["kind"] != PAUSE)].sum())
+    assert 0.1 < retract < 3.0
+    braking = (free.seg["kind"] == PAUSE) & (free.seg["since"] > 0)
+    assert free.seg["line"][braking].tolist() == [7]
+    assert float(free.dur[braking].sum()) == pytest.approx(3.0 - retract, rel=1e-6)
+    assert float(free.category_times()["spindle_wait"]) == pytest.approx(3.0 + 3.0 - retract, rel=1e-6)
+    assert tw.plan(prog).total_time - free.total_time == pytest.approx(retract, rel=1e-6)
+
+
+def test_an_overlapped_run_up_waits_at_the_next_block_for_what_the_move_left():
+    # S6000 M3 on a rapid: overlapped, the 3-s run-up (2,000 rpm/s) runs during the rapid and
+    # the next block waits 3 s less the rapid's time; a run-up longer than... shorter than the
+    # rapid leaves no wait at all
+    from mtwin.motion.path import PAUSE
+
+    tw = mtwin.Twin().with_effects("spindle-runup:acceleration=2000")
+    prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z50\nS6000 M3 G0 X100\nG0 Z0\nG1 X0 F1000\nM30\n", path="o.nc")
+    base = tw.plan(prog)
+    plan = tw.with_params({"spindle.runup_overlap": True}).plan(prog)
+    rapid = float(plan.dur[(plan.seg["line"] == 3) & (plan.seg["kind"] != PAUSE)].sum())
+    wait = plan.seg["kind"] == PAUSE
+    assert 0.3 < rapid < 3.0
+    assert plan.seg["line"][wait].tolist() == [4]  # stands on the next block, as the Hurco reports it
+    assert float(plan.dur[wait].sum()) == pytest.approx(3.0 - rapid, rel=1e-9)
+    assert base.total_time - plan.total_time == pytest.approx(rapid, rel=1e-9)
+    quick = tw.with_effects("spindle-runup:acceleration=60000").with_params({"spindle.runup_overlap": True})
+    plan = quick.plan(prog)
+    assert float(plan.dur[plan.seg["kind"] == PAUSE].sum()) == 0.0
+
+
 def test_a_feed_override_runs_the_program_as_if_every_f_were_scaled():
     # an independent route: the program with each F multiplied by 1.3 by hand plans the same
     # (rapids and dwells untouched); a long move's time at speed falls as 1/1.3

@@ -215,28 +215,32 @@ def test_the_profile_predicts_each_plates_cycle_time_within_2_percent():
 
 
 @need_hurco
-@pytest.mark.parametrize("left_out", [12, 13, 14])
-def test_leave_one_out_predicts_the_third_plate_within_3_percent(left_out):
-    # the profile's recipe in one fit, from its hand-set base (scripts/hurco-vmx24.sh), on two
-    # plates; the third predicted.  The spiral block time is measured on plate 12 only (its
-    # helices run below both limits), so it is taken only when plate 12 is a training plate
-    base = mtwin.Twin().with_params({"spindle.max_speed": 12000.0, "axes.z.max_velocity": 10560.0,
-                                     "controller.in_position": 0.2, "controller.stop_angle": 120.0,
-                                     **{f"axes.{a}.{k}": v for a in "xyz" for k, v in
-                                        (("min_travel", -1000.0), ("max_travel", 1000.0))}})
-    cases = [_case(base, p) for p in (12, 13, 14) if p != left_out]
-    block_time = (mtwin.Twin.from_toml(str(PROFILE)).planned_machine.controller.spiral_block_time
-                  if left_out != 12 else 0.0)
-    effects = [get(n)(block_time=block_time) if n == "spiral-acceleration" else get(n)()
-               for n in ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
-                         "spiral-acceleration")]
-    fr = T.fit_timing(base, cases, effects, ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration",
-                                             "axes.y.max_acceleration", "axes.z.max_acceleration",
-                                             "controller.bell_time"])
+def test_leave_one_out_predicts_plate_12_from_plates_13_and_14():
+    # the profile's recipe step by step from its hand-set base (scripts/hurco-vmx24.sh), on
+    # plates 13 and 14; plate 12 predicted.  Plate 12 is the hard fold: only it runs S12000
+    # (the spindle's power range must come from S750-S9000 starts and stops) and only it shows
+    # the spiral block time (so none is taken).  Before the spindle overlapped motion its tool
+    # changes came out 8.5 s short here
+    from mtwin.gcode.interpreter import InterpreterSettings
+
+    base = mtwin.Twin(interpreter=InterpreterSettings(work_offsets={"G54": (0.0, 0.0, -411.0)})).with_params(
+        {"spindle.max_speed": 12000.0, "axes.z.max_velocity": 10560.0, "controller.in_position": 0.2,
+         "controller.stop_angle": 120.0, "spindle.wait_for_stop": False, "spindle.runup_overlap": True,
+         **{f"axes.{a}.{k}": v for a in "xyz" for k, v in (("min_travel", -1000.0), ("max_travel", 1000.0))}})
+    profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
+    assert profile == ["spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
+                       "spiral-acceleration"]
+    effects = [get(n)(block_time=0.0) if n == "spiral-acceleration" else get(n)() for n in profile]
+    fr = T.fit_timing_steps(base, [_case(base, 13), _case(base, 14)], effects,
+                            ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration",
+                             "axes.y.max_acceleration", "axes.z.max_acceleration", "controller.bell_time"])
     fitted = base.with_params({k: v for k, v in fr.params.items() if not k.startswith("effects.")}) \
         .with_effects(*fr.effects)
-    s = T.summary(fitted, [_case(fitted, left_out)])
-    assert abs(s["cases"][0]["cycle_error"]) < 0.03, s["cases"][0]
+    case = _case(fitted, 12)
+    _, _, by_kind, cycle = T._errors(fitted, case)
+    assert abs(cycle / case.cycle_measured - 1) < 0.01, cycle / case.cycle_measured - 1
+    worst = dict(zip(case.kinds, by_kind))
+    assert max(abs(v) for v in worst.values()) < 3.5, worst
 
 
 @need_hurco

@@ -380,6 +380,22 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
                      {SIGNAL: NOISE_FLOOR * math.sqrt(2.0)}, count[0], before, after, rapid_rates=read)
 
 
+def fit_timing_steps(twin, cases, steps, base_params=()) -> TimingFit:
+    """A calibration procedure in one call: the effects of ``steps`` added one at a time, each
+    fit refitting those before it from where they ended (``mtwin calibrate --fit NAME --refit``
+    in turn, as scripts/hurco-vmx24.sh runs it); then, given ``base_params``, one more fit of
+    them all with those.  (One joint fit of every effect from the twin's defaults can settle
+    where parameters trade against each other — long spindle waits against a tool change of no
+    time — where each step starting from the last does not.)"""
+    if not steps:
+        raise MtwinError("a calibration procedure needs at least one effect to fit")
+    fitted: list = []
+    for effect in steps:
+        fr = fit_timing(twin, cases, fitted + [effect])
+        fitted = list(fr.effects)
+    return fit_timing(twin, cases, fitted, base_params) if base_params else fr
+
+
 def _plan_starts(twin, effects) -> dict:
     """Where each timing effect's parameters start: the twin's own value where 0 would mean
     'the twin file's' (so the scan and the solver start from the twin as it is)."""

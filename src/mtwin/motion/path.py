@@ -54,6 +54,7 @@ SEG_DTYPE = np.dtype(
         ("amax", np.float64),  # tangential acceleration limit, mm/s^2
         ("duration", np.float64),  # pauses, s
         ("tol", np.float64),  # G64 P tolerance, mm (0 = none given)
+        ("since", np.int64),  # a spindle wait overlapping moves: 1 + the first record it overlaps (0: none)
     ]
 )
 

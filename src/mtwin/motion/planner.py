@@ -162,14 +162,15 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     seg["amax"] = amax
 
 
-def _m6_lines(program) -> np.ndarray:
-    """Sorted 1-based lines holding an M6 word, for a plain program (a macro program's lexed
-    text is the expanded one, whose lines are not the file's): empty when not known."""
+def _m_lines(program, *codes: float) -> np.ndarray:
+    """Sorted 1-based lines holding an M word of ``codes``, for a plain program (a macro
+    program's lexed text is the expanded one, whose lines are not the file's): empty when not
+    known."""
     if getattr(program, "expanded", None) is not None or getattr(program, "lexed", None) is None:
         return np.zeros(0, np.int64)
     lx = program.lexed
-    m6 = (lx.w_letter == ord("M")) & (lx.w_value == 6.0)
-    return np.unique(lx.w_line[m6].astype(np.int64) + 1)
+    m = (lx.w_letter == ord("M")) & np.isin(lx.w_value, codes)
+    return np.unique(lx.w_line[m].astype(np.int64) + 1)
 
 
 def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0.0) -> float:
@@ -188,7 +189,7 @@ def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0
 
 
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
-            m6: np.ndarray | None = None, tool_changes: bool = True):
+            m6: np.ndarray | None = None, stops: np.ndarray | None = None, tool_changes: bool = True):
     """(record index, category, duration) of the pauses before each record, and dwells."""
     out = []
     sp = machine.spindle
@@ -200,6 +201,7 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
         clamped = True
     change_tool = np.nonzero(tools != np.concatenate(([0], tools[:-1])))[0]
     change_speed = np.nonzero(target != np.concatenate(([0.0], target[:-1])))[0]
+    change_line: dict = {}  # tool-change record -> the line its time belongs to
     for i in change_tool:
         if machine.timing.tool_change > 0 and tool_changes:
             # the time belongs to the M6 line between the previous move and this one, where known
@@ -212,11 +214,33 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
             first = i == change_tool[0] and tools[i] != 0
             extra = getattr(machine.timing, "first_tool_change_extra", 0.0) if first else 0.0
             out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change + extra, line))
+            change_line[int(i)] = line
     if sp.wait_for_speed:
         prev = np.concatenate(([0.0], target[:-1]))
         for i in change_speed:
             dt = runup_time(prev[i], target[i], sp.acceleration, getattr(sp, "runup_power_speed", 0.0))
-            if dt > 0:
+            if dt <= 0:
+                continue
+            # a wait that overlaps moves stands later, with the record it started at (``since``):
+            # _overlap_spindle takes off the time the moves between take, once they are timed
+            if target[i] == 0.0 and not getattr(sp, "wait_for_stop", True):
+                # the moves run while it brakes; the next tool change waits for the rest (with
+                # none, the program ends or starts the spindle again: no wait)
+                later = change_tool[change_tool > i]
+                if later.size:
+                    # reported at the M6's line, or at a program stop (M00/M01) before it: the
+                    # Hurco stands at its M01 until the spindle is down
+                    k = int(later[0])
+                    line = change_line.get(k, int(rec["line"][k]))
+                    if stops is not None and stops.size:
+                        lo = int(rec["line"][k - 1]) if k > 0 else 0
+                        before = stops[(stops >= lo) & (stops < line)]
+                        if before.size:
+                            line = int(before[-1])
+                    out.append((k, -0.25, CAT_SPINDLE, dt, line, int(i) + 1))
+            elif getattr(sp, "runup_overlap", False) and target[i] != 0.0 and i + 1 < len(rec):
+                out.append((int(i) + 1, 1, CAT_SPINDLE, dt, int(rec["line"][i + 1]), int(i) + 1))
+            else:
                 out.append((int(i), 1, CAT_SPINDLE, dt))
     for i in np.nonzero(rec["kind"] == R.DWELL)[0]:
         if rec["dwell"][i] > 0:
@@ -236,11 +260,12 @@ def _assemble(rec: np.ndarray, moves: np.ndarray, pauses) -> np.ndarray:
     """Merge motion segments and pauses in program order."""
     ps = np.zeros(len(pauses), SEG_DTYPE)
     keys_p = np.zeros(len(pauses))
-    for j, (i, sub, cat, d, *at_line) in enumerate(pauses):
+    for j, (i, sub, cat, d, *extra) in enumerate(pauses):
         ps[j]["kind"] = PAUSE
         ps[j]["cat"] = cat
         ps[j]["rec"] = i
-        ps[j]["line"] = at_line[0] if at_line else rec["line"][i]
+        ps[j]["line"] = extra[0] if extra else rec["line"][i]
+        ps[j]["since"] = extra[1] if len(extra) > 1 else 0
         ps[j]["duration"] = d
         keys_p[j] = 4 * i + sub
     keys_m = 4 * moves["rec"].astype(float) + 3
@@ -461,7 +486,7 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     check_feeds(rec, moves, program.path)
     check_travel(rec, moves, machine, program.path, None if machine.hard_travel_limits else warnings)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
-    pauses = _pauses(rec, machine, warnings, program.path, _m6_lines(program),
+    pauses = _pauses(rec, machine, warnings, program.path, _m_lines(program, 6.0), _m_lines(program, 0.0, 1.0),
                      tool_changes=not getattr(program, "tools_by_selection", False))
     end_change = getattr(program, "end_tool_change", 0)
     if end_change and len(rec) and machine.timing.tool_change > 0:
@@ -589,8 +614,26 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
     hold = np.where(stop, drain, 0.0)
     prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
+    _overlap_spindle(seg, rec, dur)
     t_start = np.concatenate(([0.0], np.cumsum(dur)[:-1]))
     return Plan(seg, prof, dur, hold, t_start, stop, start, warnings, shift, feed_box, geometry)
+
+
+def _overlap_spindle(seg: np.ndarray, rec: np.ndarray, dur: np.ndarray) -> None:
+    """A spindle wait that overlaps moves (``since`` > 0: a run-up under ``runup_overlap``, a
+    braking without ``wait_for_stop``) is shortened by the time the records from ``since`` − 1
+    up to the one it stands before take to move: the spindle changed speed meanwhile."""
+    waits = np.flatnonzero((seg["kind"] == PAUSE) & (seg["since"] > 0))
+    if not waits.size:
+        return
+    moving = seg["kind"] != PAUSE
+    per_rec = np.concatenate(([0.0], np.cumsum(np.bincount(seg["rec"][moving], weights=dur[moving],
+                                                           minlength=len(rec)))))
+    for j in waits:
+        moved = per_rec[int(seg["rec"][j])] - per_rec[int(seg["since"][j]) - 1]
+        d = max(0.0, float(seg["duration"][j]) - float(moved))
+        dur[j] += d - float(seg["duration"][j])
+        seg["duration"][j] = d
 
 
 def _stop_at_sharp_corners(seg: np.ndarray, angle: float) -> None:
