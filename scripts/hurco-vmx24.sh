@@ -32,10 +32,15 @@ cat > "$work/0.toml" <<'TOML'
 #     average) at the logged rapid rate of 176 mm/s, the first approach after a tool change
 #     ~2.0 s beyond its spindle wait: ~400 mm from Z home to the part, so that these moves
 #     have their length (with no offset they have none, and the tool-change time took them up);
+#   work offset G58 (-133.4, -295.1, 0) mm: the park move at the program's end (G90 G58 X12 Y20)
+#     runs 1.6-1.8 s on the log, ~270 mm at the rapid rate; with G58 at 0 it would be 596 mm.
+#     Only that length is known: the offset puts the park position along the programmed
+#     direction at that distance;
 #   spindle.wait_for_stop false: after M5 the Hurco starts the G28 retract at once, while the
 #     logged Spindle_Speed still falls, and stands at the M01 before the next tool change for
 #     the rest of the braking (0.2 s from S3750, 2.1-2.5 s from S9000, 5.2-5.5 s from S12000);
-#     at the program's end it does not wait at all (M30 comes while the spindle brakes);
+#     at the program's end it parks while the spindle brakes and completes the program once
+#     the spindle is down (3.9 s after M30 from S12000, 0.7 s from S9000);
 #   spindle.runup_overlap true: it rapids to X/Y on the block that starts the spindle
 #     (G0 X Y S M3) and stands at the next block (Z.25 M8) for the rest of the run-up before
 #     the Z approach (none after S750-S5000, 2.0-2.6 s after S9000, 5.1-5.6 s after S12000);
@@ -66,6 +71,7 @@ cat >> "$work/0.toml" <<'TOML'
 
 [work_offsets]
 G54 = [0.0, 0.0, -411.0]
+G58 = [-133.4, -295.1, 0.0]
 
 [spindle]
 max_speed = 12000.0

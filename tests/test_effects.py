@@ -491,11 +491,20 @@ def test_without_wait_for_stop_the_moves_after_m5_run_while_the_spindle_brakes()
     assert float(free.dur[braking].sum()) == pytest.approx(3.0 - retract, rel=1e-6)
     assert float(free.category_times()["spindle_wait"]) == pytest.approx(3.0 + 3.0 - retract, rel=1e-6)
     assert tw.plan(prog).total_time - free.total_time == pytest.approx(retract, rel=1e-6)
+    # at the program's end (no tool change, no restart) the program completes once the spindle
+    # is down: the rest of the braking stands at the M30's line
+    prog = tw.load(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nM30\n", path="e.nc")
+    free = tw.with_params({"spindle.wait_for_stop": False}).plan(prog)
+    retract = float(free.dur[(free.seg["line"] == 5) & (free.seg["kind"] != PAUSE)].sum())
+    braking = (free.seg["kind"] == PAUSE) & (free.seg["since"] > 0)
+    assert free.seg["line"][braking].tolist() == [6]
+    assert float(free.dur[braking].sum()) == pytest.approx(3.0 - retract, rel=1e-6)
+    assert free.total_time == pytest.approx(tw.plan(prog).total_time - retract, rel=1e-6)
 
 
 def test_an_overlapped_run_up_waits_at_the_next_block_for_what_the_move_left():
     # S6000 M3 on a rapid: overlapped, the 3-s run-up (2,000 rpm/s) runs during the rapid and
-    # the next block waits 3 s less the rapid's time; a run-up longer than... shorter than the
+    # the next block waits 3 s less the rapid's time; a run-up shorter than the
     # rapid leaves no wait at all
     from mtwin.motion.path import PAUSE
 
@@ -512,6 +521,12 @@ def test_an_overlapped_run_up_waits_at_the_next_block_for_what_the_move_left():
     quick = tw.with_effects("spindle-runup:acceleration=60000").with_params({"spindle.runup_overlap": True})
     plan = quick.plan(prog)
     assert float(plan.dur[plan.seg["kind"] == PAUSE].sum()) == 0.0
+    # a feed move never starts before the spindle is at speed: S M3 on a G1 waits before it
+    prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z50\nS6000 M3 G1 X100 F1000\nG0 Z0\nM30\n", path="f.nc")
+    plan = tw.with_params({"spindle.runup_overlap": True}).plan(prog)
+    wait = plan.seg["kind"] == PAUSE
+    assert plan.seg["line"][wait].tolist() == [3] and float(plan.dur[wait].sum()) == pytest.approx(3.0)
+    assert plan.total_time == pytest.approx(tw.plan(prog).total_time, rel=1e-12)
 
 
 def test_a_feed_override_runs_the_program_as_if_every_f_were_scaled():

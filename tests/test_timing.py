@@ -214,6 +214,18 @@ def test_the_profile_predicts_each_plates_cycle_time_within_2_percent():
         assert abs(cyc - case.cycle_measured) / case.cycle_measured < 0.02, (plate, cyc, case.cycle_measured)
 
 
+def test_the_start_twin_is_the_profile_scripts_hand_set_base():
+    # the leave-one-out, the validation and the fleet recipe start from this file; the script
+    # writes the same values ahead of its first step
+    import re
+    import tomllib
+
+    script = (ROOT / "scripts" / "hurco-vmx24.sh").read_text()
+    base = re.search(r'cat >> "\$work/0.toml" <<\'TOML\'\n(.*?)\nTOML\n', script, re.S).group(1)
+    start = (ROOT / "samples" / "machines" / "hurco-vmx24-start.toml").read_text()
+    assert tomllib.loads(base) == tomllib.loads(start)
+
+
 @need_hurco
 def test_leave_one_out_predicts_plate_12_from_plates_13_and_14():
     # the profile's recipe step by step from its hand-set base (scripts/hurco-vmx24.sh), on
@@ -221,12 +233,7 @@ def test_leave_one_out_predicts_plate_12_from_plates_13_and_14():
     # (the spindle's power range must come from S750-S9000 starts and stops) and only it shows
     # the spiral block time (so none is taken).  Before the spindle overlapped motion its tool
     # changes came out 8.5 s short here
-    from mtwin.gcode.interpreter import InterpreterSettings
-
-    base = mtwin.Twin(interpreter=InterpreterSettings(work_offsets={"G54": (0.0, 0.0, -411.0)})).with_params(
-        {"spindle.max_speed": 12000.0, "axes.z.max_velocity": 10560.0, "controller.in_position": 0.2,
-         "controller.stop_angle": 120.0, "spindle.wait_for_stop": False, "spindle.runup_overlap": True,
-         **{f"axes.{a}.{k}": v for a in "xyz" for k, v in (("min_travel", -1000.0), ("max_travel", 1000.0))}})
+    base = mtwin.Twin.from_toml(str(ROOT / "samples" / "machines" / "hurco-vmx24-start.toml"))
     profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
     assert profile == ["spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
                        "spiral-acceleration"]

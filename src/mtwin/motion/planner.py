@@ -189,7 +189,8 @@ def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0
 
 
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
-            m6: np.ndarray | None = None, stops: np.ndarray | None = None, tool_changes: bool = True):
+            m6: np.ndarray | None = None, stops: np.ndarray | None = None, ends: np.ndarray | None = None,
+            tool_changes: bool = True):
     """(record index, category, duration) of the pauses before each record, and dwells."""
     out = []
     sp = machine.spindle
@@ -224,10 +225,16 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
             # a wait that overlaps moves stands later, with the record it started at (``since``):
             # _overlap_spindle takes off the time the moves between take, once they are timed
             if target[i] == 0.0 and not getattr(sp, "wait_for_stop", True):
-                # the moves run while it brakes; the next tool change waits for the rest (with
-                # none, the program ends or starts the spindle again: no wait)
+                # the moves run while it brakes; the next tool change waits for the rest, or the
+                # program's end when the spindle stays stopped (the Hurco completes its program
+                # only once the spindle is down: 3.9 s after M30 from S12000, 0.7 s from S9000)
                 later = change_tool[change_tool > i]
-                if later.size:
+                restart = change_speed[change_speed > i]
+                if not later.size and not restart.size:
+                    n = len(rec) - 1
+                    line = int(ends[-1]) if ends is not None and ends.size else int(rec["line"][n])
+                    out.append((n, 3.5, CAT_SPINDLE, dt, line, int(i) + 1))
+                elif later.size and not (restart.size and restart[0] < later[0]):
                     # reported at the M6's line, or at a program stop (M00/M01) before it: the
                     # Hurco stands at its M01 until the spindle is down
                     k = int(later[0])
@@ -238,7 +245,8 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
                         if before.size:
                             line = int(before[-1])
                     out.append((k, -0.25, CAT_SPINDLE, dt, line, int(i) + 1))
-            elif getattr(sp, "runup_overlap", False) and target[i] != 0.0 and i + 1 < len(rec):
+            elif (getattr(sp, "runup_overlap", False) and target[i] != 0.0 and i + 1 < len(rec)
+                  and rec["kind"][i] == R.RAPID):  # (a feed move never starts before the spindle is at speed)
                 out.append((int(i) + 1, 1, CAT_SPINDLE, dt, int(rec["line"][i + 1]), int(i) + 1))
             else:
                 out.append((int(i), 1, CAT_SPINDLE, dt))
@@ -487,6 +495,7 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     check_travel(rec, moves, machine, program.path, None if machine.hard_travel_limits else warnings)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
     pauses = _pauses(rec, machine, warnings, program.path, _m_lines(program, 6.0), _m_lines(program, 0.0, 1.0),
+                     _m_lines(program, 2.0, 30.0),
                      tool_changes=not getattr(program, "tools_by_selection", False))
     end_change = getattr(program, "end_tool_change", 0)
     if end_change and len(rec) and machine.timing.tool_change > 0:
@@ -621,16 +630,16 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
 
 def _overlap_spindle(seg: np.ndarray, rec: np.ndarray, dur: np.ndarray) -> None:
     """A spindle wait that overlaps moves (``since`` > 0: a run-up under ``runup_overlap``, a
-    braking without ``wait_for_stop``) is shortened by the time the records from ``since`` − 1
-    up to the one it stands before take to move: the spindle changed speed meanwhile."""
+    braking without ``wait_for_stop``) is shortened by the time the moves take from record
+    ``since`` − 1 up to the wait: the spindle changed speed meanwhile."""
     waits = np.flatnonzero((seg["kind"] == PAUSE) & (seg["since"] > 0))
     if not waits.size:
         return
-    moving = seg["kind"] != PAUSE
-    per_rec = np.concatenate(([0.0], np.cumsum(np.bincount(seg["rec"][moving], weights=dur[moving],
-                                                           minlength=len(rec)))))
+    # moving time before each segment (segments are in program order, their records ascending)
+    before = np.concatenate(([0.0], np.cumsum(np.where(seg["kind"] != PAUSE, dur, 0.0))))
     for j in waits:
-        moved = per_rec[int(seg["rec"][j])] - per_rec[int(seg["since"][j]) - 1]
+        k = int(np.searchsorted(seg["rec"], int(seg["since"][j]) - 1, "left"))
+        moved = before[j] - before[min(k, j)]
         d = max(0.0, float(seg["duration"][j]) - float(moved))
         dur[j] += d - float(seg["duration"][j])
         seg["duration"][j] = d
