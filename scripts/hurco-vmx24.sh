@@ -56,8 +56,9 @@ cat > "$work/0.toml" <<'TOML'
 #     allowable velocity change per axis carries speed through and loses 0.03-0.07 s, growing
 #     with the feed); their other corners turn by 90-100 degrees, none by 100-150.
 # Everything else below the [spindle] table comes from the calibration steps:
-#   1 spindle-runup (its rate, and the speed above which the drive is at its power limit:
-#   plate 12 runs S12000, 13 and 14 S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
+#   1 spindle-runup (its run-up and braking rates -- the control stands longer after M5 than
+#   after M3 at the same speed -- and the speed above which both fall as 1/n: plate 12 runs
+#   S12000, 13 and 14 S750-S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
 #   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
 #   circle: the control runs them slower than true circles, and longer per block below that limit)
 #   (the order mtwin diagnose ranks them on the default twin), 6 the axes: rapid rates (read off the logged rapids), feed accelerations,

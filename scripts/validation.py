@@ -455,16 +455,17 @@ def _markdown(rows, kinds, elapsed) -> str:
             "the next tool change for the rest of the braking; it rapids to X/Y on the block that starts the spindle "
             "and stands at the next block (Z.25 M8) for the rest of the run-up.  The time it stands grows faster "
             "than the speed (logged Spindle_Speed reaches S9000 in ≈ 1.4 s and S12000 in ≈ 2.0 s, yet the control "
-            "waits far longer at S12000): `spindle-runup`'s rate falls as power_speed/n above "
-            f"{m.spindle.runup_power_speed:,.0f} rpm in the profile.  Logged against simulated stand, mean s "
-            "(count): "
+            "waits far longer at S12000): `spindle-runup`'s rates fall as power_speed/n above "
+            f"{m.spindle.runup_power_speed:,.0f} rpm in the profile, and it brakes at a rate of its own "
+            f"({m.spindle.braking:,.0f} rpm/s against {m.spindle.acceleration:,.0f} up: the control stands longer after "
+            "M5 than after M3 at the same speed).  Logged against simulated stand, mean s (count): "
             + "; ".join(f"plate {r['plate']}: " + ", ".join(f"{way} S{sp:g} {lg:.2f} / {sm:.2f} ({n})"
                                                            for (way, sp), (n, lg, sm) in r["stands"].items()
                                                            if sp >= 3000)
                         for r in rows)
-            + ".  A run-up stand runs long and a braking stand short by about as much, the XY block's missing second "
-            "(above) moved between them; both are in the tool-change kind.  Plates 13 and 14 alone (S750–S9000) "
-            "now pin the power range: the leave-one-out prediction of plate 12's tool changes (S12000) is "
+            + ".  The run-up stands still run long, by about the XY block's missing second (above), which the "
+            "run-up rate cannot take up without the braking stands; both are in the tool-change kind.  Plates 13 and "
+            "14 alone (S750–S9000) now pin the power range: the leave-one-out prediction of plate 12's tool changes (S12000) is "
             f"{kinds[(12, 'loo')].get('tool change', 0):+.1f} s off.",
             "- Below the spiral limit, spirals still run 3–4 % under F where circles reach it (plate 12's helices "
             "in the table above, F508): "

@@ -466,6 +466,25 @@ def test_a_spindle_at_its_power_limit_takes_the_square_of_the_speed_to_get_there
     assert w[0] == pytest.approx(3.0, rel=1e-6) and w[1] - w[0] == pytest.approx((12000**2 - 6000**2) / (2 * a * nb))
 
 
+def test_a_braking_rate_apart_times_the_waits_after_m5_and_leaves_the_run_up():
+    # up at 2,000 rpm/s (3 s to 6,000), down at 1,500 (4 s); a speed lowered from 6,000 to
+    # 3,000 brakes too (2 s); with the power range above 3,000 rpm both rates fall as 3000/n
+    tw = mtwin.Twin().with_effects("spindle-runup:acceleration=2000,braking=1500")
+    prog = tw.load(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nS3000\nG1 X0\nM5\nG0 Z50\nM30\n", path="k.nc")
+    from mtwin.motion.path import PAUSE
+
+    plan = tw.plan(prog)
+    waits = plan.seg["duration"][plan.seg["kind"] == PAUSE].tolist()
+    assert waits == pytest.approx([3.0, 2.0, 2.0], rel=1e-9)
+    from mtwin.motion.planner import runup_time
+
+    # from rest to n above the power speed nb: nb/a + (n² − nb²)/(2·a·nb), each way at its rate
+    assert runup_time(0, 6000, 2000, 3000, 1500) == pytest.approx(1.5 + (36e6 - 9e6) / (2 * 2000 * 3000))
+    assert runup_time(6000, 0, 2000, 3000, 1500) == pytest.approx(2.0 + (36e6 - 9e6) / (2 * 1500 * 3000))
+    assert runup_time(6000, -6000, 2000, 3000, 1500) == pytest.approx(
+        runup_time(6000, 0, 2000, 3000, 1500) + runup_time(0, -6000, 2000, 3000, 1500))
+
+
 def test_without_wait_for_stop_the_moves_after_m5_run_while_the_spindle_brakes():
     # M5 then a retract: waited, the braking (3 s from 6,000 rpm at 2,000 rpm/s) comes before
     # the retract; not waited (the Hurco), none does when no tool change follows — the run-up

@@ -42,7 +42,9 @@ class SpindleRunup(Effect):
                     "run-up and braking rate the waits follow, 0 = the twin file's"),
               Param("power_speed", "rpm", 0.0, 0.0, 100000.0,
                     "above this speed the rate falls as power_speed/n (the drive's power limit), 0 = the twin "
-                    "file's"))
+                    "file's"),
+              Param("braking", "rpm/s", 0.0, 0.0, 100000.0,
+                    "braking rate the waits after a stop follow, 0 = the twin file's"))
     signals = _TIME
 
     def machine(self, m, p):
@@ -51,6 +53,8 @@ class SpindleRunup(Effect):
             sp = replace(sp, acceleration=p["acceleration"])
         if p.get("power_speed", 0.0) > 0:
             sp = replace(sp, runup_power_speed=p["power_speed"])
+        if p.get("braking", 0.0) > 0:
+            sp = replace(sp, braking=p["braking"])
         return replace(m, spindle=sp)
 
 

@@ -402,6 +402,7 @@ def _plan_starts(twin, effects) -> dict:
     m = twin.planned_machine
     own = {"spindle-runup.acceleration": m.spindle.acceleration,
            "spindle-runup.power_speed": m.spindle.runup_power_speed or m.spindle.max_speed,
+           "spindle-runup.braking": m.spindle.braking or m.spindle.acceleration,
            "block-time.min_time": m.controller.min_block_time,
            "corner-slowdown.corner_velocity": m.controller.corner_velocity,
            "arc-acceleration.acceleration": (m.controller.arc_acceleration

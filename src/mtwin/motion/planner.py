@@ -173,19 +173,22 @@ def _m_lines(program, *codes: float) -> np.ndarray:
     return np.unique(lx.w_line[m].astype(np.int64) + 1)
 
 
-def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0.0) -> float:
-    """Seconds for the spindle to go from n0 to n1 rpm (signed): at ``acceleration`` rpm/s, and
-    above ``power_speed`` (> 0) at acceleration·power_speed/|n| — a drive at its power limit,
-    where the time from power_speed to n is (n² − power_speed²) / (2·acceleration·power_speed)."""
-    def from_rest(n: float) -> float:
+def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0.0, braking: float = 0.0) -> float:
+    """Seconds for the spindle to go from n0 to n1 rpm (signed): at ``acceleration`` rpm/s up and
+    ``braking`` down (0: ``acceleration``), and above ``power_speed`` (> 0) at rate·power_speed/|n|
+    — a drive at its power limit, where the time from power_speed to n is
+    (n² − power_speed²) / (2·rate·power_speed)."""
+    def from_rest(n: float, rate: float) -> float:
         n = abs(n)
         if power_speed <= 0 or n <= power_speed:
-            return n / acceleration
-        return power_speed / acceleration + (n * n - power_speed * power_speed) / (2.0 * acceleration * power_speed)
+            return n / rate
+        return power_speed / rate + (n * n - power_speed * power_speed) / (2.0 * rate * power_speed)
 
+    down = braking if braking > 0 else acceleration
     if n0 * n1 >= 0:  # the same way round: the difference of the times from rest
-        return abs(from_rest(n1) - from_rest(n0))
-    return from_rest(n0) + from_rest(n1)  # a reversal: down to rest, then up
+        rate = down if abs(n1) < abs(n0) else acceleration
+        return abs(from_rest(n1, rate) - from_rest(n0, rate))
+    return from_rest(n0, down) + from_rest(n1, acceleration)  # a reversal: down to rest, then up
 
 
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
@@ -219,7 +222,8 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
     if sp.wait_for_speed:
         prev = np.concatenate(([0.0], target[:-1]))
         for i in change_speed:
-            dt = runup_time(prev[i], target[i], sp.acceleration, getattr(sp, "runup_power_speed", 0.0))
+            dt = runup_time(prev[i], target[i], sp.acceleration, getattr(sp, "runup_power_speed", 0.0),
+                            getattr(sp, "braking", 0.0))
             if dt <= 0:
                 continue
             # a wait that overlaps moves stands later, with the record it started at (``since``):

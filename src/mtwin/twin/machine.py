@@ -163,6 +163,10 @@ class Spindle:
     runup_power_speed: float = P(0.0, "rpm", "above this speed the run-up and braking rate falls as "
                                  "runup_power_speed/n (the drive's constant-power range), 0 = a constant rate",
                                  "nonneg")
+    # a control may confirm a stop later than it confirms a speed (the Hurco's waits from M5 are
+    # longer than its waits after M3 at the same speed): a braking rate of its own
+    braking: float = P(0.0, "rpm/s", "braking rate the waits after M5 or a lower S follow, 0 = acceleration "
+                       "(above runup_power_speed it falls as 1/n too)", "nonneg")
     wait_for_speed: bool = P(True, "bool", "feed moves wait until the spindle is at speed after M3/M4/S", "bool")
     # a control may move the axes while the spindle brakes or runs up: the NIST Hurco VMX24 starts
     # its G28 retract at once after M5, and rapids to X/Y on the block that starts the spindle,
