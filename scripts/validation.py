@@ -458,7 +458,8 @@ def _markdown(rows, kinds, elapsed) -> str:
             "waits far longer at S12000): `spindle-runup`'s rates fall as power_speed/n above "
             f"{m.spindle.runup_power_speed:,.0f} rpm in the profile, and it brakes at a rate of its own "
             f"({m.spindle.braking:,.0f} rpm/s against {m.spindle.acceleration:,.0f} up: the control stands longer after "
-            "M5 than after M3 at the same speed).  Logged against simulated stand, mean s (count): "
+            "M5 than after M3 at the same speed).  Logged against simulated stand, mean s (count; a start's stand "
+            "is its next block, Z.25 M8, with that block's ≈ 2-s Z approach): "
             + "; ".join(f"plate {r['plate']}: " + ", ".join(f"{way} S{sp:g} {lg:.2f} / {sm:.2f} ({n})"
                                                            for (way, sp), (n, lg, sm) in r["stands"].items()
                                                            if sp >= 3000)
@@ -490,14 +491,14 @@ def _markdown(rows, kinds, elapsed) -> str:
             "0.7 s from S9000; the park move's G58 offset is set by hand to its logged length): "
             + ", ".join(f"{sim_ - meas_:+.1f} s (plate {r['plate']}: {meas_:.1f} s logged)"
                         for r in rows for meas_, sim_ in [r["end_retract"]])
-            + ".  The rapids' own time is close: timed from report "
-            "to report over each retract–reposition–approach (three rapids between a feed move and the next, no "
-            "groups or kinds involved) the profile is off by "
-            + ", ".join(f"{r['rapids'][1]:+.1f} s over {r['rapids'][0]} sequences (plate {r['plate']})" for r in rows)
-            + f", sd {max(r['rapids'][2] for r in rows):.2f} s per sequence, the two reports' jitter.  What puts "
-            "the rest into the rapid kind's sum is how the time is split between the rapid groups and their "
-            "neighbours, which is not located yet; the fit, holding both the ~10-s windows and the sums by kind, "
-            "cannot move it either.",
+            + ".  The rapids themselves, timed from report to report over each retract–reposition–approach "
+            "(three rapids between a feed move and the next, no groups or kinds involved): the profile is off by "
+            + ", ".join(f"{r['rapids'][1]:+.1f} s over {r['rapids'][0]} sequences "
+                        f"({r['rapids'][1] / r['rapids'][0] * 1000:+.0f} ms each, plate {r['plate']})" for r in rows)
+            + f"; a sequence's sd is {max(r['rapids'][2] for r in rows):.2f} s, the two reports' jitter, so a sum "
+            "over ~110 of them is good to about ±0.9 s.  Where a plate's rapids run long by more, that is most of "
+            "its rapid kind's error: one rapid acceleration and jerk for all three plates do not time their "
+            "retract–reposition–approach sequences (of different lengths) alike, which is not located yet.",
             "- Where the cycle-time error sits, timed report to report over whole cutting passes (consecutive "
             "feed lines between two rapids; the pass's first feed): "
             + "; ".join(f"plate {r['plate']}: " + ", ".join(f"F{f} {e:+.1f} s of {m:.0f} s ({n} passes)"

@@ -486,18 +486,11 @@ def test_a_braking_rate_apart_times_the_waits_after_m5_and_leaves_the_run_up():
 
 
 def test_without_wait_for_stop_the_moves_after_m5_run_while_the_spindle_brakes():
-    # M5 then a retract: waited, the braking (3 s from 6,000 rpm at 2,000 rpm/s) comes before
-    # the retract; not waited (the Hurco), none does when no tool change follows — the run-up
-    # after M3 still waits
+    # M5 then a retract: waited (the default), the braking (3 s from 6,000 rpm at 2,000 rpm/s)
+    # comes before the retract; not waited (the Hurco), the retract runs while it brakes
     from mtwin.motion.path import PAUSE
 
     tw = mtwin.Twin().with_effects("spindle-runup:acceleration=2000")
-    prog = tw.load(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nS6000 M3\nG1 X0\nM30\n", path="b.nc")
-    waited = float(tw.plan(prog).category_times()["spindle_wait"])
-    free = tw.with_params({"spindle.wait_for_stop": False}).plan(prog)
-    assert waited == pytest.approx(3.0 * 3, rel=1e-6)  # up, down, up
-    assert float(free.category_times()["spindle_wait"]) == pytest.approx(3.0 * 2, rel=1e-6)
-    assert tw.plan(prog).total_time - free.total_time == pytest.approx(3.0, rel=1e-6)
     # a tool change after it waits, on the M6's line, for what is left of the braking when the
     # retract is done
     prog = tw.load(b"G21 G90 G94\nT1 M6\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nT2 M6\nG1 X0 F1000\nM30\n",
@@ -521,6 +514,56 @@ def test_without_wait_for_stop_the_moves_after_m5_run_while_the_spindle_brakes()
     assert free.total_time == pytest.approx(tw.plan(prog).total_time - retract, rel=1e-6)
 
 
+def test_a_braking_overlapping_motion_waits_at_the_m01_at_once_before_a_restart_and_counts_dwells():
+    # 3 s of braking (6,000 rpm at 2,000 rpm/s), moves allowed to run meanwhile
+    from mtwin.motion.path import PAUSE
+
+    tw = mtwin.Twin().with_effects("spindle-runup:acceleration=2000").with_params({"spindle.wait_for_stop": False})
+
+    def braking(text):
+        plan = tw.plan(tw.load(text, path="w.nc"))
+        on = (plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0)
+        moving = (plan.seg["kind"] != PAUSE)
+        return plan, plan.seg["line"][on].tolist(), float(plan.dur[on].sum()), moving
+
+    # reported at the M01 before the tool change, as the Hurco stands there
+    plan, lines, wait, moving = braking(b"G21 G90 G94\nT1 M6\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nM01\nT2 M6\n"
+                                        b"G1 X0 F1000\nM30\n")
+    retract = float(plan.dur[moving & (plan.seg["line"] == 6)].sum())
+    assert lines == [7] and wait == pytest.approx(3.0 - retract, rel=1e-9)
+    # M5 and M6 with no move between: all of it, before the tool change
+    plan, lines, wait, _ = braking(b"G21 G90 G94\nT1 M6\nS6000 M3\nG1 X10 F1000\nM5\nT2 M6\nG1 X0 F1000\nM30\n")
+    assert lines == [6] and wait == pytest.approx(3.0, rel=1e-9)
+    cats = plan.seg["cat"][plan.seg["kind"] == PAUSE].tolist()
+    assert cats.index(plan.seg["cat"][(plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0)][0]) < len(cats) - 1
+    # started again before any tool change: the rest of the braking, then the whole run-up
+    plan, lines, wait, moving = braking(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nS6000 M3\n"
+                                        b"G1 X0 F1000\nM30\n")
+    retract = float(plan.dur[moving & (plan.seg["line"] == 5)].sum())
+    assert lines == [7] and wait == pytest.approx(3.0 - retract, rel=1e-9)
+    assert float(plan.category_times()["spindle_wait"]) == pytest.approx(3.0 + wait + 3.0, rel=1e-9)
+    # a dwell while it brakes counts as the moves do (Fanuc G4 P in ms)
+    plan, lines, wait, moving = braking(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nM5\nG4 P1000\nG0 Z50\nM30\n")
+    retract = float(plan.dur[moving & (plan.seg["line"] == 6)].sum())
+    assert lines == [7] and wait == pytest.approx(3.0 - 1.0 - retract, rel=1e-9)
+
+
+def test_a_braking_overlapping_motion_keeps_its_time_on_a_linuxcnc_path_of_merged_lines():
+    # LinuxCNC's naive CAM joins collinear G1 lines; it does not join over the M5 (LinuxCNC
+    # flushes the chain at a spindle command), so the braking counts only the moves after it
+    from mtwin.motion.path import PAUSE
+
+    tw = mtwin.Twin().with_controller(style="linuxcnc").with_effects("spindle-runup:acceleration=2000") \
+        .with_params({"spindle.wait_for_stop": False})
+    text = (b"G21 G90 G94 G64 P0.01 Q0.01\nT1 M6\nS6000 M3\nG1 X10 F600\nX20\nX30\nM5\nX40\nX50\nT2 M6\n"
+            b"G0 Z10\nM30\n")
+    plan = tw.plan(tw.load(text, path="l.ngc"))
+    on = (plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0)
+    after = float(plan.dur[(plan.seg["kind"] != PAUSE) & (plan.seg["line"] >= 8) & (plan.seg["line"] <= 9)].sum())
+    assert 1.0 < after < 3.0  # 20 mm at 10 mm/s and its braking ramp
+    assert float(plan.dur[on].sum()) == pytest.approx(3.0 - after, rel=1e-9)
+
+
 def test_an_overlapped_run_up_waits_at_the_next_block_for_what_the_move_left():
     # S6000 M3 on a rapid: overlapped, the 3-s run-up (2,000 rpm/s) runs during the rapid and
     # the next block waits 3 s less the rapid's time; a run-up shorter than the
@@ -540,6 +583,16 @@ def test_an_overlapped_run_up_waits_at_the_next_block_for_what_the_move_left():
     quick = tw.with_effects("spindle-runup:acceleration=60000").with_params({"spindle.runup_overlap": True})
     plan = quick.plan(prog)
     assert float(plan.dur[plan.seg["kind"] == PAUSE].sum()) == 0.0
+    # after a tool change (the Hurco's T M6, then G0 X Y S M3): only the rapid overlaps the run-up
+    prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z50\nT2 M6\nG0 X100 S6000 M3\nG0 Z0\nG1 X0 F1000\nM30\n", path="c.nc")
+    plan = tw.with_params({"spindle.runup_overlap": True}).plan(prog)
+    rapid = float(plan.dur[(plan.seg["line"] == 4) & (plan.seg["kind"] != PAUSE)].sum())
+    wait = (plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0)
+    assert plan.seg["line"][wait].tolist() == [5] and float(plan.dur[wait].sum()) == pytest.approx(3.0 - rapid)
+    # S M3 on a block of its own: the rapid after it does not start the spindle, and waits
+    prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z50\nS6000 M3\nG0 X100\nG0 Z0\nM30\n", path="g.nc")
+    plan = tw.with_params({"spindle.runup_overlap": True}).plan(prog)
+    assert plan.total_time == pytest.approx(tw.plan(prog).total_time, rel=1e-12)
     # a feed move never starts before the spindle is at speed: S M3 on a G1 waits before it
     prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z50\nS6000 M3 G1 X100 F1000\nG0 Z0\nM30\n", path="f.nc")
     plan = tw.with_params({"spindle.runup_overlap": True}).plan(prog)

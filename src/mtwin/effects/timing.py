@@ -39,7 +39,7 @@ class SpindleRunup(Effect):
     description = "the control waits until the spindle is at speed after a start, a speed change and a stop"
     stage = "plan"
     params = (Param("acceleration", "rpm/s", 0.0, 0.0, 100000.0,
-                    "run-up and braking rate the waits follow, 0 = the twin file's"),
+                    "run-up rate the waits follow (and braking's, unless braking is set), 0 = the twin file's"),
               Param("power_speed", "rpm", 0.0, 0.0, 100000.0,
                     "above this speed the rate falls as power_speed/n (the drive's power limit), 0 = the twin "
                     "file's"),

@@ -389,10 +389,15 @@ def fit_timing_steps(twin, cases, steps, base_params=()) -> TimingFit:
     time — where each step starting from the last does not.)"""
     if not steps:
         raise MtwinError("a calibration procedure needs at least one effect to fit")
+    cases = [replace(c) for c in cases]  # (the caller's keep their waits)
     fitted: list = []
     for effect in steps:
         fr = fit_timing(twin, cases, fitted + [effect])
         fitted = list(fr.effects)
+        now = twin.with_effects(*fitted)
+        for c in cases:  # the next step starts from this one's twin, as a new calibrate run does
+            refresh_waits(now, c)
+            refresh_bias(now, c)
     return fit_timing(twin, cases, fitted, base_params) if base_params else fr
 
 

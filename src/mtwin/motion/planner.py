@@ -193,8 +193,10 @@ def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0
 
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
             m6: np.ndarray | None = None, stops: np.ndarray | None = None, ends: np.ndarray | None = None,
-            tool_changes: bool = True):
-    """(record index, category, duration) of the pauses before each record, and dwells."""
+            starts: np.ndarray | None = None, end_change: int = 0, tool_changes: bool = True):
+    """(record index, category, duration) of the pauses before each record, and dwells.  ``m6``,
+    ``stops``, ``ends``, ``starts``: the lines holding M6, M00/M01, M2/M30 and M3/M4 words (empty
+    when not known); ``end_change``: the line of a tool change after the last move (0: none)."""
     out = []
     sp = machine.spindle
     clamped = False
@@ -226,32 +228,45 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
                             getattr(sp, "braking", 0.0))
             if dt <= 0:
                 continue
-            # a wait that overlaps moves stands later, with the record it started at (``since``):
-            # _overlap_spindle takes off the time the moves between take, once they are timed
+            # a wait that overlaps motion stands later, with the record it started at (``since``):
+            # _overlap_spindle takes off the time that passes between, once the plan is timed
             if target[i] == 0.0 and not getattr(sp, "wait_for_stop", True):
-                # the moves run while it brakes; the next tool change waits for the rest, or the
-                # program's end when the spindle stays stopped (the Hurco completes its program
-                # only once the spindle is down: 3.9 s after M30 from S12000, 0.7 s from S9000)
-                later = change_tool[change_tool > i]
+                # the moves run while it brakes; what is left is waited for before the next tool
+                # change (M5 and M6 between the same moves: at once), before the spindle starts
+                # again, or at the program's end (the Hurco completes its program only once the
+                # spindle is down: 3.9 s after M30 from S12000, 0.7 s from S9000)
+                later = change_tool[change_tool >= i]
                 restart = change_speed[change_speed > i]
-                if not later.size and not restart.size:
-                    n = len(rec) - 1
-                    line = int(ends[-1]) if ends is not None and ends.size else int(rec["line"][n])
-                    out.append((n, 3.5, CAT_SPINDLE, dt, line, int(i) + 1))
-                elif later.size and not (restart.size and restart[0] < later[0]):
-                    # reported at the M6's line, or at a program stop (M00/M01) before it: the
-                    # Hurco stands at its M01 until the spindle is down
-                    k = int(later[0])
+                n = len(rec) - 1
+                if restart.size and (not later.size or restart[0] < later[0]):
+                    out.append((int(restart[0]), 0.5, CAT_SPINDLE, dt, int(rec["line"][restart[0]]), int(i) + 1))
+                    continue
+                if later.size:  # at the M6's line, or at a program stop (M00/M01) before it
+                    k, sub = int(later[0]), -0.25
                     line = change_line.get(k, int(rec["line"][k]))
-                    if stops is not None and stops.size:
-                        lo = int(rec["line"][k - 1]) if k > 0 else 0
-                        before = stops[(stops >= lo) & (stops < line)]
-                        if before.size:
-                            line = int(before[-1])
-                    out.append((k, -0.25, CAT_SPINDLE, dt, line, int(i) + 1))
-            elif (getattr(sp, "runup_overlap", False) and target[i] != 0.0 and i + 1 < len(rec)
-                  and rec["kind"][i] == R.RAPID):  # (a feed move never starts before the spindle is at speed)
-                out.append((int(i) + 1, 1, CAT_SPINDLE, dt, int(rec["line"][i + 1]), int(i) + 1))
+                    lo = int(rec["line"][k - 1]) if k > 0 else 0
+                elif end_change:  # the tool put away after the last move
+                    k, sub, line, lo = n, 3.75, int(end_change), int(rec["line"][n])
+                else:
+                    k, sub, lo = n, 3.5, int(rec["line"][n])
+                    line = int(ends[-1]) if ends is not None and ends.size else lo
+                if sub != 3.5 and stops is not None and stops.size:
+                    # the Hurco stands at the M01 before its tool change until the spindle is down
+                    before = stops[(stops >= lo) & (stops < line)]
+                    if before.size:
+                        line = int(before[-1])
+                out.append((k, sub, CAT_SPINDLE, dt, line, int(i) + 1))
+            elif getattr(sp, "runup_overlap", False) and target[i] != 0.0 and rec["kind"][i] == R.RAPID \
+                    and starts is not None and int(rec["line"][i]) in starts:
+                # a rapid on the block that starts the spindle (a feed move never starts before
+                # the spindle is at speed): the first record of a later block waits for the rest
+                nxt = i + 1
+                while nxt < len(rec) and rec["line"][nxt] == rec["line"][i]:
+                    nxt += 1
+                if nxt < len(rec):
+                    out.append((nxt, 1, CAT_SPINDLE, dt, int(rec["line"][nxt]), int(i) + 1))
+                else:
+                    out.append((int(i), 1, CAT_SPINDLE, dt))
             else:
                 out.append((int(i), 1, CAT_SPINDLE, dt))
     for i in np.nonzero(rec["kind"] == R.DWELL)[0]:
@@ -421,10 +436,12 @@ def _linuxcnc_corners(seg: np.ndarray, machine):
     return seg, vj
 
 
-def _naive_cam(seg: np.ndarray, rec: np.ndarray) -> np.ndarray:
-    """LinuxCNC merges nearly collinear G1 moves (G64 P… Q…) before planning."""
+def _naive_cam(seg: np.ndarray, rec: np.ndarray, apart: np.ndarray | None = None) -> np.ndarray:
+    """LinuxCNC merges nearly collinear G1 moves (G64 P… Q…) before planning; ``apart``: segments
+    kept out of any chain."""
+    alone = seg["kind"] == PAUSE if apart is None else (seg["kind"] == PAUSE) | apart
     keep, start = K.naive_cam_merge.auto(len(seg), seg["kind"].astype(np.int64), seg["rapid"].astype(np.int64),
-                                    seg["path_mode"].astype(np.int64), seg["kind"] == PAUSE, seg["feed"],
+                                    seg["path_mode"].astype(np.int64), alone, seg["feed"],
                                     rec["cam_tol"][seg["rec"]], np.ascontiguousarray(seg["p0"]),
                                     np.ascontiguousarray(seg["p1"]))
     if keep.all():
@@ -498,10 +515,11 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     check_feeds(rec, moves, program.path)
     check_travel(rec, moves, machine, program.path, None if machine.hard_travel_limits else warnings)
     moves = moves[motion & (moves["length"] > _MIN_LENGTH)]
-    pauses = _pauses(rec, machine, warnings, program.path, _m_lines(program, 6.0), _m_lines(program, 0.0, 1.0),
-                     _m_lines(program, 2.0, 30.0),
-                     tool_changes=not getattr(program, "tools_by_selection", False))
     end_change = getattr(program, "end_tool_change", 0)
+    pauses = _pauses(rec, machine, warnings, program.path, _m_lines(program, 6.0), _m_lines(program, 0.0, 1.0),
+                     _m_lines(program, 2.0, 30.0), _m_lines(program, 3.0, 4.0),
+                     end_change if machine.timing.tool_change > 0 else 0,
+                     tool_changes=not getattr(program, "tools_by_selection", False))
     if end_change and len(rec) and machine.timing.tool_change > 0:
         # a tool change after the last move (the tool put away before M30)
         pauses.append((len(rec) - 1, 4, CAT_TOOL, machine.timing.tool_change, end_change))
@@ -598,7 +616,10 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
         # in exact-path mode)
         seg["path_mode"][canned & (seg["kind"] != PAUSE)] = 1 if style == K.STYLE_LINUXCNC else 2
     if style == K.STYLE_LINUXCNC:
-        seg = _naive_cam(seg, rec)
+        # (LinuxCNC flushes its naive-CAM chain at a spindle command: a chain does not run over the
+        # start of a spindle change that overlaps motion, whose time _overlap_spindle counts from)
+        cut = np.isin(seg["rec"], seg["since"][seg["since"] > 0] - 1) & (seg["kind"] != PAUSE)
+        seg = _naive_cam(seg, rec, cut & np.concatenate(([True], seg["rec"][1:] != seg["rec"][:-1])))
     if c.stop_angle > 0:  # (on the path as merged: LinuxCNC's naive CAM joins tiny steps first)
         _stop_at_sharp_corners(seg, c.stop_angle)
     _motion_limits(seg, machine, linuxcnc=style == K.STYLE_LINUXCNC)
@@ -633,20 +654,28 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
 
 
 def _overlap_spindle(seg: np.ndarray, rec: np.ndarray, dur: np.ndarray) -> None:
-    """A spindle wait that overlaps moves (``since`` > 0: a run-up under ``runup_overlap``, a
-    braking without ``wait_for_stop``) is shortened by the time the moves take from record
-    ``since`` − 1 up to the wait: the spindle changed speed meanwhile."""
+    """A spindle wait that overlaps motion (``since`` > 0: a run-up under ``runup_overlap``, a
+    braking without ``wait_for_stop``) is shortened by the time that passes from record
+    ``since`` − 1 up to the wait — moves, dwells, other waits: the spindle changed speed
+    meanwhile."""
     waits = np.flatnonzero((seg["kind"] == PAUSE) & (seg["since"] > 0))
     if not waits.size:
         return
-    # moving time before each segment (segments are in program order, their records ascending)
-    before = np.concatenate(([0.0], np.cumsum(np.where(seg["kind"] != PAUSE, dur, 0.0))))
+    # time before each segment (segments are in program order, their records ascending)
+    before = np.concatenate(([0.0], np.cumsum(dur)))
     for j in waits:
-        k = int(np.searchsorted(seg["rec"], int(seg["since"][j]) - 1, "left"))
-        moved = before[j] - before[min(k, j)]
-        d = max(0.0, float(seg["duration"][j]) - float(moved))
-        dur[j] += d - float(seg["duration"][j])
+        r0 = int(seg["since"][j]) - 1
+        k = int(np.searchsorted(seg["rec"], r0, "left"))
+        # from the block's own action: the tool change and spindle waits standing before it (the
+        # M6 ahead of a G0 X Y S M3) pass before the spindle is told
+        while k < j and seg["rec"][k] == r0 and seg["kind"][k] == PAUSE and seg["cat"][k] in (CAT_TOOL, CAT_SPINDLE):
+            k += 1
+        passed = before[j] - before[min(k, j)]
+        d = max(0.0, float(seg["duration"][j]) - float(passed))
+        change = d - float(seg["duration"][j])
+        dur[j] += change
         seg["duration"][j] = d
+        before[j + 1:] += change  # (a later wait counts this one as it now is)
 
 
 def _stop_at_sharp_corners(seg: np.ndarray, angle: float) -> None:

@@ -172,9 +172,10 @@ class Spindle:
     # its G28 retract at once after M5, and rapids to X/Y on the block that starts the spindle,
     # standing at the next block (the Z approach) for the rest of the run-up (both logged)
     wait_for_stop: bool = P(True, "bool", "moves after M5 wait until the spindle has stopped (false: they run while "
-                            "it brakes, and the next tool change, or the program's end, waits for what is left)", "bool")
-    runup_overlap: bool = P(False, "bool", "the block that starts the spindle moves while it runs up, and the next "
-                            "block waits for what is left (false: the block waits before it moves)", "bool")
+                            "it brakes, and the next tool change, spindle start or the program's end waits for what "
+                            "is left)", "bool")
+    runup_overlap: bool = P(False, "bool", "a rapid on the block that starts the spindle moves while it runs up, and "
+                            "the next block waits for what is left (false: the block waits before it moves)", "bool")
 
 
 @dataclass(frozen=True)
