@@ -61,8 +61,10 @@ cat > "$work/0.toml" <<'TOML'
 #   S12000, 13 and 14 S750-S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
 #   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
 #   circle: the control runs them slower than true circles, and longer per block below that limit)
-#   (the order mtwin diagnose ranks them on the default twin), 6 the axes: rapid rates (read off the logged rapids), feed accelerations,
-#   jerk (controller.bell_time).
+#   (the order mtwin diagnose ranks them on the default twin), 6 block-time (what diagnose ranks
+#   next on the twin with those five: ~30 ms a block at the least, the control's block rate, seen
+#   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 the axes: rapid rates (read
+#   off the logged rapids), feed accelerations, jerk (controller.bell_time).
 # The servos keep the default machine's velocity feed-forward: fitted without it (0), the
 # in-position waits after every rapid take ~70 ms the log does not show, and the fit buys them
 # back with unphysical values (Y accelerating 4x X, no arc limit at all).
@@ -103,9 +105,10 @@ cal --twin "$work/1.toml" -o "$work/2.toml" --fit toolchange-time --refit
 cal --twin "$work/2.toml" -o "$work/3.toml" --fit rapid-acceleration --refit
 cal --twin "$work/3.toml" -o "$work/4.toml" --fit arc-acceleration --refit
 cal --twin "$work/4.toml" -o "$work/5.toml" --fit spiral-acceleration:block_time=0.0052 --refit
-cal --twin "$work/5.toml" -o "$work/6.toml" --refit \
+cal --twin "$work/5.toml" -o "$work/6.toml" --fit block-time --refit
+cal --twin "$work/6.toml" -o "$work/7.toml" --refit \
     --param axes.x.max_velocity --param axes.y.max_velocity \
     --param axes.x.max_acceleration --param axes.y.max_acceleration --param axes.z.max_acceleration \
     --param controller.bell_time
-cp "$work/6.toml" "$out"
+cp "$work/7.toml" "$out"
 mtwin journal "$out"

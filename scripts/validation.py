@@ -24,7 +24,7 @@ PLATES = (12, 13, 14)
 PROFILE = ROOT / "samples" / "machines" / "hurco-vmx24.toml"
 START = ROOT / "samples" / "machines" / "hurco-vmx24-start.toml"  # the hand-set base of scripts/hurco-vmx24.sh
 RECIPE = ("spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
-          "spiral-acceleration")  # scripts/hurco-vmx24.sh
+          "spiral-acceleration", "block-time")  # scripts/hurco-vmx24.sh
 # the plates whose spiral helices run below both v²/r limits (F508 mm/min): where a spiral block's
 # own extra time is measured (scripts/hurco-vmx24.sh sets spiral-acceleration's block_time from it)
 BELOW_LIMIT = (12,)
