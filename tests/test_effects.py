@@ -534,8 +534,17 @@ def test_a_braking_overlapping_motion_waits_at_the_m01_at_once_before_a_restart_
     # M5 and M6 with no move between: all of it, before the tool change
     plan, lines, wait, _ = braking(b"G21 G90 G94\nT1 M6\nS6000 M3\nG1 X10 F1000\nM5\nT2 M6\nG1 X0 F1000\nM30\n")
     assert lines == [6] and wait == pytest.approx(3.0, rel=1e-9)
-    cats = plan.seg["cat"][plan.seg["kind"] == PAUSE].tolist()
-    assert cats.index(plan.seg["cat"][(plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0)][0]) < len(cats) - 1
+    wait_at = int(np.flatnonzero((plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0))[0])
+    from mtwin.motion.path import CAT_TOOL
+
+    change_at = int(np.flatnonzero((plan.seg["kind"] == PAUSE) & (plan.seg["cat"] == CAT_TOOL))[-1])
+    assert wait_at == change_at - 1  # the spindle is down before the tool comes out
+    # a tool put away after the last move: at its M01, before that change
+    plan, lines, wait, moving = braking(b"G21 G90 G94\nT1 M6\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nM01\nT2 M6\nM30\n")
+    retract = float(plan.dur[moving & (plan.seg["line"] == 6)].sum())
+    assert lines == [7] and wait == pytest.approx(3.0 - retract, rel=1e-9)
+    wait_at = int(np.flatnonzero((plan.seg["kind"] == PAUSE) & (plan.seg["since"] > 0))[0])
+    assert plan.seg["cat"][wait_at + 1] == CAT_TOOL and plan.seg["line"][wait_at + 1] == 8
     # started again before any tool change: the rest of the braking, then the whole run-up
     plan, lines, wait, moving = braking(b"G21 G90 G94\nS6000 M3\nG1 X10 F1000\nM5\nG0 Z50\nS6000 M3\n"
                                         b"G1 X0 F1000\nM30\n")

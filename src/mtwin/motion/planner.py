@@ -162,12 +162,12 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
     seg["amax"] = amax
 
 
-def _m_lines(program, *codes: float) -> np.ndarray:
+def _m_lines(program, *codes: float) -> np.ndarray | None:
     """Sorted 1-based lines holding an M word of ``codes``, for a plain program (a macro
-    program's lexed text is the expanded one, whose lines are not the file's): empty when not
+    program's lexed text is the expanded one, whose lines are not the file's): None when not
     known."""
     if getattr(program, "expanded", None) is not None or getattr(program, "lexed", None) is None:
-        return np.zeros(0, np.int64)
+        return None
     lx = program.lexed
     m = (lx.w_letter == ord("M")) & np.isin(lx.w_value, codes)
     return np.unique(lx.w_line[m].astype(np.int64) + 1)
@@ -195,8 +195,9 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
             m6: np.ndarray | None = None, stops: np.ndarray | None = None, ends: np.ndarray | None = None,
             starts: np.ndarray | None = None, end_change: int = 0, tool_changes: bool = True):
     """(record index, category, duration) of the pauses before each record, and dwells.  ``m6``,
-    ``stops``, ``ends``, ``starts``: the lines holding M6, M00/M01, M2/M30 and M3/M4 words (empty
-    when not known); ``end_change``: the line of a tool change after the last move (0: none)."""
+    ``stops``, ``ends``, ``starts``: the lines holding M6, M00/M01, M2/M30 and M3/M4 words (None
+    when not known: a macro program); ``end_change``: the line of a tool change after the last
+    move (0: none)."""
     out = []
     sp = machine.spindle
     clamped = False
@@ -257,9 +258,11 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
                         line = int(before[-1])
                 out.append((k, sub, CAT_SPINDLE, dt, line, int(i) + 1))
             elif getattr(sp, "runup_overlap", False) and target[i] != 0.0 and rec["kind"][i] == R.RAPID \
-                    and starts is not None and int(rec["line"][i]) in starts:
+                    and (starts is None or int(rec["line"][i]) in starts):
                 # a rapid on the block that starts the spindle (a feed move never starts before
-                # the spindle is at speed): the first record of a later block waits for the rest
+                # the spindle is at speed; where the M3/M4 lines are not known, a macro program,
+                # the rapid the speed changes on): the first record of a later block waits for
+                # the rest
                 nxt = i + 1
                 while nxt < len(rec) and rec["line"][nxt] == rec["line"][i]:
                     nxt += 1
