@@ -335,7 +335,8 @@ def _markdown(rows, kinds, elapsed) -> str:
         "(same effects and parameters, fitted step by step as scripts/hurco-vmx24.sh does: `fit_timing_steps`) "
         "calibrated on the two other plates only, predicting this one.  The values the recipe sets by hand — the "
         "in-position width, the stop angle, the spiral threshold, the spindle's overlap with motion, the Z work "
-        "offset — were chosen looking at all three plates; only the spiral block time is kept from the plate it predicts (below).",
+        "offset — were chosen looking at all three plates; only the spiral block time is kept from the plate it "
+        "predicts (below).",
         "",
         "| plate | measured s | length/feed | default twin | calibrated profile | leave-one-out |",
         "|---|---:|---:|---:|---:|---:|",
@@ -466,8 +467,8 @@ def _markdown(rows, kinds, elapsed) -> str:
                         for r in rows)
             + ".  The run-up stands still run long, by about the XY block's missing second (above), which the "
             "run-up rate cannot take up without the braking stands; both are in the tool-change kind.  Plates 13 and "
-            "14 alone (S750–S9000) now pin the power range: the leave-one-out prediction of plate 12's tool changes (S12000) is "
-            f"{kinds[(12, 'loo')].get('tool change', 0):+.1f} s off.",
+            "14 alone (S750–S9000) now pin the power range: the leave-one-out prediction of plate 12's tool changes "
+            f"(S12000) is {kinds[(12, 'loo')].get('tool change', 0):+.1f} s off.",
             "- Below the spiral limit, spirals still run 3–4 % under F where circles reach it (plate 12's helices "
             "in the table above, F508): "
             + ", ".join(f"{_spiral_block_time(r['helices']) * 1000:.1f} ms per half circle on plate {r['plate']}"

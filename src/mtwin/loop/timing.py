@@ -122,6 +122,13 @@ def refresh_bias(twin, case: TimingCase) -> None:
     case.kind_bias = np.array([bias.get(k, 0.0) for k in case.kinds], np.float64)
 
 
+def _refresh(twin, cases) -> None:
+    """The cases' in-position waits and logging bias by kind, as ``twin`` has them."""
+    for c in cases:
+        refresh_waits(twin, c)
+        refresh_bias(twin, c)
+
+
 def refresh_waits(twin, case: TimingCase) -> None:
     """The in-position waits per line, from simulations of the case's program on ``twin``: at
     its in-position width and at twice it.  The axes settle into the width about
@@ -367,10 +374,7 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
                 raise
             x = best[1].copy()
             tw, fitted = build_fitted(twin, effects, keys, x)
-        now = tw.with_effects(*fitted)
-        for c in cases:  # the waits, and the logging's bias by kind, as the fitted twin has them
-            refresh_waits(now, c)
-            refresh_bias(now, c)
+        _refresh(tw.with_effects(*fitted), cases)  # (as the fitted twin has them)
     tw, fitted = build_fitted(twin, effects, keys, x)
     after = summary(tw.with_effects(*fitted), cases)
     unc = sol.uncertainty
@@ -394,10 +398,7 @@ def fit_timing_steps(twin, cases, steps, base_params=()) -> TimingFit:
     for effect in steps:
         fr = fit_timing(twin, cases, fitted + [effect])
         fitted = list(fr.effects)
-        now = twin.with_effects(*fitted)
-        for c in cases:  # the next step starts from this one's twin, as a new calibrate run does
-            refresh_waits(now, c)
-            refresh_bias(now, c)
+        _refresh(twin.with_effects(*fitted), cases)  # the next step starts from this one's twin
     return fit_timing(twin, cases, fitted, base_params) if base_params else fr
 
 

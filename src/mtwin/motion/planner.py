@@ -173,6 +173,14 @@ def _m_lines(program, *codes: float) -> np.ndarray | None:
     return np.unique(lx.w_line[m].astype(np.int64) + 1)
 
 
+def _last_within(lines: np.ndarray | None, lo: int, hi: int) -> int | None:
+    """The last of the sorted ``lines`` within lo..hi (inclusive), None if none (or not known)."""
+    if lines is None or not lines.size:
+        return None
+    k = int(np.searchsorted(lines, hi, "right")) - 1
+    return int(lines[k]) if k >= 0 and lines[k] >= lo else None
+
+
 def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0.0, braking: float = 0.0) -> float:
     """Seconds for the spindle to go from n0 to n1 rpm (signed): at ``acceleration`` rpm/s up and
     ``braking`` down (0: ``acceleration``), and above ``power_speed`` (> 0) at rate·power_speed/|n|
@@ -213,11 +221,7 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
         if machine.timing.tool_change > 0 and tool_changes:
             # the time belongs to the M6 line between the previous move and this one, where known
             line = int(rec["line"][i])
-            prev = int(rec["line"][i - 1]) if i > 0 else 0
-            if m6 is not None and m6.size:
-                k = int(np.searchsorted(m6, line, "right")) - 1
-                if k >= 0 and m6[k] >= prev:
-                    line = int(m6[k])
+            line = _last_within(m6, int(rec["line"][i - 1]) if i > 0 else 0, line) or line
             first = i == change_tool[0] and tools[i] != 0
             extra = getattr(machine.timing, "first_tool_change_extra", 0.0) if first else 0.0
             out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change + extra, line))
@@ -251,11 +255,8 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
                 else:
                     k, sub, lo = n, 3.5, int(rec["line"][n])
                     line = int(ends[-1]) if ends is not None and ends.size else lo
-                if sub != 3.5 and stops is not None and stops.size:
-                    # the Hurco stands at the M01 before its tool change until the spindle is down
-                    before = stops[(stops >= lo) & (stops < line)]
-                    if before.size:
-                        line = int(before[-1])
+                if sub != 3.5:  # the Hurco stands at the M01 before its tool change until the spindle is down
+                    line = _last_within(stops, lo, line - 1) or line
                 out.append((k, sub, CAT_SPINDLE, dt, line, int(i) + 1))
             elif getattr(sp, "runup_overlap", False) and target[i] != 0.0 and rec["kind"][i] == R.RAPID \
                     and (starts is None or int(rec["line"][i]) in starts):
