@@ -530,3 +530,17 @@ def test_a_logged_feed_override_leaves_nothing_suspected(setup):
     x = json.loads(r.stdout)["logged_against_programmed"]["feed"]
     assert not x["suspect"] and x["ratio"] == pytest.approx(1.0, abs=0.02)
     assert "the programmed F" not in r.stderr
+
+
+def test_a_limit_the_log_never_shows_is_said_so_and_left_at_its_start(setup, tmp_path):
+    # PART has no arcs: an arc limit is seen by no block and bounded by none, so the fit leaves
+    # it where it started and says the log cannot tell it (not a value the search wandered to)
+    d, tw, prog = setup
+    (d / "noarcs.txt").write_text(_sampled_log(tw, prog))
+    out = tmp_path / "t.toml"
+    r = _cli("calibrate", str(d / "PART.NC"), str(d / "noarcs.txt"), "--fit", "arc-acceleration", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "effects.arc-acceleration.acceleration = 2500 (not identifiable from the signals fitted: left at its " \
+           "start)" in " ".join(r.stderr.split())
+    (entry,) = mtwin.loop.journal.read_journal(str(out))
+    assert entry["not_identifiable"] == ["effects.arc-acceleration.acceleration"]

@@ -111,6 +111,32 @@ def test_fit_recovers_timing_effects_from_the_twins_own_log(prog):
     assert fr.rms_after["window_time"] < 0.5 * fr.rms_before["window_time"]
 
 
+def test_a_limit_no_logged_block_reaches_is_set_at_the_least_the_log_allows(tmp_path):
+    # arcs of 5 mm at F3000 (50 mm/s): v²/r 500 mm/s², below the truth's arc limit of 2,000 —
+    # the log shows no arc slowed, so any limit from ~500 up fits it; the fit says so and sets
+    # the least (a program with tighter arcs would otherwise be predicted at whatever value the
+    # search was left at, faster than the machine was ever seen to go)
+    p = tmp_path / "arcs.nc"
+    p.write_text("G21 G90 G17 G94\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X10 F3000\n"
+                 + "".join(f"G2 X{10 + 10 * i + 5} Y5 I0 J5\nG3 X{10 + 10 * i + 10} Y0 I5 J0\n" for i in range(8))
+                 + "G1 X100 Y0\nG0 Z5\nM30\n")
+    truth = mtwin.Twin().with_effects("arc-acceleration:acceleration=2000")
+    prog = truth.load(str(p))
+    case = T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))
+    fr = T.fit_timing(mtwin.Twin(), [case], [get("arc-acceleration")()])
+    key = "effects.arc-acceleration.acceleration"
+    assert key in fr.unreached and fr.uncertainty[key] is None
+    least = fr.params[key]
+    assert least == fr.unreached[key]["least"] <= fr.unreached[key]["fitted"]
+    assert 450 < least < 650  # just above the arcs' 500 mm/s²
+    assert abs(fr.after["cases"][0]["cycle_error"]) < 0.01
+    # a limit the log does show is fitted as before (the test above: 250 recovered), not walked
+    truth = mtwin.Twin().with_effects("arc-acceleration:acceleration=250")
+    fr = T.fit_timing(mtwin.Twin(), [T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))],
+                      [get("arc-acceleration")()])
+    assert fr.unreached == {} and fr.params[key] == pytest.approx(250, rel=0.15)
+
+
 def test_diagnose_ranks_the_missing_timing_effect_first(prog):
     truth = mtwin.Twin().with_effects("toolchange-time:extra=4")
     d = T.diagnose_timing(mtwin.Twin(), [T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))])

@@ -97,7 +97,9 @@ class Param:
 
     ``lower``/``upper`` bound the values a user may set and a calibration may search;
     ``default`` is the value that leaves the twin as it is where the effect allows it
-    (a zero amplitude), else a typical value."""
+    (a zero amplitude), else a typical value.  ``ceiling``: a limit the motion may never
+    reach (an arc's v²/r limit on a program whose arcs all run below it); a calibration that
+    finds no logged block reaching it says so and sets the least value the logs allow."""
 
     name: str
     unit: str
@@ -106,6 +108,7 @@ class Param:
     upper: float
     doc: str
     source: str = "[E]"
+    ceiling: bool = False
 
     def check(self, value, key: str) -> float:
         """The value in this parameter's unit, within its bounds (a ConfigError otherwise)."""

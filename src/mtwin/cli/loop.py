@@ -299,12 +299,16 @@ def calibrate(
 def _print_calibration(cal, output: str) -> None:
     res = cal.result
     blind = getattr(res, "not_identifiable", [])
+    unreached = getattr(res, "unreached", {})
     for k, v in res.params.items():
         u = res.uncertainty.get(k)
         read = k in getattr(res, "rapid_rates", {})
         err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else "")
                   + (" (read off the logged rapids)" if read else "")
-                  + (" (not identifiable from the signals fitted: left at its start)" if k in blind else ""),
+                  + (" (not identifiable from the signals fitted: left at its start)" if k in blind else "")
+                  + (f" (no logged block reaches this limit: any value from {v:.4g} up fits the logs as well, "
+                     f"the search had left it at {unreached[k]['fitted']:.4g}; set at the least, so that the twin "
+                     f"promises no speed the logs have not shown)" if k in unreached else ""),
                   soft_wrap=True)
     if cal.base_params:
         err.print(f"note: the fitted base parameters are written into {output}'s sections (the file is written "

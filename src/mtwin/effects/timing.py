@@ -75,7 +75,7 @@ class CornerSlowdown(Effect):
     description = "the control slows down more (or less) at corners: its allowable velocity change per axis"
     stage = "plan"
     params = (Param("corner_velocity", "mm/min", 0.0, 0.0, 100000.0,
-                    "allowable velocity change per axis at a corner, 0 = the twin file's"),)
+                    "allowable velocity change per axis at a corner, 0 = the twin file's", ceiling=True),)
     signals = ("feed",)
 
     def machine(self, m, p):
@@ -87,7 +87,8 @@ class ArcAcceleration(Effect):
     description = ("the control has its own normal-acceleration limit v²/r on feed arcs, in place of the axes' "
                    "share of it (small arcs run at it)")
     stage = "plan"
-    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0, "normal-acceleration limit on arcs, 0 = none"),)
+    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0, "normal-acceleration limit on arcs, 0 = none",
+                    ceiling=True),)
     signals = ("feed",)
 
     def machine(self, m, p):
@@ -100,7 +101,7 @@ class SpiralAcceleration(Effect):
                    "spiral) take a lower normal acceleration v²/r than true circles, and longer per block")
     stage = "plan"
     params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
-                    "normal-acceleration limit on spiral arcs, 0 = as circles"),
+                    "normal-acceleration limit on spiral arcs, 0 = as circles", ceiling=True),
               Param("block_time", "s", 0.0, 0.0, 0.05,
                     "time the control spends on each spiral block beyond its path's, 0 = none"))
     signals = ("feed",)

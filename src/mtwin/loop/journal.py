@@ -139,6 +139,8 @@ def journal_entry(iteration: int, measurement: str, fit, validation: dict | None
         e["block_rms_after"] = fit.after["rms"]
     if getattr(fit, "not_identifiable", None):  # left at their starts: the signals cannot see them
         e["not_identifiable"] = list(fit.not_identifiable)
+    if getattr(fit, "unreached", None):  # limits no logged block reaches: set at the least the logs allow
+        e["unreached"] = list(fit.unreached)
     if validation:
         e["validation"] = validation
     if notes:

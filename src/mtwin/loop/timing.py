@@ -258,12 +258,17 @@ class TimingFit:
     before: dict  # summary() before
     after: dict  # summary() after, from re-simulated waits
     rapid_rates: dict = field(default_factory=dict)  # axes.<a>.max_velocity -> (mm/min, spread, rapids) read
+    # limits no logged block reaches: key -> {"least": the value set (the least the logs allow),
+    # "fitted": where the search had left it}
+    unreached: dict = field(default_factory=dict)
+    not_identifiable: list = field(default_factory=list)  # limits the logs do not see at all: left at their start
     signals: list = field(default_factory=lambda: [SIGNAL])
 
     def as_dict(self) -> dict:
         return {"objective": "timing", "params": self.params, "uncertainty": self.uncertainty,
                 "rms_before": self.rms_before, "rms_after": self.rms_after, "noise": self.noise,
                 "evaluations": self.evaluations, "before": self.before, "after": self.after,
+                "unreached": self.unreached, "not_identifiable": self.not_identifiable,
                 "effects": [{"name": e.name, "params": e.resolved()} for e in self.effects]}
 
 
@@ -375,13 +380,90 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
             x = best[1].copy()
             tw, fitted = build_fitted(twin, effects, keys, x)
         _refresh(tw.with_effects(*fitted), cases)  # (as the fitted twin has them)
+    unc = list(sol.uncertainty)
+    unreached, blind = {}, []
+    ceilings = _ceilings(effects)
+    for i, key in enumerate(keys):
+        if key in ceilings and unc[i] is None:  # no logged block reaches it
+            how, v = _least_unreached(fun_x, x, i, lo[i], len(keys))
+            if how == "least":
+                unreached[key] = {"least": v, "fitted": float(x[i])}
+            elif how == "unbounded":  # the logs do not see it at all: left at its start
+                v = float(x0[i])
+                blind.append(key)
+            x[i] = v
     tw, fitted = build_fitted(twin, effects, keys, x)
+    if unreached or blind:
+        _refresh(tw.with_effects(*fitted), cases)
     after = summary(tw.with_effects(*fitted), cases)
-    unc = sol.uncertainty
     params = {p: v[0] for p, v in read.items()} | dict(zip(keys, map(float, x)))
     uncertainty = {p: v[1] for p, v in read.items()} | dict(zip(keys, unc))
     return TimingFit(fitted, params, uncertainty, {SIGNAL: before["window_rms"]}, {SIGNAL: after["window_rms"]},
-                     {SIGNAL: NOISE_FLOOR * math.sqrt(2.0)}, count[0], before, after, rapid_rates=read)
+                     {SIGNAL: NOISE_FLOOR * math.sqrt(2.0)}, count[0], before, after, rapid_rates=read,
+                     unreached=unreached, not_identifiable=blind)
+
+
+UNREACHED_HALVINGS = 20  # an unreached limit is halved at most this often to find where it binds
+UNREACHED_STEP = 0.9  # then walked down: each value this much below the last
+UNREACHED_STEPS = 40
+
+
+def _ceilings(effects) -> set:
+    """The fitted parameters that are limits the motion may never reach (Param.ceiling)."""
+    return {effect_param(e.name, d.name) for e in effects for d in e.params if d.ceiling}
+
+
+def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
+    """Where to set limit ``i``, which no logged block reaches at the fitted value (the
+    residuals do not see it there: any larger value fits as well): ("least", the least value
+    the logs allow), ("better", a value below that fits clearly better: the limit is reached
+    there after all, where the search did not look) or ("unbounded", nan: nothing in the logs
+    bounds it from below either — a program without arcs says nothing of an arc limit).
+
+    Halved from the fitted value until the residuals change (where the limit starts to bind;
+    never: unbounded), then walked down from the last value they did not change at by
+    UNREACHED_STEP until the cost (noise-scaled squared residuals) rises clearly above the
+    least seen (by four times its variance per degree of freedom: two standard deviations of a
+    one-parameter profile); the least value whose cost is within one variance of that (one
+    standard deviation).  Set there, the twin promises no
+    speed the logs have not shown: a limit fitted to programs that never reach it would keep
+    wherever the search left it, and predict a program that does reach it faster than the
+    machine."""
+    def cost(v):
+        y = x.copy()
+        y[i] = v
+        return float(np.sum(fun_x(y) ** 2))
+
+    r0 = fun_x(x)
+    c0 = float(np.sum(r0 ** 2))
+    s2 = c0 / max(1, len(r0) - k)
+    v = float(x[i])
+    for _ in range(UNREACHED_HALVINGS):
+        if v / 2 <= lo_i:
+            return "unbounded", math.nan
+        if abs(cost(v / 2) - c0) > 1e-12 * max(c0, 1e-300):
+            break
+        v /= 2
+    else:
+        return "unbounded", math.nan
+    seen = [(v, c0)]
+    least = c0
+    rose = False
+    for _ in range(UNREACHED_STEPS):
+        v *= UNREACHED_STEP
+        if v <= lo_i:
+            break
+        c = cost(v)
+        seen.append((v, c))
+        least = min(least, c)
+        if c > least + max(4.0 * s2, 1e-9 * c0):
+            rose = True
+            break
+    if least < c0 - 4.0 * s2:
+        return "better", min(seen, key=lambda vc: vc[1])[0]
+    if not rose:
+        return "unbounded", math.nan
+    return "least", min(v for v, c in seen if c <= least + s2)
 
 
 def fit_timing_steps(twin, cases, steps, base_params=()) -> TimingFit:
