@@ -498,6 +498,14 @@ def test_an_unlogged_feed_override_is_found_ranked_and_calibrated(setup, tmp_pat
     x = doc["logged_against_programmed"]["feed"]
     assert x["suspect"] and x["ratio"] == pytest.approx(1.30, abs=0.02) and x["samples"] >= 20
     assert "feed moves ran at 1.30× the programmed F" in r.stderr
+    # beside it, the same estimator on a log of the twin's own run (no override): 1, kind by kind
+    assert x["twin"]["ratio"] == pytest.approx(1.0, abs=0.01) and x["twin"]["samples"] >= 20
+    kinds = {k["kind"]: k for k in doc["blocks"]["by_kind"]}
+    assert any(k["logged_over_programmed_feed"] is not None for k in kinds.values())
+    for k in kinds.values():
+        if k["logged_over_programmed_feed"] is not None:
+            assert k["logged_over_programmed_feed"] == pytest.approx(1.30, abs=0.03)
+            assert k["twin_logged_over_programmed_feed"] == pytest.approx(1.0, abs=0.02)
     before = doc["cycle_time"]["relative_error"]
     assert abs(before) > 0.05
     # diagnose: the feed-override effect first

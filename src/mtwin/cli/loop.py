@@ -163,19 +163,23 @@ def _print_blocks(b: dict) -> None:
     # less what the twin's own run shows logged the same way (loop/blocks.py), the fair sum by
     # kind; the raw one keeps the log's bias between kinds
     cols = ("kind", "groups", "measured s", "simulated s", "simulated − measured s", "as logged s", "RMS s") + \
-        (("logged F / programmed F",) if ratio else ())
+        (("logged F / programmed F (twin's own log)",) if ratio else ())
     for col in cols:
         t.add_column(col, justify="left" if col == "kind" else "right")
     for k in b["by_kind"]:
-        r = k.get("logged_over_programmed_feed")
+        r, r_twin = k.get("logged_over_programmed_feed"), k.get("twin_logged_over_programmed_feed")
+        shown = "-" if r is None else f"{r:.2f}" + (f" ({r_twin:.2f})" if r_twin is not None else "")
         t.add_row(k["kind"], f"{k['groups']:,}", f"{k['measured']:.1f}", f"{k['simulated']:.1f}", f"{k['error']:+.1f}",
-                  f"{k['error_as_logged']:+.1f}", f"{k['rms']:.3f}",
-                  *((f"{r:.2f}" if r is not None else "-",) if ratio else ()))
+                  f"{k['error_as_logged']:+.1f}", f"{k['rms']:.3f}", *((shown,) if ratio else ()))
     err.print(t)
     err.print("  as logged: the simulated groups as a log sampling every "
               f"{b.get('report_period') or 0:.2f} s would show them (a short line is reported late by about half "
               "its length, a long one by half the interval), less what logs of the twin's own run show by kind "
-              "(how the groups are cut depends on where the samples fall)")
+              "(how the groups are cut depends on where the samples fall)"
+              + ("; logged F / programmed F: the log's steady path feed over F in the blocks where the twin reaches "
+                 "F, and in brackets the same of a log of the twin's own run sampled alike (samples in a short "
+                 "block fall on its acceleration: a ratio below 1 that the twin's own log shows too is the "
+                 "sampling's, not the machine's)" if ratio else ""))
     w = Table(title="worst blocks", title_justify="left")
     for col in ("lines", "kind", "measured s", "simulated s", "error s", "G-code"):
         w.add_column(col, justify="right" if col.endswith(" s") else "left")

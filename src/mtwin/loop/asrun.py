@@ -281,6 +281,27 @@ def logged_against_programmed(program, meas, trace, kind_of: dict | None = None)
     return out
 
 
+def twin_log(trace, meas, seed: int = 0):
+    """A log of the twin's own run as the real one samples it: the executing line and the path
+    feed every interval of ``meas`` (its median, each within ±20 %, as the Hurco's 0.15–0.2 s).
+    The same estimator on it (:func:`logged_against_programmed`) shows what the sampling alone
+    makes of a block kind's ratio: samples in a short block fall on its acceleration and
+    deceleration, so even a twin that runs at F logs plunges below it."""
+    from .measurement import Measurement
+
+    t, line = np.asarray(trace.t), np.asarray(trace.line)
+    mt = np.asarray(meas.t, float)
+    every = float(np.median(np.diff(mt))) if len(mt) > 1 else 0.0
+    if every <= 0 or len(t) < 2:
+        return None
+    rng = np.random.default_rng(seed)
+    ts = t[0] + np.cumsum(rng.uniform(0.8 * every, 1.2 * every, int((t[-1] - t[0]) / (0.8 * every)) + 2))
+    ts = ts[ts < t[-1]]
+    k = np.clip(np.searchsorted(t, ts, side="right") - 1, 0, len(t) - 1)
+    return Measurement("the twin's own run", ts, {"feed": np.asarray(trace.signal("feed"), float)[k]},
+                       line[k].astype(np.int64))
+
+
 def ratio_note(sig: str, x: dict, advice: bool = True) -> str:
     """The sentence for a person when a logged/programmed ratio is suspect (``advice``: with
     what to run next, for the feed: the effect that fits it)."""

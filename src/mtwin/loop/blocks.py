@@ -50,6 +50,7 @@ class BlockTiming:
     hold_time: float = 0.0  # s of feed hold taken out of the measured durations
     stops: list = field(default_factory=list)  # dicts: program stops (M00/M01 waits, logged stop states)
     feed_ratio: dict = field(default_factory=dict)  # kind -> the log's own feed over the programmed F (asrun)
+    feed_ratio_twin: dict = field(default_factory=dict)  # kind -> the same of a log of the twin's own run
     logged: np.ndarray | None = None  # (groups,) s, the simulated durations as the log would show them
     period: float = 0.0  # s, the log's sampling interval of the executing line (report_period)
     bias: dict = field(default_factory=dict)  # kind -> s, what the as-logged sum shows of the twin's own run
@@ -76,7 +77,8 @@ class BlockTiming:
                             "simulated_as_logged": as_logged,
                             "error_as_logged": as_logged - float(self.measured[m].sum()),
                             "logging_bias": self.bias.get(k, 0.0),
-                            "logged_over_programmed_feed": self.feed_ratio.get(k)})
+                            "logged_over_programmed_feed": self.feed_ratio.get(k),
+                            "twin_logged_over_programmed_feed": self.feed_ratio_twin.get(k)})
         return sorted(out, key=lambda d: -abs(d["error"]))
 
     def worst(self, n: int = 10, text: list | None = None) -> list:
