@@ -47,10 +47,6 @@ cat > "$work/0.toml" <<'TOML'
 #   controller.in_position 0.2 mm: the logs show no standstill at the rapids' ends (each
 #     retract-reposition-approach, timed report to report, is within 0.03 s of the log on average
 #     without one); a narrow width, fitted, made the twin wait ~50 ms after every rapid;
-#   effects.spiral-acceleration.block_time 5.2 ms: plate 12's helices (F508, below both the
-#     circles' and the spirals' v^2/r limits) take 4.8-5.6 ms longer per half circle drawn as
-#     spirals than drawn true (docs/validation.md); where the limit binds, the block times
-#     cannot tell this time from the limit, so step 5 fits the limit alone;
 #   controller.stop_angle 120 degrees: the plates' zig-zag passes turn by 150-170 degrees and
 #     lose a near constant 0.09 s per turn from F508 to F1016 mm/min, as a full stop does (an
 #     allowable velocity change per axis carries speed through and loses 0.03-0.07 s, growing
@@ -60,7 +56,9 @@ cat > "$work/0.toml" <<'TOML'
 #   after M3 at the same speed -- and the speed above which both fall as 1/n: plate 12 runs
 #   S12000, 13 and 14 S750-S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
 #   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
-#   circle: the control runs them slower than true circles, and longer per block below that limit)
+#   circle: the control runs them slower than true circles, and each block takes longer by its
+#   v^2/r over a jerk -- 4.8-5.6 ms per half circle at ~200 mm/s^2 on plate 12's helices, 9-13 ms
+#   at 300-370 on plates 13 and 14 -- which spirals below the limit show on every plate)
 #   (the order mtwin diagnose ranks them on the default twin), 6 block-time (what diagnose ranks
 #   next on the twin with those five: ~30 ms a block at the least, the control's block rate, seen
 #   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 the axes: rapid rates (read
@@ -104,7 +102,7 @@ cal --twin "$work/0.toml" -o "$work/1.toml" --fit spindle-runup
 cal --twin "$work/1.toml" -o "$work/2.toml" --fit toolchange-time --refit
 cal --twin "$work/2.toml" -o "$work/3.toml" --fit rapid-acceleration --refit
 cal --twin "$work/3.toml" -o "$work/4.toml" --fit arc-acceleration --refit
-cal --twin "$work/4.toml" -o "$work/5.toml" --fit spiral-acceleration:block_time=0.0052 --refit
+cal --twin "$work/4.toml" -o "$work/5.toml" --fit spiral-acceleration --refit
 cal --twin "$work/5.toml" -o "$work/6.toml" --fit block-time --refit
 cal --twin "$work/6.toml" -o "$work/7.toml" --refit \
     --param axes.x.max_velocity --param axes.y.max_velocity \

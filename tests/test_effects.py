@@ -426,6 +426,33 @@ def test_spiral_block_time_adds_its_time_to_every_spiral_block_and_none_to_circl
         assert float(plan.dur[on].sum() - base.dur[on].sum()) == pytest.approx(40 * extra, abs=2e-3)
 
 
+def test_spiral_normal_time_adds_v2_over_r_over_the_jerk_to_every_spiral_block():
+    # below the spiral limit each spiral half circle takes L/v + (v²/r)/J: at F20 in/min (8.5 mm/s)
+    # on r 0.35 mm, v²/r = 206 mm/s² and J = 40 m/s³ give 5.2 ms; at F27 (11.4 mm/s) 9.3 ms — the
+    # time grows with v²/r (normal_time 0.025 s³/m: 25 ms per m/s², the inverse of 40 m/s³); with
+    # block_time both add; the same helix drawn true is untouched
+    tw = mtwin.Twin()
+    from mtwin.motion.path import ARC
+
+    for f_in, spec, t0 in ((20, "normal_time=0.025", 0.0), (27, "normal_time=0.025", 0.0),
+                         (20, "normal_time=0.025,block_time=0.002", 0.002)):
+        slow = tw.with_effects(f"spiral-acceleration:{spec}")
+        v = f_in * 25.4 / 60.0
+        for words, spiral in ((("-.0138", ".0137"), True), (("-.01375", ".01375"), False)):
+            prog = tw.load(_helix(*words).replace(b"F36", f"F{f_in}".encode()), path="h.nc")
+            plan = slow.plan(prog)
+            arcs = plan.seg[plan.seg["kind"] == ARC]
+            r = np.minimum(arcs["r0"], arcs["r1"])
+            extra = t0 + v * v / r / 40000.0 if spiral else 0.0 * r
+            np.testing.assert_allclose(arcs["length"] / arcs["vmax"], arcs["length"] / v + extra, rtol=1e-9)
+    # the twin file's own controller.spiral_jerk is the same machine
+    prog = tw.load(_helix("-.0138", ".0137").replace(b"F36", b"F20"), path="h.nc")
+    direct = tw.with_params({"controller.spiral_jerk": 40000.0}).plan(prog).seg["vmax"]
+    fitted = tw.with_effects("spiral-acceleration:normal_time=0.025").plan(prog).seg["vmax"]
+    np.testing.assert_allclose(direct, fitted, rtol=1e-12)
+    assert (direct < tw.plan(prog).seg["vmax"] - 0.1).any()
+
+
 def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():
     # a long rapid without jerk: t = L/v + v/a (accelerate and brake at a, cruise between);
     # the feed move after it keeps the axes' acceleration

@@ -256,14 +256,17 @@ def test_the_start_twin_is_the_profile_scripts_hand_set_base():
 def test_leave_one_out_predicts_plate_12_from_plates_13_and_14():
     # the profile's recipe step by step from its hand-set base (scripts/hurco-vmx24.sh), on
     # plates 13 and 14; plate 12 predicted.  Plate 12 is the hard fold: only it runs S12000
-    # (the spindle's power range must come from S750-S9000 starts and stops) and only it shows
-    # the spiral block time (so none is taken).  Before the spindle overlapped motion its tool
-    # changes came out 8.5 s short here
+    # (the spindle's power range must come from S750-S9000 starts and stops) and only its helices
+    # run below both v²/r limits: the time a spiral block takes beyond its path comes from plates
+    # 13 and 14's spirals below the spiral limit (it grows with v²/r: spiral-acceleration's
+    # normal_time; a constant time per block fitted there came out twice plate 12's, and none left
+    # plate 12's small arcs 2.8 s short).  Before the spindle overlapped motion its tool changes
+    # came out 8.5 s short here
     base = mtwin.Twin.from_toml(str(ROOT / "samples" / "machines" / "hurco-vmx24-start.toml"))
     profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
     assert profile == ["spindle-runup", "toolchange-time", "rapid-acceleration", "arc-acceleration",
                        "spiral-acceleration", "block-time"]
-    effects = [get(n)(block_time=0.0) if n == "spiral-acceleration" else get(n)() for n in profile]
+    effects = [get(n)() for n in profile]
     fr = T.fit_timing_steps(base, [_case(base, 13), _case(base, 14)], effects,
                             ["axes.x.max_velocity", "axes.y.max_velocity", "axes.x.max_acceleration",
                              "axes.y.max_acceleration", "axes.z.max_acceleration", "controller.bell_time"])
@@ -274,6 +277,7 @@ def test_leave_one_out_predicts_plate_12_from_plates_13_and_14():
     assert abs(cycle / case.cycle_measured - 1) < 0.01, cycle / case.cycle_measured - 1
     worst = dict(zip(case.kinds, by_kind))
     assert max(abs(v) for v in worst.values()) < 3.5, worst
+    assert abs(worst["small arc"]) < 2.0, worst  # the spirals' extra time, learnt from plates 13 and 14
 
 
 @need_hurco

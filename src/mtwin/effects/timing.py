@@ -98,19 +98,28 @@ class ArcAcceleration(Effect):
 class SpiralAcceleration(Effect):
     name = "spiral-acceleration"
     description = ("arcs whose end point is off the programmed circle (a rounded centre: the control runs a "
-                   "spiral) take a lower normal acceleration v²/r than true circles, and longer per block")
+                   "spiral) take a lower normal acceleration v²/r than true circles, and longer per block, the "
+                   "more the higher v²/r")
     stage = "plan"
     params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
                     "normal-acceleration limit on spiral arcs, 0 = as circles", ceiling=True),
               Param("block_time", "s", 0.0, 0.0, 0.05,
-                    "time the control spends on each spiral block beyond its path's, 0 = none"))
+                    "time the control spends on each spiral block beyond its path's, 0 = none"),
+              Param("normal_time", "s^3/m", 0.0, 0.0, 1.0,
+                    "time each spiral block takes beyond its path per m/s² of its v²/r: the inverse of the jerk at "
+                    "which the control ramps the normal acceleration anew at every spiral block (0.025 = 25 ms per "
+                    "m/s², 40 m/s³), 0 = none"))
     signals = ("feed",)
-    # where the spiral limit binds, the block times cannot tell the two apart: the time per block
-    # is measured where the feed is below the limit (fit=acceleration+block_time to fit both)
-    fitted = ("acceleration",)
+    # the time a spiral block takes beyond its path grows with v²/r (docs/validation.md), seen
+    # wherever spirals run below the limit, at any feed; fitted as the inverse of the jerk (the
+    # twin file's controller.spiral_jerk), which the time is linear in, with no pole at 0.  A
+    # constant time per block (block_time) trades with the limit where it binds and is not fitted
+    # unless asked (fit=acceleration+block_time)
+    fitted = ("acceleration", "normal_time")
 
     def machine(self, m, p):
         m = _controller_set(m, "spiral_acceleration", p["acceleration"])
+        m = _controller_set(m, "spiral_jerk", 1000.0 / p["normal_time"] if p["normal_time"] > 0 else 0.0)
         return _controller_set(m, "spiral_block_time", p["block_time"])
 
 

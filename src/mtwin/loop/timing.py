@@ -497,6 +497,7 @@ def _plan_starts(twin, effects) -> dict:
                                              or min(a.max_acceleration for a in m.axes)),
            "spiral-acceleration.acceleration": (m.controller.spiral_acceleration or m.controller.arc_acceleration
                                                 or min(a.max_acceleration for a in m.axes)),
+           "spiral-acceleration.normal_time": 1000.0 / m.controller.spiral_jerk if m.controller.spiral_jerk > 0 else 0.0,
            "rapid-acceleration.acceleration": (m.controller.rapid_acceleration
                                                or min(a.max_acceleration for a in m.axes))}
     out = {}

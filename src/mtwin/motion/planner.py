@@ -147,10 +147,12 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> None:
         if c.spiral_acceleration > 0:
             a_normal = np.where(spiral, c.spiral_acceleration, a_normal)
         v = np.minimum(vmax[arc], np.sqrt(a_normal * r))
-        if c.spiral_block_time > 0:
-            # the control spends this much longer on each spiral block than its path takes: a
+        if c.spiral_block_time > 0 or c.spiral_jerk > 0:
+            # the control spends this much longer on each spiral block than its path takes — a
+            # time of its own, and its normal acceleration v²/r ramped anew at spiral_jerk: a
             # block of length L run at v takes L/v + t, i.e. runs at L/(L/v + t)
-            v = np.where(spiral, a["length"] / (a["length"] / np.maximum(v, 1e-300) + c.spiral_block_time), v)
+            t = c.spiral_block_time + (v * v / np.maximum(r, 1e-300) / c.spiral_jerk if c.spiral_jerk > 0 else 0.0)
+            v = np.where(spiral, a["length"] / (a["length"] / np.maximum(v, 1e-300) + t), v)
         a_n = v * v / np.maximum(r, 1e-300)
         ratio = np.where(a_n > K._ACC_RATIO_NORMAL * a_axis, K._ACC_RATIO_TAN,
                          np.sqrt(np.clip(1.0 - (a_n / a_axis) ** 2, 0.0, 1.0)))

@@ -84,6 +84,14 @@ class Controller:
     spiral_block_time: float = P(0.0, "s", "time the control spends on each spiral block beyond what its path takes "
                                  "(the block runs at L/(L/v + t): t whole where it reaches its speed), 0 = none "
                                  "[E: ~5 ms on a Hurco VMX24's 1-mm spiral blocks]", "nonneg", hi=0.05)
+    # and the extra grows with the normal acceleration v²/r, not the speed alone: ~5 ms a half
+    # circle at 206 mm/s² (plate 12's helices), 9-13 ms at 300-370 (plates 13 and 14), a few ms on
+    # plate 12's 1.7-mm spirals at 23 mm/s (309 mm/s², where a time growing as v² would give 38):
+    # as if the control ramped the normal acceleration anew at every spiral block, at a jerk
+    spiral_jerk: float = P(0.0, "mm/s^3", "each spiral block takes (v²/r)/spiral_jerk longer than its path takes (the "
+                           "control ramps the normal acceleration anew at every spiral block, at this jerk), on top of "
+                           "spiral_block_time, 0 = none [E: ~40 m/s^3 on a Hurco VMX24, docs/validation.md]", "nonneg",
+                           hi=1e9)
     feed_override: float = P(100.0, "", "feed override in % in force for the whole run (a run's, not the "
                              "machine's: what effects.feed-override fits to a log that did not record it)",
                              lo=1.0, hi=1000.0)
