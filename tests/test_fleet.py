@@ -359,3 +359,26 @@ def test_ctrl_c_stops_the_batch_keeps_the_finished_jobs_and_says_which_did_not_r
     for j in done:  # the finished jobs' outputs are whole
         assert Path(j["outputs"]["program"]).stat().st_size > 0 and "</html>" in Path(j["outputs"]["report"]).read_text()
     assert "not run (interrupted)" in stderr
+
+
+def test_a_limit_a_machines_logs_never_reach_is_a_bound_in_the_fleet_table():
+    # the arc limit of a machine whose logs run no arc at it is the least they allow: shown "≥",
+    # never marked as the machine that differs (its logs cannot tell it from the others')
+    from types import SimpleNamespace
+
+    from mtwin.fleet.batch import Batch, parameters_csv
+    from mtwin.fleet.job import Outcome
+
+    key = "effects.arc-acceleration.acceleration"
+    rec = {"a": ({key: 400.0}, {key: 13.0}, {}), "b": ({key: 405.0}, {key: 14.0}, {}),
+           "c": ({key: 530.0}, {key: None}, {key: {"least": 530.0, "fitted": 939.0}})}
+    jobs = [SimpleNamespace(name=n) for n in rec]
+    b = Batch("calibrate", jobs, {n: Outcome(n, "ok", record={"params": p, "uncertainty": u, "unreached": un})
+                                   for n, (p, u, un) in rec.items()})
+    (row,) = b.fleet_table()
+    c = row["machines"]["c"]
+    assert c["at_least"] and not c["odd"] and c["ratio"] == pytest.approx(530 / 405)
+    assert not row["machines"]["a"]["at_least"]
+    b.rows = lambda: []  # (no held-out figures here)
+    csv_rows = parameters_csv(b).splitlines()
+    assert csv_rows[3] == "c,530,at least,"

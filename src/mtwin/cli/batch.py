@@ -177,9 +177,13 @@ def _print_parameters(b) -> None:
         cells = []
         for m in machines:
             x = row["machines"].get(m)
-            cells.append("—" if x is None else f"{x['value']:.4g}" + ("" if x["sd"] is None else f" ± {x['sd']:.2g}")
+            cells.append("—" if x is None else ("≥ " if x.get("at_least") else "") + f"{x['value']:.4g}"
+                         + ("" if x["sd"] is None else f" ± {x['sd']:.2g}")
                          + ("" if x["ratio"] is None else f" ({x['ratio']:.2f}×)"))
         t.add_row(row["parameter"], *cells)
     if any(v is not None for v in held.values()):
         t.add_row("held-out cycle error", *("" if held.get(m) is None else f"{held[m]:+.2f} %" for m in machines))
     err.print(t)
+    if any(x.get("at_least") for row in rows for x in row["machines"].values()):
+        err.print("  ≥: a limit no logged block of that machine reaches, set at the least value its logs allow",
+                  soft_wrap=True)

@@ -59,9 +59,13 @@ class Batch:
         """calibrate: per fitted parameter, each machine's value, its standard deviation and its
         ratio to the fleet's median (for three machines or more; ``odd`` when more than
         ``OUTLIER`` from it and more than two standard deviations: a difference the logs show,
-        not one of a parameter they hardly see) — the one table the CSV, stderr and the page show."""
+        not one of a parameter they hardly see; ``at_least``: a limit no logged block of that
+        machine reaches, set at the least its logs allow — a bound, never odd) — the one table
+        the CSV, stderr and the page show."""
         fits = self.fitted()
         sd = {j.name: (self.outcomes[j.name].record.get("uncertainty") or {}) for j in self.jobs if j.name in fits}
+        # limits no logged block of that machine reaches: the least value its logs allow, a bound
+        low = {j.name: set(self.outcomes[j.name].record.get("unreached") or {}) for j in self.jobs if j.name in fits}
         out = []
         for k in sorted({k for p in fits.values() for k in p}):
             vals = [p[k] for p in fits.values() if k in p]
@@ -72,8 +76,8 @@ class Batch:
                     r = p[k] / med if med else None
                     s = sd[m].get(k)
                     seen = s is None or abs(p[k] - med) > 2 * s if med else False
-                    cells[m] = {"value": p[k], "sd": s, "ratio": r,
-                                "odd": r is not None and abs(r - 1) > OUTLIER and seen}
+                    cells[m] = {"value": p[k], "sd": s, "ratio": r, "at_least": k in low[m],
+                                "odd": r is not None and abs(r - 1) > OUTLIER and seen and k not in low[m]}
             out.append({"parameter": k, "machines": cells})
         return out
 
@@ -209,7 +213,9 @@ def parameters_csv(b: Batch) -> str:
     num = (lambda v, fmt: "" if v is None else format(v, fmt))
     for m in b.fitted():
         cells = [t["machines"].get(m, {}) for t in table]
-        w.writerow([m, *(c for x in cells for c in (num(x.get("value"), ".6g"), num(x.get("sd"), ".3g"))),
+        # (a limit no logged block reaches: its sd column says so, the value is the least allowed)
+        w.writerow([m, *(c for x in cells for c in (num(x.get("value"), ".6g"),
+                                                    "at least" if x.get("at_least") else num(x.get("sd"), ".3g"))),
                     num(held.get(m), ".6g")])
     return buf.getvalue()
 

@@ -100,11 +100,13 @@ def _parameters(b) -> str:
                 continue
             sd = "" if x["sd"] is None else f" ± {x['sd']:.2g}"
             ratio = "" if x["ratio"] is None else f" ({x['ratio']:.2f}×)"
-            cells += f"<td class='{'odd' if x['odd'] else ''}'>{x['value']:.4g}{sd}{ratio}</td>"
+            low = "≥ " if x.get("at_least") else ""
+            cells += f"<td class='{'odd' if x['odd'] else ''}'>{low}{x['value']:.4g}{sd}{ratio}</td>"
         body += f"<tr><td class='l'>{e(t['parameter'])}</td>{cells}</tr>"
     return ("<h2>Fitted parameters</h2><p>Each machine's value ± its standard deviation, and its ratio to the "
             f"fleet's median (marked when more than {b.outlier:.0%} away and more than two standard deviations: a "
-            f"difference the logs show).</p><table>{head}{body}</table>")
+            f"difference the logs show); ≥: a limit no logged block of that machine reaches, set at the least "
+            f"value its logs allow.</p><table>{head}{body}</table>")
 
 
 # a job's figures on the page and on stderr, by command: (heading, row key, format)
