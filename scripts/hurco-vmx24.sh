@@ -57,8 +57,8 @@ cat > "$work/0.toml" <<'TOML'
 #   S12000, 13 and 14 S750-S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
 #   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
 #   circle: the control runs them slower than true circles, and each block takes longer by its
-#   v^2/r over a jerk -- 4.8-5.6 ms per half circle at ~200 mm/s^2 on plate 12's helices, 9-13 ms
-#   at 300-370 on plates 13 and 14 -- which spirals below the limit show on every plate)
+#   v^2/r over a jerk -- 4.8-5.6 ms per half circle at ~190 mm/s^2 on plate 12's helices, below
+#   both limits -- which spirals below the limit show on every plate)
 #   (the order mtwin diagnose ranks them on the default twin), 6 block-time (what diagnose ranks
 #   next on the twin with those five: ~30 ms a block at the least, the control's block rate, seen
 #   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 the axes: rapid rates (read

@@ -516,7 +516,7 @@ def _markdown(rows, kinds, elapsed) -> str:
             + ", which a limit on v²/r does not describe.  A constant time per spiral block describes plate 12 but "
             "not the others: where the limit binds it trades with the limit, and fitted with it on plates 13 and 14 "
             "(`fit=acceleration+block_time`) it comes out at 10.0 ± 1.8 ms, twice plate 12's.  The time grows with "
-            "v²/r (≈ 200 mm/s² on plate 12's helices, 300–370 on plates 13 and 14), not with the speed alone: plate "
+            "v²/r (≈ 190 mm/s² on plate 12's spirals, 260–300 on plates 13 and 14's), not with the speed alone: plate "
             "12's 1.7-mm spirals at F2032 log 23.0 mm/s (309 mm/s²), which 5–8 ms a block gives, where a time "
             "growing as v² from plate 12's helices would be 38 ms and 20 mm/s.  As if the control ramped the normal "
             "acceleration anew at every spiral block, at a jerk.  The profile's `spiral-acceleration` jerk is "

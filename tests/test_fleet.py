@@ -381,4 +381,5 @@ def test_a_limit_a_machines_logs_never_reach_is_a_bound_in_the_fleet_table():
     assert not row["machines"]["a"]["at_least"]
     b.rows = lambda: []  # (no held-out figures here)
     csv_rows = parameters_csv(b).splitlines()
-    assert csv_rows[3] == "c,530,at least,"
+    assert csv_rows[0].endswith(",holdout_cycle_error_pct,at_least")
+    assert csv_rows[3] == f"c,530,,,{key}" and csv_rows[1] == "a,400,13,,"

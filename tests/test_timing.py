@@ -137,6 +137,21 @@ def test_a_limit_no_logged_block_reaches_is_set_at_the_least_the_log_allows(tmp_
     assert fr.unreached == {} and fr.params[key] == pytest.approx(250, rel=0.15)
 
 
+def test_the_walk_down_an_unreached_limit_by_its_branches():
+    # a synthetic cost: ten residuals of 1 wherever the limit does not bind (x >= 500), rising
+    # as it binds below — from a search left at 4,000 the least value the data allow is 500;
+    # flat everywhere: nothing bounds it; a dip at 300 below the flat part: a better fit there
+    x = np.array([4000.0])
+    binds = lambda y: np.full(10, 1.0 + max(0.0, 500.0 - y[0]) / 50.0)
+    assert T._least_unreached(binds, x, 0, 0.0, 1) == ("least", 500.0)
+    how, v = T._least_unreached(lambda y: np.ones(10), x, 0, 0.0, 1)
+    assert how == "unbounded" and np.isnan(v)
+    dip = lambda y: np.full(10, 1.0 + min(abs(y[0] - 300.0), 200.0) / 100.0)
+    how, v = T._least_unreached(dip, x, 0, 0.0, 1)
+    assert how == "better" and abs(v - 300.0) < 20.0
+    assert x[0] == 4000.0  # (the fit's vector is left as it was)
+
+
 def test_diagnose_ranks_the_missing_timing_effect_first(prog):
     truth = mtwin.Twin().with_effects("toolchange-time:extra=4")
     d = T.diagnose_timing(mtwin.Twin(), [T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))])

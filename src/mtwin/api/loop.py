@@ -156,7 +156,7 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     res = run_compare(trace, meas, align, xcorr_signal, program=prog)
     for n in res.notes:
         msgs.note(n)
-    from ..loop.asrun import logged_against_programmed, ratio_note, twin_log
+    from ..loop.asrun import logged_against_programmed, ratio_note, twin_logged_ratio
 
     kind_of = None
     if res.blocks is not None:  # (the ratios per block kind, for the block timing's table)
@@ -164,11 +164,10 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
         kind_of = {ln: k for a, z, k in zip(b.first_line, b.last_line, b.kind) for ln in range(int(a), int(z) + 1)}
     res.logged_ratio = {} if meas.is_summary else logged_against_programmed(prog, meas, trace, kind_of)
     if "feed" in res.logged_ratio:
-        # the same estimator on a log of the twin's own run: what sampling alone makes of a kind's ratio
-        own = twin_log(trace, meas)
-        x = logged_against_programmed(prog, own, trace, kind_of).get("feed") if own is not None else None
+        # the same estimator on logs of the twin's own run: what sampling alone makes of a kind's ratio
+        x = twin_logged_ratio(prog, trace, meas, kind_of)
         if x is not None:
-            res.logged_ratio["feed"]["twin"] = {"ratio": x["ratio"], "samples": x["samples"], "by_kind": x["by_kind"]}
+            res.logged_ratio["feed"]["twin"] = x
     if res.blocks is not None and "feed" in res.logged_ratio:
         res.blocks.feed_ratio = {k: v["ratio"] for k, v in res.logged_ratio["feed"]["by_kind"].items()}
         res.blocks.feed_ratio_twin = {k: v["ratio"] for k, v in

@@ -163,7 +163,7 @@ def _print_blocks(b: dict) -> None:
     # less what the twin's own run shows logged the same way (loop/blocks.py), the fair sum by
     # kind; the raw one keeps the log's bias between kinds
     cols = ("kind", "groups", "measured s", "simulated s", "simulated − measured s", "as logged s", "RMS s") + \
-        (("logged F / programmed F (twin's own log)",) if ratio else ())
+        (("logged F / programmed F (twin's log in brackets)",) if ratio else ())
     for col in cols:
         t.add_column(col, justify="left" if col == "kind" else "right")
     for k in b["by_kind"]:
@@ -177,8 +177,8 @@ def _print_blocks(b: dict) -> None:
               "its length, a long one by half the interval), less what logs of the twin's own run show by kind "
               "(how the groups are cut depends on where the samples fall)"
               + ("; logged F / programmed F: the log's steady path feed over F in the blocks where the twin reaches "
-                 "F, and in brackets the same of a log of the twin's own run sampled alike (samples in a short "
-                 "block fall on its acceleration: a ratio below 1 that the twin's own log shows too is the "
+                 "F, and in brackets the same of logs of the twin's own run sampled alike (samples in a short "
+                 "block fall on its acceleration: a ratio below 1 that the twin's own logs show too is the "
                  "sampling's, not the machine's)" if ratio else ""))
     w = Table(title="worst blocks", title_justify="left")
     for col in ("lines", "kind", "measured s", "simulated s", "error s", "G-code"):

@@ -108,7 +108,7 @@ class SpiralAcceleration(Effect):
               Param("normal_time", "s^3/m", 0.0, 0.0, 1.0,
                     "time each spiral block takes beyond its path per m/s² of its v²/r: the inverse of the jerk at "
                     "which the control ramps the normal acceleration anew at every spiral block (0.025 = 25 ms per "
-                    "m/s², 40 m/s³), 0 = none"))
+                    "m/s², 40 m/s³), 0 = the twin file's (controller.spiral_jerk; none unless set)"))
     signals = ("feed",)
     # the time a spiral block takes beyond its path grows with v²/r (docs/validation.md), seen
     # wherever spirals run below the limit, at any feed; fitted as the inverse of the jerk (the

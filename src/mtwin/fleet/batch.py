@@ -209,14 +209,14 @@ def parameters_csv(b: Batch) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["machine", *(c for t in table for c in (t["parameter"], f"{t['parameter']}_sd")),
-                "holdout_cycle_error_pct"])
+                "holdout_cycle_error_pct", "at_least"])
     num = (lambda v, fmt: "" if v is None else format(v, fmt))
     for m in b.fitted():
         cells = [t["machines"].get(m, {}) for t in table]
-        # (a limit no logged block reaches: its sd column says so, the value is the least allowed)
-        w.writerow([m, *(c for x in cells for c in (num(x.get("value"), ".6g"),
-                                                    "at least" if x.get("at_least") else num(x.get("sd"), ".3g"))),
-                    num(held.get(m), ".6g")])
+        # at_least: the limits no logged block of the machine reaches, each the least value allowed
+        low = ";".join(t["parameter"] for t, x in zip(table, cells) if x.get("at_least"))
+        w.writerow([m, *(c for x in cells for c in (num(x.get("value"), ".6g"), num(x.get("sd"), ".3g"))),
+                    num(held.get(m), ".6g"), low])
     return buf.getvalue()
 
 

@@ -302,6 +302,32 @@ def twin_log(trace, meas, seed: int = 0):
                        line[k].astype(np.int64))
 
 
+TWIN_LOGS = 8  # logs of the twin's own run the figure beside the log's is the mean of
+
+
+def twin_logged_ratio(program, trace, meas, kind_of: dict | None = None, logs: int = TWIN_LOGS) -> dict | None:
+    """The feed ratio of :func:`logged_against_programmed` on ``logs`` logs of the twin's own run
+    (:func:`twin_log`, each sampled anew): {ratio, samples, logs, by_kind: {kind: {ratio,
+    samples}}}, the ratios the mean over the logs (a kind of few short blocks has few samples
+    per log, and one log's median moves with where they fall), or None."""
+    runs = []
+    for seed in range(logs):
+        own = twin_log(trace, meas, seed)
+        x = logged_against_programmed(program, own, trace, kind_of).get("feed") if own is not None else None
+        if x is not None:
+            runs.append(x)
+    if not runs:
+        return None
+    by_kind: dict = {}
+    for x in runs:
+        for k, v in x["by_kind"].items():
+            by_kind.setdefault(k, []).append(v)
+    return {"ratio": float(np.mean([x["ratio"] for x in runs])), "samples": int(sum(x["samples"] for x in runs)),
+            "logs": len(runs),
+            "by_kind": {k: {"ratio": float(np.mean([v["ratio"] for v in vs])), "samples": int(sum(v["samples"] for v in vs))}
+                        for k, vs in by_kind.items()}}
+
+
 def ratio_note(sig: str, x: dict, advice: bool = True) -> str:
     """The sentence for a person when a logged/programmed ratio is suspect (``advice``: with
     what to run next, for the feed: the effect that fits it)."""

@@ -383,6 +383,7 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
     unc = list(sol.uncertainty)
     unreached, blind = {}, []
     ceilings = _ceilings(effects)
+    moved = False
     for i, key in enumerate(keys):
         if key in ceilings and unc[i] is None:  # no logged block reaches it
             how, v = _least_unreached(fun_x, x, i, lo[i], len(keys))
@@ -391,9 +392,11 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
             elif how == "unbounded":  # the logs do not see it at all: left at its start
                 v = float(x0[i])
                 blind.append(key)
+            # ("better": a value below that fits clearly better — reached there, a fitted value)
+            moved |= v != x[i]
             x[i] = v
     tw, fitted = build_fitted(twin, effects, keys, x)
-    if unreached or blind:
+    if moved:
         _refresh(tw.with_effects(*fitted), cases)
     after = summary(tw.with_effects(*fitted), cases)
     params = {p: v[0] for p, v in read.items()} | dict(zip(keys, map(float, x)))
@@ -441,28 +444,29 @@ def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
     for _ in range(UNREACHED_HALVINGS):
         if v / 2 <= lo_i:
             return "unbounded", math.nan
-        if abs(cost(v / 2) - c0) > 1e-12 * max(c0, 1e-300):
+        c = cost(v / 2)
+        if not math.isfinite(c) or abs(c - c0) > 1e-12 * max(c0, 1e-300):
             break
         v /= 2
     else:
         return "unbounded", math.nan
     seen = [(v, c0)]
     least = c0
-    rose = False
     for _ in range(UNREACHED_STEPS):
         v *= UNREACHED_STEP
         if v <= lo_i:
             break
         c = cost(v)
+        if not math.isfinite(c):  # (a value the twin cannot run: as far off as can be)
+            break
         seen.append((v, c))
         least = min(least, c)
         if c > least + max(4.0 * s2, 1e-9 * c0):
-            rose = True
             break
     if least < c0 - 4.0 * s2:
         return "better", min(seen, key=lambda vc: vc[1])[0]
-    if not rose:
-        return "unbounded", math.nan
+    # (the residuals changed below the halving's last value: the logs bound it there, whether or
+    # not the walk saw the cost rise clearly before it stopped)
     return "least", min(v for v, c in seen if c <= least + s2)
 
 
