@@ -41,13 +41,13 @@ def main(realdata: Path) -> None:
     from mtwin.loop.measurement import read_measurement
 
     hurco = realdata / "nist_smstestbed_mtc_hurco"
+    program = {p: str(hurco / "NC-Code" / f"NIST_MTC_CRADA_PLATE-{p}.NC") for p in PLATES}
+    logs = {p: read_measurement(str(hurco / "Split" / f"Plate-Op1-Hurco04-{p}of20.txt")) for p in PLATES}
     default, profile = mtwin.Twin(), mtwin.Twin.from_toml(str(PROFILE))
     rows, kinds, traces = [], {}, {}
     t0 = time.time()
     for p in PLATES:
-        nc = str(hurco / "NC-Code" / f"NIST_MTC_CRADA_PLATE-{p}.NC")
-        log = str(hurco / "Split" / f"Plate-Op1-Hurco04-{p}of20.txt")
-        meas = read_measurement(log)
+        nc, meas = program[p], logs[p]
         row = {"plate": p}
         for name, tw in (("default", default), ("profile", profile)):
             prog = tw.load(nc)
@@ -88,21 +88,18 @@ def main(realdata: Path) -> None:
         rows.append(row)
     # leave one out: the profile's recipe, step by step as the script runs it, on the two other plates
     base = mtwin.Twin.from_toml(str(START))
-    cases = {p: T.timing_case(base, base.load(str(hurco / "NC-Code" / f"NIST_MTC_CRADA_PLATE-{p}.NC")),
-                              read_measurement(str(hurco / "Split" / f"Plate-Op1-Hurco04-{p}of20.txt")), f"plate {p}")
-             for p in PLATES}
+    cases = {p: T.timing_case(base, base.load(program[p]), logs[p], f"plate {p}") for p in PLATES}
     for row in rows:
         p = row["plate"]
         fr = T.fit_timing_steps(base, [cases[q] for q in PLATES if q != p], [get(n)() for n in RECIPE], FIT_PARAMS)
-        k = fr.params["effects.spiral-acceleration.normal_time"]  # s per m/s²: the inverse of the jerk
-        row["loo_spiral_jerk"] = 1000.0 / k if k > 0 else 0.0
+        normal_time = fr.params["effects.spiral-acceleration.normal_time"]  # s per m/s²: the inverse of the jerk
+        row["loo_spiral_jerk"] = 1000.0 / normal_time if normal_time > 0 else 0.0
         fitted_base = base.with_params({k: v for k, v in fr.params.items() if not k.startswith("effects.")})
         tw = fitted_base.with_effects(*fr.effects)
-        prog = tw.load(str(hurco / "NC-Code" / f"NIST_MTC_CRADA_PLATE-{p}.NC"))
+        prog = tw.load(program[p])
         tr = tw.simulate(prog)
         row["loo"] = tr.summary.cycle_time
-        b = measurement_block_timing(prog, read_measurement(str(hurco / "Split" / f"Plate-Op1-Hurco04-{p}of20.txt")),
-                                     tr)
+        b = measurement_block_timing(prog, logs[p], tr)
         kinds[(p, "loo")] = {k["kind"]: k["error_as_logged"] for k in b.by_kind()}
         # limits the two training plates never reach (set at the least they allow): the held-out
         # plate's small arcs at that value and at the one the search had left
@@ -110,13 +107,12 @@ def main(realdata: Path) -> None:
         for key, u in fr.unreached.items():
             name, param = key.split(".")[1:]
             left = fitted_base.with_effects(*[e.with_values(**{param: u["fitted"]}) if e.name == name else e
-                                     for e in fr.effects])
-            bl = measurement_block_timing(prog, read_measurement(str(hurco / "Split" / f"Plate-Op1-Hurco04-{p}of20.txt")),
-                                          left.simulate(prog))
+                                              for e in fr.effects])
+            bl = measurement_block_timing(prog, logs[p], left.simulate(prog))
             row["unreached"].append((name, u["least"], u["fitted"], kinds[(p, "loo")].get("small arc", 0.0),
                                      {k["kind"]: k["error_as_logged"] for k in bl.by_kind()}.get("small arc", 0.0)))
     elapsed = time.time() - t0
-    _figure(hurco, traces, ROOT / "docs" / "validation-plate13.svg")
+    _figure(logs[13], traces, ROOT / "docs" / "validation-plate13.svg")
     (ROOT / "docs" / "validation.md").write_text(_markdown(rows, kinds, elapsed), encoding="utf-8")
     print(f"wrote docs/validation.md and docs/validation-plate13.svg in {elapsed:.0f} s", file=sys.stderr)
 
@@ -161,7 +157,7 @@ def _as_spirals(tw, nc: str, seen: dict, first: int) -> float:
     prog = tw.load(nc)
     tr = tw.simulate(prog)
     sim = line_starts(np.asarray(tr.t), np.asarray(tr.line))
-    return next(e for a, _, _, _, e, _ in _pass_list(prog, seen, sim) if a == first)
+    return next(x[4] for x in _pass_list(prog, seen, sim) if x[0] == first)
 
 
 def _helices(prog, seen: dict, spiral_min: float, least: int = 20) -> list:
@@ -270,7 +266,8 @@ def _sequence_times(prog, seen: dict) -> dict:
 
 
 def _pass_list(prog, seen: dict, sim: dict) -> list:
-    """(first line, F mm/min, path mm, measured s, error s, highest F mm/min) of every cutting pass — consecutive
+    """(first line, F mm/min, path mm, measured s, error s, highest F mm/min, the rapid's line after
+    it) of every cutting pass — consecutive
     feed lines (no drilling cycle) between two rapids — timed from the first report (``seen``,
     ``sim``) of its first line to that of the rapid after it; F is the pass's first line's."""
     from mtwin.gcode import records as R
@@ -294,7 +291,7 @@ def _pass_list(prog, seen: dict, sim: dict) -> list:
             on = (rec["line"] >= a) & (rec["line"] < b)
             out.append((a, int(round(float(rec["feed"][rec["line"] == a].max()))), float(lengths[on].sum()),
                         seen[b] - seen[a], (sim[b] - sim[a]) - (seen[b] - seen[a]),
-                        int(round(float(rec["feed"][on].max())))))
+                        int(round(float(rec["feed"][on].max()))), b))
         i = j + 1
     return out
 
@@ -303,31 +300,23 @@ def _passes(prog, seen: dict, sim: dict) -> dict:
     """{F mm/min: (passes, measured s, error s)} of the cutting passes (:func:`_pass_list`),
     grouped by the feed of the pass's first line."""
     out: dict = {}
-    for _, f, _, m, e, _ in _pass_list(prog, seen, sim):
+    for _, f, _, m, e, *_ in _pass_list(prog, seen, sim):
         n, mm, ee = out.get(f, (0, 0.0, 0.0))
         out[f] = (n + 1, mm + m, ee + e)
     return out
 
 
 def _pass_ends(prog, seen: dict, sim: dict) -> tuple:
-    """(passes, mean error s and its standard error at the pass's start, the same at its end) over
-    the cutting passes at the plate's most common pass feed: the error of the span from the first
-    report of the pass's first line to that of the next reported line, and of the span from the
-    last reported line of the pass to the first report of the rapid after it."""
-    from mtwin.gcode import records as R
-
-    kinds = _line_kinds(prog.records)
+    """(F mm/min, passes, mean error s and its standard error at the pass's start, the same at its
+    end) over the cutting passes at the plate's most common pass feed: the error of the span from
+    the first report of the pass's first line to that of the next reported line, and of the span
+    from the last reported line of the pass to the first report of the rapid after it."""
     passes = _pass_list(prog, seen, sim)
     common = max(_passes(prog, seen, sim).items(), key=lambda kv: kv[1][0])[0]
     head, tail = [], []
-    for a, f, *_ in passes:
-        if f != common:
-            continue
-        b = a
-        while b + 1 in kinds and R.RAPID not in kinds[b + 1] and -1 not in kinds[b + 1]:
-            b += 1
-        lines = [ln for ln in range(a, b + 2) if ln in seen and ln in sim]
-        if len(lines) < 3:
+    for a, f, *_, rapid in passes:
+        lines = [ln for ln in range(a, rapid + 1) if ln in seen and ln in sim]
+        if f != common or len(lines) < 3:
             continue
         err = lambda x, y: (sim[y] - sim[x]) - (seen[y] - seen[x])
         head.append(err(lines[0], lines[1]))
@@ -616,15 +605,13 @@ def _markdown(rows, kinds, elapsed) -> str:
     return "\n".join(out)
 
 
-def _figure(hurco, traces, path: Path) -> None:
+def _figure(meas, traces, path: Path) -> None:
+    """Plate 13's logged feed (``meas``) against the default twin's and the profile's."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from mtwin.loop.measurement import read_measurement
-
-    meas = read_measurement(str(hurco / "Split" / "Plate-Op1-Hurco04-13of20.txt"))
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
     zoom = (300.0, 360.0)
     for ax, span in zip(axes, (None, zoom)):

@@ -15,6 +15,12 @@ from .base import Effect
 _TIME = ("feed", "spindle_speed")  # what a timing change shows in: when things happen
 
 
+def jerk_of(normal_time: float) -> float:
+    """mm/s³ of a spiral's ``normal_time`` in s³/m (the time per m/s² of v²/r), and back — the map
+    is its own inverse: 1000/x, 0 (none) for 0."""
+    return 1000.0 / normal_time if normal_time > 0 else 0.0
+
+
 def _controller_set(m, name: str, value: float):
     """The machine with one controller parameter set; 0 (the effect's default) leaves it."""
     return replace(m, controller=replace(m.controller, **{name: value})) if value > 0 else m
@@ -119,7 +125,7 @@ class SpiralAcceleration(Effect):
 
     def machine(self, m, p):
         m = _controller_set(m, "spiral_acceleration", p["acceleration"])
-        m = _controller_set(m, "spiral_jerk", 1000.0 / p["normal_time"] if p["normal_time"] > 0 else 0.0)
+        m = _controller_set(m, "spiral_jerk", jerk_of(p["normal_time"]))
         return _controller_set(m, "spiral_block_time", p["block_time"])
 
 

@@ -322,10 +322,10 @@ def twin_logged_ratio(program, trace, meas, kind_of: dict | None = None, logs: i
     for x in runs:
         for k, v in x["by_kind"].items():
             by_kind.setdefault(k, []).append(v)
-    return {"ratio": float(np.mean([x["ratio"] for x in runs])), "samples": int(sum(x["samples"] for x in runs)),
-            "logs": len(runs),
-            "by_kind": {k: {"ratio": float(np.mean([v["ratio"] for v in vs])), "samples": int(sum(v["samples"] for v in vs))}
-                        for k, vs in by_kind.items()}}
+    def mean(xs):
+        return {"ratio": float(np.mean([x["ratio"] for x in xs])), "samples": int(sum(x["samples"] for x in xs))}
+
+    return {**mean(runs), "logs": len(runs), "by_kind": {k: mean(vs) for k, vs in by_kind.items()}}
 
 
 def ratio_note(sig: str, x: dict, advice: bool = True) -> str:

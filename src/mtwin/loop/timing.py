@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConfigError, MtwinError
+from ..effects.timing import jerk_of
 from ..params import effect_param, is_effect_param
 from ..fitting import delta_bic, solve, verdict
 from .blocks import (NOISE_FLOOR, Groups, logging_bias, measurement_groups, set_apart_stops,
@@ -428,10 +429,9 @@ def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
     UNREACHED_STEP until the cost (noise-scaled squared residuals) rises clearly above the
     least seen (by four times its variance per degree of freedom: two standard deviations of a
     one-parameter profile); the least value whose cost is within one variance of that (one
-    standard deviation).  Set there, the twin promises no
-    speed the logs have not shown: a limit fitted to programs that never reach it would keep
-    wherever the search left it, and predict a program that does reach it faster than the
-    machine."""
+    standard deviation).  Set there, the twin promises no speed the logs have not shown: a limit
+    fitted to programs that never reach it would keep wherever the search left it, and predict a
+    program that does reach it faster than the machine."""
     def cost(v):
         y = x.copy()
         y[i] = v
@@ -501,7 +501,7 @@ def _plan_starts(twin, effects) -> dict:
                                              or min(a.max_acceleration for a in m.axes)),
            "spiral-acceleration.acceleration": (m.controller.spiral_acceleration or m.controller.arc_acceleration
                                                 or min(a.max_acceleration for a in m.axes)),
-           "spiral-acceleration.normal_time": 1000.0 / m.controller.spiral_jerk if m.controller.spiral_jerk > 0 else 0.0,
+           "spiral-acceleration.normal_time": jerk_of(m.controller.spiral_jerk),  # (its own inverse)
            "rapid-acceleration.acceleration": (m.controller.rapid_acceleration
                                                or min(a.max_acceleration for a in m.axes))}
     out = {}

@@ -77,19 +77,19 @@ class Controller:
     # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
     spiral_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs whose end radius differs "
                                    "from their start radius by more than spiral_min (a spiral: a rounded centre), 0 = as "
-                                   "circles [E: a Hurco VMX24 runs them at ~350-370 mm/s^2 (with spiral_jerk), true circles at ~400]",
-                                   "nonneg")
+                                   "circles [E: a Hurco VMX24 runs them at ~350-370 mm/s^2 (with spiral_jerk), true "
+                                   "circles at ~400]", "nonneg")
     # below that limit the same spirals still run 3-4 % under F where true circles reach it: on
     # the NIST plate 12's 0.35-0.42 mm helices at F508, 4.8-5.6 ms more per half circle
     spiral_block_time: float = P(0.0, "s", "time the control spends on each spiral block beyond what its path takes "
                                  "(the block runs at L/(L/v + t): t whole where it reaches its speed), 0 = none "
-                                 "[E: 0 on a Hurco VMX24, whose spirals' extra time grows with v²/r: spiral_jerk]", "nonneg",
-                                 hi=0.05)
+                                 "[E: 0 on a Hurco VMX24, whose spirals' extra time grows with v²/r: spiral_jerk]",
+                                 "nonneg", hi=0.05)
     # and the extra grows with the normal acceleration v²/r, not the speed alone: ~5 ms a half
     # circle at ~190 mm/s² (plate 12's helices), twice that fitted as a constant on plates 13 and
     # 14, 5-8 ms on plate 12's 1.7-mm spirals at 23 mm/s (309 mm/s², where a time growing as v²
-    # would give 38):
-    # as if the control ramped the normal acceleration anew at every spiral block, at a jerk
+    # would give 38): as if the control ramped the normal acceleration anew at every spiral
+    # block, at a jerk
     spiral_jerk: float = P(0.0, "mm/s^3", "each spiral block takes (v²/r)/spiral_jerk longer than its path takes (the "
                            "control ramps the normal acceleration anew at every spiral block, at this jerk), on top of "
                            "spiral_block_time, 0 = none [E: ~40 m/s^3 on a Hurco VMX24, docs/validation.md]", "nonneg",
