@@ -222,40 +222,56 @@ RATIO_SAMPLES = 20
 RATIO_SPREAD = 0.10
 
 
-def logged_against_programmed(program, meas, trace, kind_of: dict | None = None) -> dict:
+def programmed_lines(program, trace, sig: str) -> dict:
+    """Line -> its one programmed value of ``sig`` ("feed": F, only where the twin's run reaches
+    it; "spindle_speed": S): the lines whose logged samples :func:`logged_against_programmed`
+    holds against the program.  Of the program and the twin's run alone, not of a log."""
+    rec = program.records
+    if sig == "feed":
+        col = "feed"
+        kinds = ((rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & \
+            ((rec["flags"] & R.FL_SYNC) == 0)
+        tl = np.asarray(trace.line)
+        tf = np.asarray(trace.signal("feed"))
+    else:
+        col, kinds = "spindle", rec["spindle"] > 0
+    by_line: dict = {}
+    for ln in np.unique(rec["line"][kinds]):
+        vals = np.unique(np.round(rec[col][kinds & (rec["line"] == ln)], 6))
+        if len(vals) != 1 or vals[0] <= 0:
+            continue  # a line run at several values (a loop, a subprogram): no one programmed value
+        prog_v = float(vals[0])
+        if sig == "feed" and ((rec["line"] == ln) & ((rec["kind"] == R.RAPID) |
+                                                     ((rec["flags"] & R.FL_CANNED) != 0))).any():
+            continue  # a canned cycle, or a line that rapids too: the logged feed is not F's
+        if sig == "feed":
+            reach = tf[tl == ln]
+            if not len(reach) or reach.max() < 0.98 * prog_v:
+                continue  # the twin does not reach F there (a short block): no steady feed to hold
+        by_line[int(ln)] = prog_v
+    return by_line
+
+
+def logged_against_programmed(program, meas, trace, kind_of: dict | None = None, lines: dict | None = None) -> dict:
     """The log's own feed (and spindle speed) against the program's: per sample in a feed move
     whose programmed F the twin reaches in that block, the logged path feed over F; for the
     spindle, the logged speed over S.  Returns {signal: {ratio, samples, blocks, spread,
     by_kind, suspect}} for the signals the log has (``program``: as run, its logged overrides
     applied — a logged override leaves a ratio of 1).  ``kind_of``: line -> block kind
-    (``blocks.KINDS``) to give ``by_kind`` per block kind instead of straight moves and arcs."""
+    (``blocks.KINDS``) to give ``by_kind`` per block kind instead of straight moves and arcs;
+    ``lines``: signal -> :func:`programmed_lines`, where already known (several logs of one run)."""
     out: dict = {}
     if meas.line is None or meas.t is None:
         return out
     rec = program.records
     line = np.asarray(meas.line)
-    feed_kind = ((rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & \
-        ((rec["flags"] & R.FL_SYNC) == 0)
-    tl = np.asarray(trace.line)
-    tf = np.asarray(trace.signal("feed"))
-    for sig, col, kinds in (("feed", "feed", feed_kind), ("spindle_speed", "spindle", rec["spindle"] > 0)):
+    for sig in ("feed", "spindle_speed"):
         if sig not in meas.signals:
             continue
         logged = np.asarray(meas.signals[sig], float)
-        by_line: dict = {}
-        for ln in np.unique(rec["line"][kinds]):
-            vals = np.unique(np.round(rec[col][kinds & (rec["line"] == ln)], 6))
-            if len(vals) != 1 or vals[0] <= 0:
-                continue  # a line run at several values (a loop, a subprogram): no one programmed value
-            prog_v = float(vals[0])
-            if sig == "feed" and ((rec["line"] == ln) & ((rec["kind"] == R.RAPID) |
-                                                         ((rec["flags"] & R.FL_CANNED) != 0))).any():
-                continue  # a canned cycle, or a line that rapids too: the logged feed is not F's
-            if sig == "feed":
-                reach = tf[tl == ln]
-                if not len(reach) or reach.max() < 0.98 * prog_v:
-                    continue  # the twin does not reach F there (a short block): no steady feed to hold
-            by_line[int(ln)] = prog_v
+        by_line = (lines or {}).get(sig)
+        if by_line is None:
+            by_line = programmed_lines(program, trace, sig)
         ok = np.isin(line, list(by_line)) & np.isfinite(logged) & (logged > 0)
         if sig == "feed":
             # the first sample of a block is taken as it accelerates: steady samples only
@@ -311,9 +327,10 @@ def twin_logged_ratio(program, trace, meas, kind_of: dict | None = None, logs: i
     samples}}}, the ratios the mean over the logs (a kind of few short blocks has few samples
     per log, and one log's median moves with where they fall), or None."""
     runs = []
+    lines = {"feed": programmed_lines(program, trace, "feed")}  # (the same for every log of the run)
     for seed in range(logs):
         own = twin_log(trace, meas, seed)
-        x = logged_against_programmed(program, own, trace, kind_of).get("feed") if own is not None else None
+        x = logged_against_programmed(program, own, trace, kind_of, lines).get("feed") if own is not None else None
         if x is not None:
             runs.append(x)
     if not runs:
