@@ -61,8 +61,11 @@ cat > "$work/0.toml" <<'TOML'
 #   both limits -- which spirals below the limit show on every plate)
 #   (the order mtwin diagnose ranks them on the default twin), 6 block-time (what diagnose ranks
 #   next on the twin with those five: ~30 ms a block at the least, the control's block rate, seen
-#   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 the axes: rapid rates (read
-#   off the logged rapids), feed accelerations, jerk (controller.bell_time).
+#   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 feed-rapid-wait (where a
+#   straight feed line ends and a rapid follows, the machine stands 40-70 ms longer than the twin
+#   on every plate, where a feed line follows it does not: an in-position check for cutting
+#   feed, docs/validation.md), 8 the axes: rapid rates (read off the logged rapids), feed
+#   accelerations, jerk (controller.bell_time).
 # The servos keep the default machine's velocity feed-forward: fitted without it (0), the
 # in-position waits after every rapid take ~70 ms the log does not show, and the fit buys them
 # back with unphysical values (Y accelerating 4x X, no arc limit at all).
@@ -104,9 +107,10 @@ cal --twin "$work/2.toml" -o "$work/3.toml" --fit rapid-acceleration --refit
 cal --twin "$work/3.toml" -o "$work/4.toml" --fit arc-acceleration --refit
 cal --twin "$work/4.toml" -o "$work/5.toml" --fit spiral-acceleration --refit
 cal --twin "$work/5.toml" -o "$work/6.toml" --fit block-time --refit
-cal --twin "$work/6.toml" -o "$work/7.toml" --refit \
+cal --twin "$work/6.toml" -o "$work/7.toml" --fit feed-rapid-wait --refit
+cal --twin "$work/7.toml" -o "$work/8.toml" --refit \
     --param axes.x.max_velocity --param axes.y.max_velocity \
     --param axes.x.max_acceleration --param axes.y.max_acceleration --param axes.z.max_acceleration \
     --param controller.bell_time
-cp "$work/7.toml" "$out"
+cp "$work/8.toml" "$out"
 mtwin journal "$out"

@@ -453,6 +453,27 @@ def test_spiral_normal_time_adds_v2_over_r_over_the_jerk_to_every_spiral_block()
     assert (direct < tw.plan(prog).seg["vmax"] - 0.1).any()
 
 
+def test_feed_rapid_wait_stands_at_a_feed_move_a_rapid_follows_and_nowhere_else():
+    # the wait adds exactly its time to the feed line a rapid follows (also over a dwell between
+    # them) — and to no feed line a feed move follows, no rapid, no feed line after a rapid;
+    # the servo simulation stands still there for that long (the trace's cycle grows by it too)
+    tw = mtwin.Twin()
+    text = (b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F600\nG1 X20\nG1 Y20\nG0 Z5\nG0 X40\nG1 Z0\nG1 X60\nG4 P0.5\n"
+            b"G0 Z5\nM30\n")
+    prog = tw.load(text, path="w.nc")
+    wait = 0.05
+    base, slow = tw.plan(prog), tw.with_effects(f"feed-rapid-wait:time={wait}").plan(prog)
+    per_line = lambda plan: {ln: float(plan.dur[plan.seg["line"] == ln].sum()) for ln in range(2, 12)}
+    b, s = per_line(base), per_line(slow)
+    for ln in range(2, 12):
+        expected = b[ln] + (wait if ln in (5, 9) else 0.0)  # Y20 before G0 Z5; X60 before the dwell and G0
+        assert s[ln] == pytest.approx(expected, abs=1e-9), ln
+    same = tw.with_params({"controller.feed_rapid_time": wait}).plan(prog)
+    np.testing.assert_array_equal(same.dur, slow.dur)
+    cycle = lambda twin: twin.simulate(prog, cutting=False).summary.cycle_time
+    assert cycle(tw.with_effects(f"feed-rapid-wait:time={wait}")) - cycle(tw) == pytest.approx(2 * wait, abs=2e-3)
+
+
 def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():
     # a long rapid without jerk: t = L/v + v/a (accelerate and brake at a, cruise between);
     # the feed move after it keeps the axes' acceleration

@@ -552,3 +552,31 @@ def test_a_limit_the_log_never_shows_is_said_so_and_left_at_its_start(setup, tmp
            "start)" in " ".join(r.stderr.split())
     (entry,) = mtwin.loop.journal.read_journal(str(out))
     assert entry["not_identifiable"] == ["effects.arc-acceleration.acceleration"]
+
+
+def test_feed_line_ends_find_a_wait_before_rapids_and_none_before_feed_moves():
+    # a machine that stands 60 ms at the end of every feed line a rapid follows, logged every
+    # ~0.19 s as the Hurco logs its line; held against a twin without the wait, the lines before a
+    # rapid come out ~60 ms short and the same lines before a feed move do not (sampled alike,
+    # so the sampling cancels); against the machine's own twin, neither row is off
+    from mtwin.loop.asrun import feed_line_ends, twin_log
+    from mtwin.loop.measurement import Measurement
+
+    lines = ["G21 G90 G94", "G0 X0 Y0 Z1"]
+    for i in range(100):
+        y = 3.0 * i
+        lines += [f"G0 X0 Y{y:g} Z1", "G1 Z0 F600", "G1 X20", f"G1 Y{y + 1:g}", "G1 X0", "G0 Z60"]
+    lines.append("M30")
+    tw = mtwin.Twin()
+    prog = tw.load(("\n".join(lines) + "\n").encode(), path="ends.nc")
+    machine = tw.with_params({"controller.feed_rapid_time": 0.06})
+    run = machine.simulate(prog, cutting=False)
+    grid = Measurement("grid", np.arange(0.0, float(run.t[-1]), 0.19), {}, np.zeros(0, np.int64))
+    log = twin_log(run, grid, seed=99)
+    ends = feed_line_ends(prog, log, tw.simulate(prog, cutting=False))
+    n, before_rapid, se = ends[("line", "rapid")]
+    assert n >= 90 and before_rapid == pytest.approx(-0.06, abs=max(3 * se, 0.01)) and -before_rapid > 4 * se
+    n, before_feed, se = ends[("line", "feed")]
+    assert n >= 90 and abs(before_feed) < max(3 * se, 0.01)
+    same = feed_line_ends(prog, log, run)
+    assert all(abs(m) < max(3 * se, 0.01) for _, m, se in same.values()), same

@@ -17,8 +17,8 @@ from .drives import CoulombFriction, Gravity, Inertia, StribeckFriction, Viscous
 from .observation import Backlash, Runout, ServoDelay, SpindleNoLoad, ThermalDrift
 from .process import SizeEffect, ToolWear
 from .wear import FlankWear
-from .timing import (ArcAcceleration, BlockTime, CornerSlowdown, FeedOverride, RapidAcceleration, SpindleRunup,
-                     SpiralAcceleration, ToolChangeTime)
+from .timing import (ArcAcceleration, BlockTime, CornerSlowdown, FeedOverride, FeedRapidWait, RapidAcceleration,
+                     SpindleRunup, SpiralAcceleration, ToolChangeTime)
 
 __all__ = ["Effect", "StepInfo", "ToolHistory", "available", "get", "load_file", "register", "parse_effect_spec"]
 
@@ -28,7 +28,7 @@ BUILTIN: tuple[type[Effect], ...] = (
     SpindleNoLoad, ToolWear, FlankWear, SizeEffect, Runout, CoulombFriction, ViscousFriction, StribeckFriction, Gravity,
     Backlash, ServoDelay, ThermalDrift, Inertia,
     ToolChangeTime, SpindleRunup, BlockTime, CornerSlowdown, ArcAcceleration, SpiralAcceleration, RapidAcceleration,
-    FeedOverride,
+    FeedRapidWait, FeedOverride,
 )
 
 # effects registered in this process (files, tests, register()): name -> class

@@ -147,6 +147,20 @@ class RapidAcceleration(Effect):
         return _controller_set(m, "rapid_acceleration", a)
 
 
+class FeedRapidWait(Effect):
+    name = "feed-rapid-wait"
+    description = ("the control stands at the end of a cutting-feed block that a rapid follows (an in-position "
+                   "check for cutting feed, narrower than the rapids')")
+    stage = "plan"
+    params = (Param("time", "s", 0.0, 0.0, 0.5,
+                    "how long it stands there beyond the twin's own in-position wait, 0 = the twin file's "
+                    "(controller.feed_rapid_time)"),)
+    signals = ("feed",)
+
+    def machine(self, m, p):
+        return _controller_set(m, "feed_rapid_time", p["time"])
+
+
 class FeedOverride(Effect):
     name = "feed-override"
     description = ("the run went at a feed override the log did not record — or the machine ran another version "

@@ -464,6 +464,17 @@ def _naive_cam(seg: np.ndarray, rec: np.ndarray, apart: np.ndarray | None = None
     return seg[keep]
 
 
+def _feed_before_rapid(seg, is_pause) -> np.ndarray:
+    """(n,) bool: a cutting-feed segment the next motion after which (pauses between skipped) is a
+    rapid — where a control checks in-position for cutting feed before it starts the rapid."""
+    moving = np.flatnonzero(~is_pause)
+    out = np.zeros(len(seg), bool)
+    if len(moving) > 1:
+        rapid = seg["rapid"][moving] == 1
+        out[moving[:-1]] = ~rapid[:-1] & rapid[1:]
+    return out
+
+
 def _filter_hold(c) -> tuple[int, float]:
     """(filter code, drain time) of the after-interpolation filter."""
     from ._runkernel import FILTER_BELL, FILTER_EXP, FILTER_LINEAR, FILTER_NONE
@@ -652,6 +663,8 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
     ve = K.lookahead.auto(len(seg), vj, length, acc_seg, tb, c.lookahead)
     stop = (vj <= 0.0) & ~is_pause
     hold = np.where(stop, drain, 0.0)
+    if c.feed_rapid_time > 0:
+        hold += np.where(stop & _feed_before_rapid(seg, is_pause), c.feed_rapid_time, 0.0)
     prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     _overlap_spindle(seg, rec, dur)

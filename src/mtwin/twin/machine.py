@@ -57,6 +57,13 @@ class Controller:
     in_position: float = P(0.02, "mm", "in-position width: at an exact stop the next block waits until every "
                            "axis is this close to the command, 0 = no check [E: 0.01-0.05 mm]", "nonneg",
                            hi=10.0)
+    # a control may check in-position after a cutting-feed block more narrowly than after a rapid
+    # (Fanuc's in-position width in cutting feed, parameter 1827, apart from 1826): the NIST Hurco
+    # VMX24 stands 40-69 ms longer than the twin at every cutting pass's end, where a feed move
+    # ends and a rapid follows, and shows no such wait at its rapids' ends (docs/validation.md)
+    feed_rapid_time: float = P(0.0, "s", "the control stands this long at the end of a cutting-feed block that a "
+                               "rapid follows (its in-position check for cutting feed), 0 = none [E: ~50 ms on a "
+                               "Hurco VMX24, docs/validation.md]", "nonneg", hi=1.0)
     # Fanuc sets the acc/dec of rapids apart from that of cutting feed (the rapid and the cutting
     # time constants are separate parameters, 1620 and 1622 on a 0i/30i): a control accelerates its
     # rapids harder than it lets its feed moves (which carry the contour's accuracy)
@@ -92,7 +99,7 @@ class Controller:
     # block, at a jerk
     spiral_jerk: float = P(0.0, "mm/s^3", "each spiral block takes (v²/r)/spiral_jerk longer than its path takes (the "
                            "control ramps the normal acceleration anew at every spiral block, at this jerk), on top of "
-                           "spiral_block_time, 0 = none [E: ~40 m/s^3 on a Hurco VMX24, docs/validation.md]", "nonneg",
+                           "spiral_block_time, 0 = none [E: 40-50 m/s^3 on a Hurco VMX24, docs/validation.md]", "nonneg",
                            hi=1e9)
     feed_override: float = P(100.0, "", "feed override in % in force for the whole run (a run's, not the "
                              "machine's: what effects.feed-override fits to a log that did not record it)",
