@@ -62,7 +62,7 @@ cat > "$work/0.toml" <<'TOML'
 #   (the order mtwin diagnose ranks them on the default twin), 6 block-time (what diagnose ranks
 #   next on the twin with those five: ~30 ms a block at the least, the control's block rate, seen
 #   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 feed-rapid-wait (where a
-#   straight feed line ends and a rapid follows, the machine stands 40-70 ms longer than the twin
+#   straight feed line ends and a rapid follows, the machine stands 50-75 ms longer than the twin
 #   on every plate, where a feed line follows it does not: an in-position check for cutting
 #   feed, docs/validation.md), 8 the axes: rapid rates (read off the logged rapids), feed
 #   accelerations, jerk (controller.bell_time).

@@ -519,7 +519,8 @@ def _markdown(rows, kinds, elapsed) -> str:
             "the twin leaves for the next block (below).",
             "- The rapid rate of Z is not in the logs (no long Z rapid) and is set equal to X's and Y's.",
             "- No override or feed-hold item appears in these logs: 100 % overrides are assumed.",
-            f"- The fitted X/Y acceleration (≈ {acc_xy / 1000:.2f} m/s²) is the control's effective path "
+            f"- The fitted X and Y accelerations (≈ {acc_xy / 1000:.2f} and {m.axes[1].max_acceleration / 1000:.2f} "
+            "m/s²; Y's the less certain: the fleet's folds, docs/fleet.md, put it at 0.25–0.57) are the control's effective path "
             "acceleration on these programs' short feed moves, not a drive's capability; rapids run on their own "
             f"(`rapid-acceleration`, ≈ {acc_rapid / 1000:.1f} m/s²), as a Fanuc-style control sets rapid and cutting "
             "acc/dec apart.  Before it was separate, "
@@ -620,7 +621,7 @@ def _markdown(rows, kinds, elapsed) -> str:
             "same way from the same reports, so the sampling cancels between the rows; a line counts where "
             "the log reports it and the next, which favours lines the machine spent longer on: the arcs, "
             "shorter, come out some 10–20 ms short before a feed move too.)  The profile stands there "
-            f"{m.controller.feed_rapid_time * 1000:.0f} ms (`feed-rapid-wait`, fitted with the rest: the "
+            f"{m.controller.feed_rapid_wait * 1000:.0f} ms (`feed-rapid-wait`, fitted with the rest: the "
             "block times of whole kinds and windows want less than these line ends alone); with it: "
             + _feed_ends_text(rows, "feed_ends") + ".",
             "- Per-group RMS falls with the profile now that the spindle's waits stand on the lines the control "

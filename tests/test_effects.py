@@ -468,10 +468,16 @@ def test_feed_rapid_wait_stands_at_a_feed_move_a_rapid_follows_and_nowhere_else(
     for ln in range(2, 12):
         expected = b[ln] + (wait if ln in (5, 9) else 0.0)  # Y20 before G0 Z5; X60 before the dwell and G0
         assert s[ln] == pytest.approx(expected, abs=1e-9), ln
-    same = tw.with_params({"controller.feed_rapid_time": wait}).plan(prog)
+    same = tw.with_params({"controller.feed_rapid_wait": wait}).plan(prog)
     np.testing.assert_array_equal(same.dur, slow.dur)
     cycle = lambda twin: twin.simulate(prog, cutting=False).summary.cycle_time
     assert cycle(tw.with_effects(f"feed-rapid-wait:time={wait}")) - cycle(tw) == pytest.approx(2 * wait, abs=2e-3)
+    # Grbl blends a feed move into the rapid after it; a control that stands there stops there
+    grbl = tw.with_params({"controller.style": "grbl"})
+    blended, standing = grbl.plan(prog), grbl.with_params({"controller.feed_rapid_wait": wait}).plan(prog)
+    on = standing.seg["line"] == 5
+    assert not blended.stop_end[blended.seg["line"] == 5][-1] and standing.stop_end[on][-1]
+    assert standing.hold[on][-1] >= wait
 
 
 def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():

@@ -569,7 +569,7 @@ def test_feed_line_ends_find_a_wait_before_rapids_and_none_before_feed_moves():
     lines.append("M30")
     tw = mtwin.Twin()
     prog = tw.load(("\n".join(lines) + "\n").encode(), path="ends.nc")
-    machine = tw.with_params({"controller.feed_rapid_time": 0.06})
+    machine = tw.with_params({"controller.feed_rapid_wait": 0.06})
     run = machine.simulate(prog, cutting=False)
     grid = Measurement("grid", np.arange(0.0, float(run.t[-1]), 0.19), {}, np.zeros(0, np.int64))
     log = twin_log(run, grid, seed=99)

@@ -299,8 +299,9 @@ def test_leave_one_out_predicts_plate_12_from_plates_13_and_14():
 def test_the_hurco_stands_at_a_straight_feed_lines_end_before_a_rapid_and_the_profile_does_too():
     # plate 12's straight feed lines, timed against logs of the twin's own run: those a rapid
     # follows run ~70 ms short of the log on the profile without its wait, beyond four standard
-    # errors, while those a feed line follows run alike; the profile's fitted wait takes most of
-    # it (the kinds' and windows' block times want less than these ends alone)
+    # errors, while those a feed line follows run alike — and so do the profile's, with the wait
+    # it fitted to the block times of whole kinds and windows (which want less than these ends
+    # alone: they are still short, by less than half)
     from mtwin.loop.asrun import feed_line_ends
     from mtwin.loop.measurement import read_measurement
 
@@ -315,9 +316,10 @@ def test_the_hurco_stands_at_a_straight_feed_lines_end_before_a_rapid_and_the_pr
     assert n >= 50 and before_rapid < -0.04 and before_rapid < -4 * se, ends["bare"]
     _, before_feed, se = ends["bare"][("line", "feed")]
     assert abs(before_feed) < 3 * se, ends["bare"]
-    wait = profile.planned_machine.controller.feed_rapid_time
-    assert 0.02 < wait < 0.1
-    assert ends["profile"][("line", "rapid")][1] - before_rapid > 0.6 * wait, ends
+    _, after_feed, se = ends["profile"][("line", "feed")]
+    assert abs(after_feed) < 3 * se, ends["profile"]
+    _, with_wait, se = ends["profile"][("line", "rapid")]
+    assert before_rapid / 2 < with_wait < 0, ends["profile"]
 
 
 @need_hurco
@@ -328,10 +330,15 @@ def test_diagnose_names_the_timing_effects_the_profile_adds_in_order():
     names = [c["effect"] for c in d["candidates"]]
     profile = [e.name for e in mtwin.Twin.from_toml(str(PROFILE)).effects]
     assert names[:5] == profile[:5], (names, profile)
-    # the ones it does not add then remove far less than the fifth (on plate 13: 25 % for
-    # spiral-acceleration, 7 % each for corner-slowdown and block-time)
+    # the others remove less than the fifth (on plate 13: 25 % for spiral-acceleration); far less
+    # but for feed-rapid-wait, which on a twin 15 % short stands in for missing time at every
+    # pass end (0.35 s each, 16 %): the profile adds it seventh, on the line ends' evidence
+    # (test_the_hurco_stands_at_a_straight_feed_lines_end_before_a_rapid…); corner-slowdown and
+    # block-time 7 % each
     weakest = d["candidates"][4]["explained_variance"]
-    assert all(c["explained_variance"] < 0.5 * weakest for c in d["candidates"][5:])
+    assert all(c["explained_variance"] < weakest for c in d["candidates"][5:])
+    assert all(c["explained_variance"] < 0.5 * weakest for c in d["candidates"][5:]
+               if c["effect"] != "feed-rapid-wait")
     # with those five in the profile's twin, block-time is what it ranks next (the sixth step),
     # well ahead of corner-slowdown
     profile_twin = mtwin.Twin.from_toml(str(PROFILE))

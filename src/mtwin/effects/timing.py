@@ -153,12 +153,12 @@ class FeedRapidWait(Effect):
                    "check for cutting feed, narrower than the rapids')")
     stage = "plan"
     params = (Param("time", "s", 0.0, 0.0, 0.5,
-                    "how long it stands there beyond the twin's own in-position wait, 0 = the twin file's "
-                    "(controller.feed_rapid_time)"),)
+                    "how long it stands there (a fixed time: the axes settle meanwhile, the twin's in-position "
+                    "check follows), 0 = the twin file's (controller.feed_rapid_wait)"),)
     signals = ("feed",)
 
     def machine(self, m, p):
-        return _controller_set(m, "feed_rapid_time", p["time"])
+        return _controller_set(m, "feed_rapid_wait", p["time"])
 
 
 class FeedOverride(Effect):

@@ -349,8 +349,9 @@ def feed_line_ends(program, meas, trace, logs: int = TWIN_LOGS) -> dict:
     """Where a feed line's time differs from the log, by what follows it: {(its record's kind
     "line" | "arc", the next line's "rapid" | "feed"): (lines, mean error s, standard error s)}.
 
-    Each feed line of one record (no drilling cycle) whose next line is a move, both reported
-    by the log: the time from the line's first report to the next line's, in ``logs`` logs of
+    Each feed line of one record (no drilling cycle) whose next line with a record (comments and
+    blank lines skipped) is a move, both reported by the log: the time from the line's first
+    report to the next one's, in ``logs`` logs of
     the twin's own run sampled as the real one (:func:`twin_log`; a line counted where at least
     half of them report both, their mean taken) less the measured.  The sampling makes the same
     of both, so a wait at the end of a feed line — before a rapid, say, and not before a feed
@@ -361,21 +362,26 @@ def feed_line_ends(program, meas, trace, logs: int = TWIN_LOGS) -> dict:
     kinds: dict = {}
     for ln, k, fl in zip(rec["line"], rec["kind"], rec["flags"]):
         kinds.setdefault(int(ln), set()).add(-1 if fl & R.FL_CANNED else int(k))
+    if meas.line is None or not (np.asarray(meas.line) > 0).any():
+        return {}
     seen = line_starts(np.asarray(meas.t, float), np.asarray(meas.line))
     own = [line_starts(np.asarray(x.t), np.asarray(x.line))
            for x in (twin_log(trace, meas, seed) for seed in range(logs)) if x is not None]
+    if not own:
+        return {}
     moves = {R.RAPID, R.LINEAR, R.ARC_CW, R.ARC_CCW}
+    order = sorted(kinds)
     errors: dict = {}
-    for ln, ks in kinds.items():
-        nxt = kinds.get(ln + 1, set())
-        if (len(ks) != 1 or not ks <= {R.LINEAR, R.ARC_CW, R.ARC_CCW} or not nxt or not nxt <= moves
-                or ln not in seen or ln + 1 not in seen):
+    for ln, after in zip(order, order[1:]):
+        ks, nxt = kinds[ln], kinds[after]
+        if (len(ks) != 1 or not ks <= {R.LINEAR, R.ARC_CW, R.ARC_CCW} or not nxt <= moves
+                or ln not in seen or after not in seen):
             continue
-        sim = [o[ln + 1] - o[ln] for o in own if ln in o and ln + 1 in o]
-        if not own or 2 * len(sim) < len(own):
+        sim = [o[after] - o[ln] for o in own if ln in o and after in o]
+        if 2 * len(sim) < len(own):
             continue
         key = ("line" if R.LINEAR in ks else "arc", "rapid" if R.RAPID in nxt else "feed")
-        errors.setdefault(key, []).append(float(np.mean(sim)) - (seen[ln + 1] - seen[ln]))
+        errors.setdefault(key, []).append(float(np.mean(sim)) - (seen[after] - seen[ln]))
     return {k: (len(v), float(np.mean(v)), float(np.std(v, ddof=1) / math.sqrt(len(v))) if len(v) > 1 else math.nan)
             for k, v in sorted(errors.items())}
 

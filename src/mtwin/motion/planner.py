@@ -660,11 +660,15 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
     tb = c.bell_time if c.before_shape == "bell" else 0.0
     acc_seg = np.where(is_pause, 1.0, seg["amax"])
     length = np.where(is_pause, 0.0, seg["length"])
+    if c.feed_rapid_wait > 0:
+        # (a control that stands there stops there: Grbl, which blends into a rapid, too)
+        wait = _feed_before_rapid(seg, is_pause)
+        vj = np.where(wait, 0.0, vj)
     ve = K.lookahead.auto(len(seg), vj, length, acc_seg, tb, c.lookahead)
     stop = (vj <= 0.0) & ~is_pause
     hold = np.where(stop, drain, 0.0)
-    if c.feed_rapid_time > 0:
-        hold += np.where(stop & _feed_before_rapid(seg, is_pause), c.feed_rapid_time, 0.0)
+    if c.feed_rapid_wait > 0:
+        hold += np.where(wait, c.feed_rapid_wait, 0.0)
     prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     _overlap_spindle(seg, rec, dur)

@@ -59,11 +59,14 @@ class Controller:
                            hi=10.0)
     # a control may check in-position after a cutting-feed block more narrowly than after a rapid
     # (Fanuc's in-position width in cutting feed, parameter 1827, apart from 1826): the NIST Hurco
-    # VMX24 stands 40-69 ms longer than the twin at every cutting pass's end, where a feed move
-    # ends and a rapid follows, and shows no such wait at its rapids' ends (docs/validation.md)
-    feed_rapid_time: float = P(0.0, "s", "the control stands this long at the end of a cutting-feed block that a "
-                               "rapid follows (its in-position check for cutting feed), 0 = none [E: ~50 ms on a "
-                               "Hurco VMX24, docs/validation.md]", "nonneg", hi=1.0)
+    # VMX24's straight feed lines a rapid follows run 50-75 ms longer than the twin's without it,
+    # on every plate, where the lines a feed move follows run alike, and its rapids' ends show no
+    # wait (docs/validation.md).  Modelled as a fixed time, not a width: the axes settle meanwhile
+    feed_rapid_wait: float = P(0.0, "s", "the control stops at the end of a cutting-feed block that a rapid follows "
+                               "(pauses between them skipped; a drilling cycle's hole bottom too) and stands this "
+                               "long before the rapid starts: its in-position check for cutting feed, as a fixed "
+                               "time, 0 = none [E: 40 ms fitted on a Hurco VMX24, docs/validation.md]", "nonneg",
+                               hi=1.0)
     # Fanuc sets the acc/dec of rapids apart from that of cutting feed (the rapid and the cutting
     # time constants are separate parameters, 1620 and 1622 on a 0i/30i): a control accelerates its
     # rapids harder than it lets its feed moves (which carry the contour's accuracy)
