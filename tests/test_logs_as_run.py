@@ -580,3 +580,32 @@ def test_feed_line_ends_find_a_wait_before_rapids_and_none_before_feed_moves():
     assert n >= 90 and abs(before_feed) < max(3 * se, 0.01)
     same = feed_line_ends(prog, log, run)
     assert all(abs(m) < max(3 * se, 0.01) for _, m, se in same.values()), same
+
+
+def test_diagnose_says_what_the_line_ends_show_beside_the_wait_before_rapids():
+    # the machine of the test above, diagnosed from the twin without the wait: feed-rapid-wait's
+    # evidence holds the log's own line ends — straight lines a rapid follows ~60 ms longer on the
+    # machine, those a feed move follows not.  (The block times alone cannot tell it from full
+    # stops at this program's three corners a pass, which corner-slowdown fits as well: the line
+    # ends can)
+    import re
+
+    from mtwin.loop import timing as T
+    from mtwin.loop.asrun import twin_log
+    from mtwin.loop.measurement import Measurement
+
+    lines = ["G21 G90 G94", "G0 X0 Y0 Z1"]
+    for i in range(100):
+        y = 3.0 * i
+        lines += [f"G0 X0 Y{y:g} Z1", "G1 Z0 F600", "G1 X20", f"G1 Y{y + 1:g}", "G1 X0", "G0 Z60"]
+    lines.append("M30")
+    tw = mtwin.Twin()
+    prog = tw.load(("\n".join(lines) + "\n").encode(), path="ends.nc")
+    run = tw.with_params({"controller.feed_rapid_wait": 0.06}).simulate(prog, cutting=False)
+    grid = Measurement("grid", np.arange(0.0, float(run.t[-1]), 0.19), {}, np.zeros(0, np.int64))
+    case = T.timing_case(tw, prog, twin_log(run, grid, seed=99))
+    d = T.diagnose_timing(tw, [case], candidates=["feed-rapid-wait"])
+    top = d["candidates"][0]
+    rapid, feed = re.search(r"a rapid follows take ([+-]\d+) ± \d+ ms.*feed move follows ([+-]\d+) ±",
+                            top["evidence"]).groups()
+    assert 40 <= int(rapid) <= 80 and abs(int(feed)) <= 15, top["evidence"]

@@ -591,8 +591,36 @@ def diagnose_timing(twin, cases, candidates=None) -> dict:
                          + ", ".join(f"{e:+.1%}" for e in r["cycle_error_after"]))
         if r["effect"] == "feed-override" and evidence:
             r["evidence"] += f"; the log's own feed: {evidence}"
+        if r["effect"] == "feed-rapid-wait":
+            r["evidence"] += _line_end_evidence(twin, cases)
     return {"rms": rms0, "window_rms": wrms0, "noise": NOISE_FLOOR, "window_noise": NOISE_FLOOR * math.sqrt(2.0),
             "verdict": said, "before": before, "candidates": rows, "notes": notes}
+
+
+def _line_end_evidence(twin, cases) -> str:
+    """'; the log's own line ends: …' — straight feed lines a rapid follows against those a feed
+    move follows, timed against logs of the twin's own run (:func:`.asrun.feed_line_ends`, over
+    all the cases), or '' where the logs report too few of them."""
+    from .asrun import feed_line_ends
+
+    parts: dict = {}
+    for c in cases:
+        ends = feed_line_ends(c.program, c.meas, twin.simulate(c.program, cutting=False))
+        for nxt in ("rapid", "feed"):
+            n, m, se = ends.get(("line", nxt), (0, 0.0, 0.0))
+            if n > 1:
+                parts.setdefault(nxt, []).append((n, m, se))
+
+    def pooled(rows):  # (lines, mean, standard error) of the cases' lines together
+        n = sum(r[0] for r in rows)
+        return n, sum(r[0] * r[1] for r in rows) / n, math.sqrt(sum((r[0] * r[2]) ** 2 for r in rows)) / n
+
+    if "rapid" not in parts or "feed" not in parts:
+        return ""
+    (n1, m1, s1), (n2, m2, s2) = pooled(parts["rapid"]), pooled(parts["feed"])
+    return (f"; the log's own line ends: straight feed lines a rapid follows take {-m1 * 1000:+.0f} ± "
+            f"{s1 * 1000:.0f} ms longer on the machine than in logs of the twin's own run ({n1} lines), those a "
+            f"feed move follows {-m2 * 1000:+.0f} ± {s2 * 1000:.0f} ms ({n2})")
 
 
 def _override_evidence(twin, cases) -> tuple[bool, str, str]:
