@@ -559,20 +559,9 @@ def test_feed_line_ends_find_a_wait_before_rapids_and_none_before_feed_moves():
     # ~0.19 s as the Hurco logs its line; held against a twin without the wait, the lines before a
     # rapid come out ~60 ms short and the same lines before a feed move do not (sampled alike,
     # so the sampling cancels); against the machine's own twin, neither row is off
-    from mtwin.loop.asrun import feed_line_ends, twin_log
-    from mtwin.loop.measurement import Measurement
+    from mtwin.loop.asrun import feed_line_ends
 
-    lines = ["G21 G90 G94", "G0 X0 Y0 Z1"]
-    for i in range(100):
-        y = 3.0 * i
-        lines += [f"G0 X0 Y{y:g} Z1", "G1 Z0 F600", "G1 X20", f"G1 Y{y + 1:g}", "G1 X0", "G0 Z60"]
-    lines.append("M30")
-    tw = mtwin.Twin()
-    prog = tw.load(("\n".join(lines) + "\n").encode(), path="ends.nc")
-    machine = tw.with_params({"controller.feed_rapid_wait": 0.06})
-    run = machine.simulate(prog, cutting=False)
-    grid = Measurement("grid", np.arange(0.0, float(run.t[-1]), 0.19), {}, np.zeros(0, np.int64))
-    log = twin_log(run, grid, seed=99)
+    tw, prog, run, log = _waiting_machine()
     ends = feed_line_ends(prog, log, tw.simulate(prog, cutting=False))
     n, before_rapid, se = ends[("line", "rapid")]
     assert n >= 90 and before_rapid == pytest.approx(-0.06, abs=max(3 * se, 0.01)) and -before_rapid > 4 * se
@@ -591,6 +580,19 @@ def test_diagnose_says_what_the_line_ends_show_beside_the_wait_before_rapids():
     import re
 
     from mtwin.loop import timing as T
+
+    tw, prog, _, log = _waiting_machine()
+    case = T.timing_case(tw, prog, log)
+    d = T.diagnose_timing(tw, [case], candidates=["feed-rapid-wait"])
+    top = d["candidates"][0]
+    rapid, feed = re.search(r"a rapid follows take ([+-]\d+) ± \d+ ms.*feed move follows ([+-]\d+) ±",
+                            top["evidence"]).groups()
+    assert 40 <= int(rapid) <= 80 and abs(int(feed)) <= 15, top["evidence"]
+
+
+def _waiting_machine():
+    """(the default twin, a program of 100 passes, the run of a machine that stands 60 ms where
+    a feed move ends and a rapid follows, its log sampled every ~0.19 s as the Hurco's)."""
     from mtwin.loop.asrun import twin_log
     from mtwin.loop.measurement import Measurement
 
@@ -603,9 +605,4 @@ def test_diagnose_says_what_the_line_ends_show_beside_the_wait_before_rapids():
     prog = tw.load(("\n".join(lines) + "\n").encode(), path="ends.nc")
     run = tw.with_params({"controller.feed_rapid_wait": 0.06}).simulate(prog, cutting=False)
     grid = Measurement("grid", np.arange(0.0, float(run.t[-1]), 0.19), {}, np.zeros(0, np.int64))
-    case = T.timing_case(tw, prog, twin_log(run, grid, seed=99))
-    d = T.diagnose_timing(tw, [case], candidates=["feed-rapid-wait"])
-    top = d["candidates"][0]
-    rapid, feed = re.search(r"a rapid follows take ([+-]\d+) ± \d+ ms.*feed move follows ([+-]\d+) ±",
-                            top["evidence"]).groups()
-    assert 40 <= int(rapid) <= 80 and abs(int(feed)) <= 15, top["evidence"]
+    return tw, prog, run, twin_log(run, grid, seed=99)
