@@ -200,16 +200,6 @@ def _helices(prog, seen: dict, spiral_min: float, least: int = 20) -> list:
     return out
 
 
-def _line_kinds(rec) -> dict:
-    """line -> the set of its records' kinds (records.KIND_NAMES), -1 for a drilling cycle's."""
-    from mtwin.gcode import records as R
-
-    kinds: dict = {}
-    for ln, k, fl in zip(rec["line"], rec["kind"], rec["flags"]):
-        kinds.setdefault(int(ln), set()).add(-1 if fl & R.FL_CANNED else int(k))
-    return kinds
-
-
 def _spindle_stands(prog, seen: dict, sim: dict) -> dict:
     """Per spindle speed and way ("stop": braking from it, "start": running up to it): (count,
     mean logged, mean simulated s) of the line the control stands at while the spindle changes
@@ -243,15 +233,16 @@ def _sequence_starts(prog, seen: dict, sim: dict) -> list:
     """The first line of every retract-reposition-approach reported on both ``seen`` and ``sim``
     (line -> s): three rapid lines without M words between a feed move and the next one."""
     from mtwin.gcode import records as R
+    from mtwin.loop.asrun import CANNED, line_kinds
 
     text = prog.data.split(b"\n")
-    kinds = _line_kinds(prog.records)
+    kinds = line_kinds(prog.records)
     out = []
     for a in sorted(kinds):
         rapid = all(kinds.get(a + i) == {R.RAPID} and b"M" not in text[a + i - 1].upper() for i in range(3))
         after = kinds.get(a + 3, {R.RAPID})
-        if rapid and R.RAPID not in after and -1 not in after and all(x in d for x in (a, a + 3)
-                                                                          for d in (seen, sim)):
+        if rapid and R.RAPID not in after and CANNED not in after and all(x in d for x in (a, a + 3)
+                                                                              for d in (seen, sim)):
             out.append(a)
     return out
 
@@ -277,20 +268,21 @@ def _pass_list(prog, seen: dict, sim: dict) -> list:
     feed lines (no drilling cycle) between two rapids — timed from the first report (``seen``,
     ``sim``) of its first line to that of the rapid after it; F is the pass's first line's."""
     from mtwin.gcode import records as R
+    from mtwin.loop.asrun import CANNED, line_kinds
 
     rec = prog.records
-    kinds = _line_kinds(rec)
+    kinds = line_kinds(rec)
     lengths = R.move_lengths(rec)
     lines = sorted(kinds)
     out = []
     i = 0
     while i < len(lines):
-        if R.RAPID in kinds[lines[i]] or -1 in kinds[lines[i]]:
+        if R.RAPID in kinds[lines[i]] or CANNED in kinds[lines[i]]:
             i += 1
             continue
         j = i
         while (j + 1 < len(lines) and lines[j + 1] == lines[j] + 1 and R.RAPID not in kinds[lines[j + 1]]
-               and -1 not in kinds[lines[j + 1]]):
+               and CANNED not in kinds[lines[j + 1]]):
             j += 1
         a, b = lines[i], lines[j] + 1
         if all(x in d for x in (a, b) for d in (seen, sim)):

@@ -345,6 +345,18 @@ def twin_logged_ratio(program, trace, meas, kind_of: dict | None = None, logs: i
     return {**mean(runs), "logs": len(runs), "by_kind": {k: mean(vs) for k, vs in by_kind.items()}}
 
 
+CANNED = -1  # line_kinds' kind for a drilling cycle's records
+
+
+def line_kinds(rec) -> dict:
+    """Line -> the set of its records' kinds (``records``' RAPID, LINEAR, …; CANNED for a drilling
+    cycle's records)."""
+    kinds: dict = {}
+    for ln, k, fl in zip(rec["line"], rec["kind"], rec["flags"]):
+        kinds.setdefault(int(ln), set()).add(CANNED if fl & R.FL_CANNED else int(k))
+    return kinds
+
+
 def feed_line_ends(program, meas, trace, logs: int = TWIN_LOGS) -> dict:
     """Where a feed line's time differs from the log, by what follows it: {(its record's kind
     "line" | "arc", the next line's "rapid" | "feed"): (lines, mean error s, standard error s)}.
@@ -358,12 +370,9 @@ def feed_line_ends(program, meas, trace, logs: int = TWIN_LOGS) -> dict:
     move — shows as the difference between the rows."""
     from .blocks import line_starts
 
-    rec = program.records
-    kinds: dict = {}
-    for ln, k, fl in zip(rec["line"], rec["kind"], rec["flags"]):
-        kinds.setdefault(int(ln), set()).add(-1 if fl & R.FL_CANNED else int(k))
     if meas.line is None or not (np.asarray(meas.line) > 0).any():
         return {}
+    kinds = line_kinds(program.records)
     seen = line_starts(np.asarray(meas.t, float), np.asarray(meas.line))
     own = [line_starts(np.asarray(x.t), np.asarray(x.line))
            for x in (twin_log(trace, meas, seed) for seed in range(logs)) if x is not None]
