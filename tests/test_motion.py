@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from mtwin.layout import ARC
 from mtwin.twin import Twin
 from mtwin.twin.machine import Machine
 
@@ -163,6 +164,68 @@ def test_arcs_never_exceed_the_configured_acceleration(style, shape, radius, fee
     assert np.abs(acc[:, :2]).max() <= 3000.0 * 1.001
     feed_moves = trace.line[1:-1] == 2
     assert np.linalg.norm(acc[feed_moves, :2], axis=1).max() <= 3000.0 * 1.001
+
+
+@pytest.mark.parametrize("style", ["fanuc", "grbl"])
+def test_a_short_arc_brakes_with_the_budget_its_speed_leaves(style):
+    # A 5-mm arc of radius 20 from rest to rest at a feed it never reaches: its limit (v²/r at
+    # √0.75 of a = 3000 mm/s²: 228 mm/s) would leave half the acceleration along the path, but
+    # the arc peaks near √(a·L) = 122 mm/s, where v²/r takes 750 of 3000: √(1 − 0.25²) of it is
+    # left, and the move takes close to the full budget's triangle 2·√(L/a) = 81.6 ms, not the
+    # half's 115.5 ms; the total acceleration stays within a throughout.
+    tw = make_twin(style, before_shape="linear", after_filter="none", min_block_time=0.0)
+    r, phi = 20.0, 0.25
+    x, y = r * math.cos(phi), r * math.sin(phi)
+    _, plan, trace = run(tw, f"G21 G90 G94 G0 X{r} Y0\nG3 X{x:.9f} Y{y:.9f} I{-r} J0 F20000\nM30\n")
+    arc = plan.seg["kind"] == ARC
+    t_arc = float(plan.dur[arc].sum())
+    full = 2.0 * math.sqrt(r * phi / 3000.0)
+    assert full * (1 - 1e-6) <= t_arc <= full * 1.03
+    acc = np.diff(trace.cmd, n=2, axis=0) / 0.001**2
+    on_arc = trace.line[1:-1] == 2
+    assert np.linalg.norm(acc[on_arc, :2], axis=1).max() <= 3000.0 * 1.001
+
+
+def _cusp_arcs(r: float = 3.43, length: float = 1.0, turn: float = 90.0) -> str:
+    """Two clockwise arcs of ``length`` mm and radius ``r`` meeting at a cusp that turns by
+    ``turn`` degrees, from (0, 0): the NIST plates' helix passes join their circles so."""
+    d = length / r
+    a0 = math.radians(60.0)
+    c1 = np.array([-r * math.cos(a0), -r * math.sin(a0)])
+    p1 = c1 + r * np.array([math.cos(a0 - d), math.sin(a0 - d)])
+    t1 = np.array([math.sin(a0 - d), -math.cos(a0 - d)])  # the clockwise tangent at p1
+    k = math.radians(turn)
+    t2 = np.array([t1[0] * math.cos(k) - t1[1] * math.sin(k), t1[0] * math.sin(k) + t1[1] * math.cos(k)])
+    c2 = p1 + r * np.array([-t2[1], t2[0]]) * -1.0
+    b = math.atan2(*(p1 - c2)[::-1]) - d
+    p2 = c2 + r * np.array([math.cos(b), math.sin(b)])
+    return (f"G2 X{p1[0]:.7f} Y{p1[1]:.7f} I{c1[0]:.7f} J{c1[1]:.7f} F2032\n"
+            f"G2 X{p2[0]:.7f} Y{p2[1]:.7f} I{c2[0] - p1[0]:.7f} J{c2[1] - p1[1]:.7f}\n")
+
+
+def test_arcs_into_a_cusp_keep_their_budget_along_the_path():
+    # Two 1-mm arcs of radius 3.43 meeting at a 90° cusp at F2032 mm/min (the NIST plates'
+    # helix passes), on axes of a = 300 mm/s² (the Hurco's fitted order): their limit
+    # (√(√0.75·a·r) = 30 mm/s) leaves half of a along the path, but they never run faster than
+    # about √(a·L) = 17 mm/s, where v²/r is under a third of a: each keeps over 0.9 of it to
+    # brake into the cusp and leave it, and the total stays within a.
+    tw = make_twin("fanuc", before_shape="linear", after_filter="none", min_block_time=0.0)
+    m = tw.machine
+    m = replace(m, x=replace(m.x, max_acceleration=300.0), y=replace(m.y, max_acceleration=300.0))
+    _, plan, trace = run(Twin(m), "G21 G90 G94 G0 X0 Y0\n" + _cusp_arcs() + "M30\n")
+    arc = plan.seg["kind"] == ARC
+    assert arc.sum() == 2
+    assert plan.seg["vmax"][arc] == pytest.approx(math.sqrt(math.sqrt(0.75) * 300.0 * 3.43), rel=1e-6)
+    top = plan.prof[arc, 1]
+    assert (top * top / 3.43 < 100.0).all()
+    assert (plan.seg["amax"][arc] >= 0.9 * 300.0).all()
+    # (at the cusp itself the control lets the velocity change by its allowable step: with no
+    # filter after interpolation, one servo period's jump, left out here)
+    acc = np.diff(trace.cmd, n=2, axis=0) / 0.001**2
+    line = trace.line[1:-1]
+    at_cusp = np.convolve(np.diff(trace.line)[:-1] != 0, np.ones(5), "same") > 0
+    moving = np.isin(line, (2, 3)) & ~at_cusp
+    assert np.linalg.norm(acc[moving, :2], axis=1).max() <= 300.0 * 1.001
 
 
 def test_fanuc_corner_speed_follows_allowable_velocity_change():
