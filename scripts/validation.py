@@ -64,6 +64,8 @@ def main(realdata: Path) -> None:
             kinds[(p, name)] = {k["kind"]: k["error_as_logged"] for k in b.by_kind()}
             if name == "profile":
                 row["bias"] = max(abs(v) for v in b.bias.values()) if b.bias else 0.0
+                kn, _, noise = T._kind_sums(case.groups)
+                row["kind_noise"] = dict(zip(kn, (float(x) for x in noise)))
                 seen, sim = (line_starts(np.asarray(x.t), np.asarray(x.line)) for x in (meas, tr))
                 row["helices"] = _helices(prog, seen, tw.machine.controller.spiral_min)
                 row["rapids"] = _rapid_sequences(prog, seen, sim)
@@ -381,6 +383,7 @@ def _pct(sim, meas):
 
 def _markdown(rows, kinds, elapsed) -> str:
     import mtwin
+    from mtwin.loop.blocks import LOG_SEEDS
     from mtwin.loop.journal import read_journal
 
     m = mtwin.Twin.from_toml(str(PROFILE)).planned_machine
@@ -442,11 +445,15 @@ def _markdown(rows, kinds, elapsed) -> str:
                                             f"{kinds[(r['plate'], 'profile')].get(k, 0):+.1f} → "
                                             f"{kinds[(r['plate'], 'loo')].get(k, 0):+.1f}" for r in rows) + " |")
     out += ["", "The as-logged sums take off what logs of the twin's own run show by kind (`logging_bias`: the run "
-            "logged eight times at the log's interval and spread, cut into groups and classified as the real log "
+            f"logged {LOG_SEEDS} times at the log's interval and spread, cut into groups and classified as the real log "
             "is): which lines a log reports decides how its groups are cut and which kind each takes, a bias the "
             "delays alone leave.  Largest such bias of any kind with the profile: "
             + ", ".join(f"plate {r['plate']} {r['bias']:.1f} s" for r in rows) + ".  Its spread between logs is the "
-            "sums' own sampling noise (0.05–1.4 s by kind on these plates), against which a 2-s target is judged.",
+            "sums' own sampling noise (0.05–1.4 s by kind on these plates).  The real log is one such log: its "
+            "report jitter (uniform over one interval) at both ends of every run of groups of a kind leaves each "
+            "kind's measured sum uncertain by, s (σ; the same on the three plates within 0.07 s): "
+            + ", ".join(f"{k} {v:.1f}" for k, v in rows[0]["kind_noise"].items())
+            + ", against which a 2-s target is judged.",
             "", "## Spiral arcs against true circles", "",
             "The plates enter their pockets on helices of half circles.  The CAM rounds their centres to 0.0001 in: "
             "where the two ends of a half circle lie symmetric about its centre the arc is a true circle, elsewhere "

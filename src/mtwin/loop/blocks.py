@@ -263,7 +263,10 @@ def simulated_as_logged(groups: Groups, sim: np.ndarray, lines: np.ndarray, star
     return sim + d1 - delay(groups.first_line)
 
 
-LOG_SEEDS = 8  # logs of the twin's own run that :func:`logging_bias` averages
+# logs of the twin's own run that :func:`logging_bias` averages: their sums by kind spread by up
+# to 1.4 s on the NIST Hurco plates, so the mean of 8 was good to ~0.5 s, of 32 to ~0.25 s, for
+# ~12 ms a log on a 4,000-line program
+LOG_SEEDS = 32
 MIN_LOG_PERIOD = 0.05  # s: a log sampling the line faster shows too little bias to correct
 
 
