@@ -187,20 +187,35 @@ def _arcs_at_their_speed(seg, budget, vj, length, is_pause, tb, window, ve):
     a limit of 34) has nearly all of it to brake and accelerate with.  The top speed of each arc
     is bounded from its end speeds and length at the whole budget (no share can do more), the
     share taken there, and the look-ahead run again, a few times over (the speeds rise with the
-    shares, the shares fall with the speeds)."""
+    shares, the shares fall with the speeds, so the passes alternate about the answer).  The
+    last look-ahead may leave an arc faster than the speed its share was taken at: there the
+    share is taken again at the final speeds and the look-ahead run once more, which only lowers
+    speeds, so every arc ends within its budget."""
     arc = np.flatnonzero(np.isfinite(budget) & (seg["rapid"] == 0) & ~is_pause)
     if not arc.size:
         return ve
     r = np.maximum(np.minimum(seg["r0"], seg["r1"])[arc], 1e-300)
     a_axis = budget[arc]
-    for _ in range(ARC_SHARE_PASSES):
+
+    def shares(ve):
         v_in = np.concatenate(([0.0], ve[:-1]))[arc]
         top = np.minimum(seg["vmax"][arc], np.sqrt(0.5 * (v_in ** 2 + ve[arc] ** 2) + a_axis * length[arc]))
-        share = a_axis * _tangential_share(top * top / r, a_axis)
+        return a_axis * _tangential_share(top * top / r, a_axis)
+
+    def look():
+        return K.lookahead.auto(len(seg), vj, length, np.where(is_pause, 1.0, seg["amax"]), tb, window)
+
+    for _ in range(ARC_SHARE_PASSES):
+        share = shares(ve)
         if np.allclose(share, seg["amax"][arc], rtol=1e-6, atol=0.0):
-            break
+            return ve
         seg["amax"][arc] = share
-        ve = K.lookahead.auto(len(seg), vj, length, np.where(is_pause, 1.0, seg["amax"]), tb, window)
+        ve = look()
+    share = shares(ve)
+    over = share < seg["amax"][arc]
+    if over.any():
+        seg["amax"][arc] = np.minimum(seg["amax"][arc], share)
+        ve = look()
     return ve
 
 
