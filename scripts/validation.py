@@ -256,8 +256,14 @@ def _rapid_sequences(prog, seen: dict, sim: dict) -> tuple:
     from the first report (``seen``, and ``sim`` for the twin: line -> s) of the first rapid to
     that of the feed line after them (two report delays, whose expectations cancel over many
     sequences: no group cutting or kind involved)."""
-    err = [(sim[a + 3] - sim[a]) - (seen[a + 3] - seen[a]) for a in _sequence_starts(prog, seen, sim)]
+    err = list(_sequence_errors(prog, seen, sim).values())
     return len(err), float(np.sum(err)), float(np.std(err)) if err else 0.0
+
+
+def _sequence_errors(prog, seen: dict, sim: dict) -> dict:
+    """First line -> simulated − logged s of each retract-reposition-approach, from the first
+    report of its first rapid to that of the feed line after them."""
+    return {a: (sim[a + 3] - sim[a]) - (seen[a + 3] - seen[a]) for a in _sequence_starts(prog, seen, sim)}
 
 
 def _sequences_by_tool(prog, seen: dict, sim: dict, least: int = 20) -> dict:
@@ -266,13 +272,12 @@ def _sequences_by_tool(prog, seen: dict, sim: dict, least: int = 20) -> dict:
     :func:`_rapid_sequences` does; F is the most common of the feed lines' that end them."""
     rec = prog.records
     out: dict = {}
-    for a in _sequence_starts(prog, seen, sim):
+    for a, err in _sequence_errors(prog, seen, sim).items():
         first = np.flatnonzero(rec["line"] == a + 3)
         if not first.size:
             continue
         i = int(first[0])
-        out.setdefault(int(rec["tool"][i]), []).append(((sim[a + 3] - sim[a]) - (seen[a + 3] - seen[a]),
-                                                         int(round(float(rec["feed"][i])))))
+        out.setdefault(int(rec["tool"][i]), []).append((err, int(round(float(rec["feed"][i])))))
     res = {}
     for tool, v in sorted(out.items()):
         if len(v) >= least:
@@ -289,7 +294,7 @@ def _corner_feed(prog, meas, trace, arc_limit: float, least_radius: float = 5.0)
     percentile of its feed samples labelled with their lines, the same of logs of the twin's own
     run sampled as it, mm/min), or None where there are none."""
     from mtwin.gcode import records as R
-    from mtwin.loop.asrun import twin_log
+    from mtwin.loop.asrun import TWIN_LOGS, twin_log
 
     rec = prog.records
     r = np.hypot(rec["sx"] - rec["cx"], rec["sy"] - rec["cy"])
@@ -304,7 +309,7 @@ def _corner_feed(prog, meas, trace, arc_limit: float, least_radius: float = 5.0)
         f = np.asarray(m.signals["feed"], float)[np.isin(np.asarray(m.line), lines)]
         return (float(np.median(f)), float(np.percentile(f, 90))) if f.size else (np.nan, np.nan)
 
-    own = [stats(x) for x in (twin_log(trace, meas, seed) for seed in range(8)) if x is not None]
+    own = [stats(x) for x in (twin_log(trace, meas, seed) for seed in range(TWIN_LOGS)) if x is not None]
     return (len(lines), float(np.median(r[on])), float(np.median(rec["feed"][on])), *stats(meas),
             *np.mean(own, axis=0).tolist())
 
