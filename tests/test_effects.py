@@ -353,6 +353,48 @@ def test_arc_acceleration_is_the_arcs_own_limit_set_apart_from_the_axes():
     assert vmax("arc-acceleration:acceleration=900") == pytest.approx(math.sqrt(900.0))
 
 
+def test_arc_jerk_holds_small_circles_to_the_cube_root_of_j_r2():
+    # a jerk limit on arcs: each axis runs a sinusoid on a circle, whose jerk is v³/r², so the
+    # speed is held at ∛(J·r²) where that is below √(a·r): on small radii first.  At a = 500 mm/s²
+    # and J = 12 m/s³ the two cross at r = J²/a³ = 1.15 mm: the NIST plates' 0.35-mm helices
+    # are held by the jerk (11.4 mm/s, not 13.2), their 6.5-mm corners by the acceleration.
+    import math
+
+    from mtwin.motion.path import ARC
+
+    tw = mtwin.Twin().with_effects("arc-acceleration:acceleration=500,jerk=12000")
+    for r, v in ((0.35, (12000 * 0.35 ** 2) ** (1 / 3)), (0.8, (12000 * 0.64) ** (1 / 3)),
+                 (1.5, math.sqrt(500 * 1.5)), (6.5, math.sqrt(500 * 6.5))):
+        prog = tw.load(f"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG2 X{2 * r} Y0 I{r} J0 F6000\nG0 Z5\nM30\n".encode(),
+                       path="j.nc")
+        seg = tw.plan(prog).seg
+        assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx(v, rel=1e-9), r
+    # the twin file's controller.arc_jerk is the same limit; 0 is none
+    prog = tw.load(b"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG2 X0.7 Y0 I0.35 J0 F6000\nG0 Z5\nM30\n", path="j.nc")
+    plain = mtwin.Twin().with_effects("arc-acceleration:acceleration=500")
+    seg = plain.with_params({"controller.arc_jerk": 12000.0}).plan(prog).seg
+    assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx((12000 * 0.35 ** 2) ** (1 / 3), rel=1e-9)
+    seg = plain.plan(prog).seg
+    assert float(seg["vmax"][seg["kind"] == ARC][0]) == pytest.approx(math.sqrt(500 * 0.35), rel=1e-9)
+
+
+def test_arc_jerk_bounds_the_axes_jerk_on_a_circle_in_the_trace():
+    # independent of the plan: three full circles of 0.5 mm at F6000, J = 8 m/s³; the commanded
+    # X of the middle circle, differentiated three times, peaks at v³/r² = J (a sinusoid's
+    # amplitude r·ω³), and the path runs at ∛(J·r²) = 12.6 mm/s, not √(a·r) = 15.8
+    tw = mtwin.Twin().with_effects("arc-acceleration:acceleration=500,jerk=8000")
+    r = 0.5
+    text = (f"G21 G90 G94 S1000 M3\nG0 X0 Y0 Z0\nG1 X{r} F6000\n"
+            + f"G2 X{r} Y0 I{-r} J0\n" * 3 + "G1 X0\nG0 Z5\nM30\n")
+    tr = tw.simulate(tw.load(text.encode(), path="c.nc"), cutting=False)
+    dt = float(np.median(np.diff(tr.t)))
+    mid = np.flatnonzero(np.asarray(tr.line) == 5)[10:-10]  # the second circle, off its ends
+    jerk = np.diff(tr.cmd[:, 0], n=3) / dt ** 3
+    assert np.abs(jerk[mid - 1]).max() == pytest.approx(8000.0, rel=0.03)
+    speed = np.linalg.norm(np.diff(tr.cmd[:, :2], axis=0), axis=1) / dt
+    assert np.median(speed[mid]) == pytest.approx((8000.0 * r * r) ** (1 / 3), rel=0.01)
+
+
 def test_a_spiral_is_an_arc_off_its_circle_by_more_than_2_3_micrometres():
     # one 0.0001-in increment (2.54 µm) off the circle is a spiral; 2 µm (what rounding both
     # the end point and the centre leaves on the plates' large arcs) runs as a circle

@@ -91,13 +91,21 @@ class CornerSlowdown(Effect):
 class ArcAcceleration(Effect):
     name = "arc-acceleration"
     description = ("the control has its own normal-acceleration limit v²/r on feed arcs, in place of the axes' "
-                   "share of it (small arcs run at it)")
+                   "share of it (small arcs run at it), and may hold small circles lower still by a jerk limit "
+                   "v³/r²")
     stage = "plan"
     params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0, "normal-acceleration limit on arcs, 0 = none",
-                    ceiling=True),)
+                    ceiling=True),
+              Param("jerk", "mm/s^3", 0.0, 0.0, 1e6, "normal-jerk limit on arcs (v³/r², each axis' jerk on a circle: "
+                    "binds on small radii first), 0 = the twin file's (controller.arc_jerk; none unless set)",
+                    ceiling=True))
     signals = ("feed",)
+    # both limits are ceilings: on arcs of one radius only the one that binds is fitted, and the
+    # other is set at the least value the logs allow (it takes radii on both sides of where they
+    # cross, J²/a³ — ~1 mm on the Hurco — to find both)
 
     def machine(self, m, p):
+        m = _controller_set(m, "arc_jerk", p.get("jerk", 0.0))
         return _controller_set(m, "arc_acceleration", p["acceleration"])
 
 

@@ -499,6 +499,7 @@ def _plan_starts(twin, effects) -> dict:
            "corner-slowdown.corner_velocity": m.controller.corner_velocity,
            "arc-acceleration.acceleration": (m.controller.arc_acceleration
                                              or min(a.max_acceleration for a in m.axes)),
+           "arc-acceleration.jerk": m.controller.arc_jerk,  # (0: none, where the fit's scan starts)
            "spiral-acceleration.acceleration": (m.controller.spiral_acceleration or m.controller.arc_acceleration
                                                 or min(a.max_acceleration for a in m.axes)),
            "spiral-acceleration.normal_time": jerk_of(m.controller.spiral_jerk),  # (its own inverse)

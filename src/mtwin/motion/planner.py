@@ -150,6 +150,8 @@ def _motion_limits(seg: np.ndarray, machine, linuxcnc: bool = False) -> np.ndarr
         if c.spiral_acceleration > 0:
             a_normal = np.where(spiral, c.spiral_acceleration, a_normal)
         v = np.minimum(vmax[arc], np.sqrt(a_normal * r))
+        if c.arc_jerk > 0:  # each axis' jerk on a circle is v³/r²
+            v = np.where(cut, np.minimum(v, np.cbrt(c.arc_jerk * r * r)), v)
         if c.spiral_block_time > 0 or c.spiral_jerk > 0:
             # the control spends this much longer on each spiral block than its path takes — a
             # time of its own, and its normal acceleration v²/r ramped anew at spiral_jerk: a
