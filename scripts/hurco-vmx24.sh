@@ -54,11 +54,7 @@ cat > "$work/0.toml" <<'TOML'
 # Everything else below the [spindle] table comes from the calibration steps:
 #   1 spindle-runup (its run-up and braking rates -- the control stands longer after M5 than
 #   after M3 at the same speed -- and the speed above which both fall as 1/n: plate 12 runs
-#   S12000, 13 and 14 S750-S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration
-#   (a limit on v^2/r and one on v^3/r^2, the axes' jerk on a circle, which holds small circles
-#   lower: the 0.35-0.42-mm helices run at 11-12 m/s^3, 354-366 mm/s^2, the 6.5-mm corners at
-#   ~490 mm/s^2 and 4-5 m/s^3; one v^2/r limit left a compromise between them that a fit
-#   without plate 13, the one plate with both, could not find),
+#   S12000, 13 and 14 S750-S9000), 2 toolchange-time, 3 rapid-acceleration, 4 arc-acceleration,
 #   5 spiral-acceleration (arcs whose I/J words, rounded to 0.0001 in, leave the end point off the
 #   circle: the control runs them slower than true circles, and each block takes longer by its
 #   v^2/r over a jerk -- 4.8-5.6 ms per half circle at ~190 mm/s^2 on plate 12's helices, below

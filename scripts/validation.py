@@ -104,8 +104,6 @@ def main(realdata: Path) -> None:
         fr = T.fit_timing_steps(base, [cases[q] for q in PLATES if q != p], [get(n)() for n in RECIPE], FIT_PARAMS)
         normal_time = fr.params["effects.spiral-acceleration.normal_time"]  # s per m/s²: the inverse of the jerk
         row["loo_spiral_jerk"] = 1000.0 / normal_time if normal_time > 0 else 0.0
-        row["loo_arc"] = (fr.params["effects.arc-acceleration.acceleration"],
-                          fr.params.get("effects.arc-acceleration.jerk", 0.0))
         fitted_base = base.with_params({k: v for k, v in fr.params.items() if not k.startswith("effects.")})
         tw = fitted_base.with_effects(*fr.effects)
         prog = tw.load(program[p])
@@ -121,7 +119,7 @@ def main(realdata: Path) -> None:
             left = fitted_base.with_effects(*[e.with_values(**{param: u["fitted"]}) if e.name == name else e
                                               for e in fr.effects])
             bl = measurement_block_timing(prog, logs[p], left.simulate(prog))
-            row["unreached"].append((key, u["least"], u["fitted"], kinds[(p, "loo")].get("small arc", 0.0),
+            row["unreached"].append((name, u["least"], u["fitted"], kinds[(p, "loo")].get("small arc", 0.0),
                                      {k["kind"]: k["error_as_logged"] for k in bl.by_kind()}.get("small arc", 0.0)))
     elapsed = time.time() - t0
     _figure(logs[13], traces, ROOT / "docs" / "validation-plate13.svg")
@@ -526,16 +524,11 @@ def _markdown(rows, kinds, elapsed) -> str:
                      for s in (False, True)]
             out.append(f"| {r['plate']} | {f:.1f} | {rad:.2f} | {cells[0]} | {cells[1]} | "
                        f"{_spiral_extra(rad, d) * 1000:.1f} ms |")
-    a_arc, j_arc = m.controller.arc_acceleration, m.controller.arc_jerk
-    held = {rad: (j_arc * rad * rad) ** (1 / 3) for rad in (0.35, 0.42)}
     out += ["", "Where the feed is above what either allows (plate 13) spirals run at 15–22 % less v²/r than true circles.  The "
-            f"profile holds true circles by two limits of the control's own (`arc-acceleration`): v²/r ≤ {a_arc:.0f} "
-            f"mm/s², set apart from the axes' {acc_xy:.0f} along the path as Fanuc's parameter 1735 is from 1660, "
-            f"and v³/r² ≤ {j_arc / 1000:.1f} m/s³, the jerk each axis runs on a circle, which binds below "
-            f"r = J²/a³ = {j_arc ** 2 / a_arc ** 3:.2f} mm: at 0.35 and 0.42 mm it allows "
-            + " and ".join(f"{v:.1f} mm/s ({v * v / rad:.0f} mm/s²)" for rad, v in held.items())
-            + f".  Spirals run at {m.controller.spiral_acceleration:.0f} mm/s² (`spiral-acceleration`), each "
-            "spiral block longer besides by its v²/r over a jerk (below).",
+            f"profile runs true circles at {m.controller.arc_acceleration:.0f} mm/s² (`arc-acceleration`, set apart "
+            f"from the axes' {acc_xy:.0f} along the path, as Fanuc's parameter 1735 is from 1660) and spirals at "
+            f"{m.controller.spiral_acceleration:.0f} mm/s² (`spiral-acceleration`), each spiral block longer "
+            "besides by its v²/r over a jerk (below).",
             "", "## Arcs a hair off their circle", "",
             "Plates 13 and 14 cut the part's outside in one long pass (2.7 m: long lines joined by 6.5-mm corner arcs, "
             "54 of them).  Rounding both the end points and the centres leaves those arcs' end points 0.3–2.2 µm off "
@@ -547,22 +540,18 @@ def _markdown(rows, kinds, elapsed) -> str:
             f, meas, e, e_spiral = r["contour"]
             out.append(f"| {r['plate']} | {f} | {meas:.1f} | {e:+.2f} s | {e_spiral:+.2f} s |")
     corner = [(r["plate"], r["corners"]) for r in rows if r.get("corners")]
-    small = [(rad, float(np.median(d[False]))) for r in rows if r["plate"] == 13
-             for (rad, _), d in _both_ways(r["helices"]).items() if d[False]]
-    out += ["", "So an arc counts as a spiral only from 2.3 µm off its circle (`controller.spiral_min`).  These "
-            f"arcs run at the profile's v²/r limit, {a_arc:.0f} mm/s², above the path acceleration the short moves "
-            f"fit ({acc_xy:.0f}): the arc limit is the control's own, not a share of the axes'.  The machine takes "
-            "them at a higher v²/r than its small true circles (plate 13's in the table above: "
-            + ", ".join(f"{v * v / rad:.0f} mm/s² at {rad:.2f} mm" for rad, v in small) + "): "
+    out += ["", "So an arc counts as a spiral only from 2.3 µm off its circle (`controller.spiral_min`).  The "
+            "profile runs these arcs at its circles' limit, v²/r = "
+            f"{m.controller.arc_acceleration:.0f} mm/s², above the path acceleration the short moves fit "
+            f"({acc_xy:.0f}): the arc limit is the control's own, not a share of the axes'.  But the machine takes "
+            "them faster still, where its small true circles run slower (plate 13's in the table above: 354–366 "
+            "mm/s²): "
             + "; ".join(f"plate {p}'s {c[0]} arcs of {c[1]:.1f} mm held back at F{c[2]:.0f} log a median feed of "
-                        f"{c[3]:.0f} mm/min ({(c[3] / 60) ** 2 / c[1]:.0f} mm/s², {(c[3] / 60) ** 3 / c[1] ** 2 / 1000:.1f} "
-                        f"m/s³), a 90th percentile of {c[4]:.0f}, where logs of the twin's own run, labelled alike, "
-                        f"give {c[5]:.0f} and {c[6]:.0f}"
+                        f"{c[3]:.0f} mm/min ({(c[3] / 60) ** 2 / c[1]:.0f} mm/s²), a 90th percentile of {c[4]:.0f}, "
+                        f"where logs of the twin's own run, labelled alike, give {c[5]:.0f} and {c[6]:.0f}"
                         for p, c in corner)
-            + ".  One limit on v²/r cannot run both.  What holds the small circles is their jerk: "
-            + ", ".join(f"{v ** 3 / rad ** 2 / 1000:.1f} m/s³ at {rad:.2f} mm" for rad, v in small)
-            + ", where the corners' is less than half of that; the profile's jerk limit holds them, and its v²/r "
-            "limit the corners.",
+            + ": the control's limit on v²/r is not one value, and the profile's is a compromise between these "
+            "corners and the small circles, which only plate 13 shows both of.",
             "", "## Reversals", "",
             "The plates' zig-zag passes turn by 150–170° at the end of every 6–7-mm line.  Mean time of such a line "
             "(from its first report to the next line's) beyond its length over F:", "",
@@ -595,7 +584,7 @@ def _markdown(rows, kinds, elapsed) -> str:
             "- The rapid rate of Z is not in the logs (no long Z rapid) and is set equal to X's and Y's.",
             "- No override or feed-hold item appears in these logs: 100 % overrides are assumed.",
             f"- The fitted X and Y accelerations (≈ {acc_xy / 1000:.2f} and {m.axes[1].max_acceleration / 1000:.2f} "
-            "m/s²; docs/fleet.md gives their spread between folds) are the control's effective path "
+            "m/s²; Y's the less certain: the fleet's folds, docs/fleet.md, put it at 0.25–0.57) are the control's effective path "
             "acceleration on these programs' short feed moves, not a drive's capability; rapids run on their own "
             f"(`rapid-acceleration`, ≈ {acc_rapid / 1000:.1f} m/s²), as a Fanuc-style control sets rapid and cutting "
             "acc/dec apart.  Before it was separate, "
@@ -639,19 +628,15 @@ def _markdown(rows, kinds, elapsed) -> str:
             + " / ".join(f"{kinds[(r['plate'], 'profile')].get('small arc', 0):+.1f}" for r in rows)
             + " s (plates " + " / ".join(str(r["plate"]) for r in rows) + ").",
             "- Limits the training plates never reach: "
-            + ("; ".join(f"predicting plate {r['plate']}, no block of the two other plates reaches `{key}` "
-                         f"(their residuals do not change above it): the fit sets it at {least:.0f} "
-                         f"{'mm/s³' if key.endswith('jerk') else 'mm/s²'}, the least they allow (the search had left "
-                         f"it at {left:.0f}), and plate {r['plate']}'s small arcs are {e_least:+.1f} s off "
-                         f"({e_left:+.1f} s at the search's value)"
-                         for r in rows for key, least, left, e_least, e_left in r["unreached"])
+            + ("; ".join(f"predicting plate {r['plate']}, no block of the two other plates reaches `{name}`'s limit "
+                         f"(their residuals do not change above it): the fit sets it at {least:.0f} mm/s², the "
+                         f"least they allow (the search had left it at {left:.0f}), and plate {r['plate']}'s small "
+                         f"arcs are {e_least:+.1f} s off ({e_left:+.1f} s at the search's value)"
+                         for r in rows for name, least, left, e_least, e_left in r["unreached"])
                or "none")
-            + ".  Only a plate whose arcs run at a limit shows where it is.  The small circles' jerk limit shows on "
-            "plates 13 and 14 (their 0.35-mm helices, at F914 and F686, run at it), so each fold finds it: "
-            + ", ".join(f"{r['loo_arc'][1] / 1000:.1f} m/s³ predicting plate {r['plate']}" for r in rows)
-            + ".  The v²/r limit binds where arcs above the radius at which the two limits cross run fast (plate "
-            "13's F3658 contour's corners) and comes out at "
-            + ", ".join(f"{r['loo_arc'][0]:.0f} mm/s² predicting plate {r['plate']}" for r in rows) + ".",
+            + ".  Only a plate whose arcs run at the limit shows where it is: the profile's true-circle limit comes "
+            "from plate 13 alone, the one plate whose true circles run at it (its F3658 contour's corners, its "
+            "helices at F914; plate 14's, at F686, run at F, and plate 12's slower still).",
             "- Off by more than 2 s with the profile: "
             + ("; ".join(f"plate {r['plate']}: " + ", ".join(f"{k} {v:+.1f} s" for k, v in
                                                            kinds[(r["plate"], "profile")].items()

@@ -130,16 +130,34 @@ def test_a_limit_no_logged_block_reaches_is_set_at_the_least_the_log_allows(tmp_
     assert least == fr.unreached[key]["least"] <= fr.unreached[key]["fitted"]
     assert 450 < least < 650  # just above the arcs' 500 mm/s²
     assert abs(fr.after["cases"][0]["cycle_error"]) < 0.01
-    # a limit the log does show is fitted as before (the test above: 250 recovered), not walked;
-    # the jerk limit, which arcs of one radius held by v²/r never reach, is (set where it would
-    # start to hold them: v³/r² at √(a·r), 1.8 m/s³)
+    # a limit the log does show is fitted as before (the test above: 250 recovered), not walked
     truth = mtwin.Twin().with_effects("arc-acceleration:acceleration=250")
     fr = T.fit_timing(mtwin.Twin(), [T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))],
                       [get("arc-acceleration")()])
-    assert key not in fr.unreached and fr.params[key] == pytest.approx(250, rel=0.15)
-    jerk = "effects.arc-acceleration.jerk"
-    assert list(fr.unreached) == [jerk]
-    assert fr.params[jerk] == pytest.approx(fr.params[key] ** 1.5 / 5 ** 0.5, rel=0.15)
+    assert fr.unreached == {} and fr.params[key] == pytest.approx(250, rel=0.15)
+
+
+def test_fit_finds_an_arc_jerk_limit_and_the_acceleration_limit_from_small_and_large_circles(tmp_path):
+    # circles of 0.5 mm and of 3 mm at F3000, on a machine whose arcs are held at v²/r = 500 mm/s²
+    # and v³/r² = 8 m/s³ (they cross at J²/a³ = 0.51 mm): the small ones run at ∛(J·r²), 12.6
+    # mm/s, the large at √(a·r), 38.7 mm/s; asked for both (fit=acceleration+jerk), the fit finds both.  Not asked, the jerk
+    # stays none (the effect's default fits the acceleration alone)
+    from mtwin.effects import parse_effect_spec
+
+    p = tmp_path / "circles.nc"
+    p.write_text("G21 G90 G17 G94\nG0 X0.5 Y0 Z5\nG1 Z-1 F300\n" + "G3 X0.5 Y0 I-0.5 J0 F3000\n" * 6
+                 + "G1 X3\n" + "G3 X3 Y0 I-3 J0\n" * 3 + "G0 Z5\nM30\n")
+    truth = mtwin.Twin().with_effects("arc-acceleration:acceleration=500,jerk=8000")
+    prog = truth.load(str(p))
+    case = T.timing_case(mtwin.Twin(), prog, _log_of(truth, prog))
+    fr = T.fit_timing(mtwin.Twin(), [case], [parse_effect_spec("arc-acceleration:fit=acceleration+jerk")])
+    assert fr.params["effects.arc-acceleration.acceleration"] == pytest.approx(500, rel=0.1)
+    assert fr.params["effects.arc-acceleration.jerk"] == pytest.approx(8000, rel=0.1)
+    # (a 4.75-s program logged every ~0.17 s: each limit within 4-7 %, the cycle within 1.3 %,
+    # where the default twin's arcs, at the axes' share, run it 27 % short)
+    assert abs(fr.after["cases"][0]["cycle_error"]) < 0.02 < 0.2 < abs(fr.before["cases"][0]["cycle_error"])
+    fr = T.fit_timing(mtwin.Twin(), [case], [get("arc-acceleration")()])
+    assert "effects.arc-acceleration.jerk" not in fr.params
 
 
 def test_the_walk_down_an_unreached_limit_by_its_branches():
@@ -306,7 +324,7 @@ def test_the_hurco_stands_at_a_straight_feed_lines_end_before_a_rapid_and_the_pr
     # follows run ~70 ms short of the log on the profile without its wait, beyond four standard
     # errors, while those a feed line follows run alike — and so do the profile's, with the wait
     # it fitted to the block times of whole kinds and windows (which want less than these ends
-    # alone: they are still short, by about half)
+    # alone: they are still short, by less than half)
     from mtwin.loop.asrun import feed_line_ends
     from mtwin.loop.measurement import read_measurement
 
@@ -324,7 +342,7 @@ def test_the_hurco_stands_at_a_straight_feed_lines_end_before_a_rapid_and_the_pr
     _, after_feed, se = ends["profile"][("line", "feed")]
     assert abs(after_feed) < 3 * se, ends["profile"]
     _, with_wait, se = ends["profile"][("line", "rapid")]
-    assert before_rapid + 2 * se < with_wait < 0, ends["profile"]
+    assert before_rapid / 2 < with_wait < 0, ends["profile"]
 
 
 @need_hurco

@@ -100,9 +100,12 @@ class ArcAcceleration(Effect):
                     "binds on small radii first), 0 = the twin file's (controller.arc_jerk; none unless set)",
                     ceiling=True))
     signals = ("feed",)
-    # both limits are ceilings: on arcs of one radius only the one that binds is fitted, and the
-    # other is set at the least value the logs allow (it takes radii on both sides of where they
-    # cross, J²/a³ — ~1 mm on the Hurco — to find both)
+    # the jerk limit is fitted where asked (fit=acceleration+jerk): it takes arcs on both sides of
+    # the radius where the two limits cross (J²/a³) run at them to tell the two apart, and where
+    # only small ones do, the v²/r limit is left to the least value the logs allow — on the NIST
+    # Hurco, a fold without plate 13 set it anywhere from 356 to 481 mm/s² and predicted plate
+    # 13's cycle 0.5-1.3 % long (CHANGELOG): not in its profile
+    fitted = ("acceleration",)
 
     def machine(self, m, p):
         m = _controller_set(m, "arc_jerk", p.get("jerk", 0.0))

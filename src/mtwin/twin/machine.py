@@ -74,16 +74,16 @@ class Controller:
                                   "[S: separate rapid and cutting acc/dec, Fanuc parameters 1620/1622]", "nonneg")
     arc_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs (v^2/r), in place of the "
                                 "axes' share (sqrt(0.75) of their acceleration) and set apart from it as Fanuc's "
-                                "parameter 1735 is, 0 = the axes' share [E: ~490 mm/s^2 on a Hurco VMX24, whose circles of "
-                                "0.35-0.42 mm radius arc_jerk holds lower]", "nonneg")
+                                "parameter 1735 is, 0 = the axes' share [E: circles of 0.35-6.5 mm radius on a Hurco "
+                                "VMX24 run at ~370-400 mm/s^2]", "nonneg")
     # a control that limits each axis' jerk holds a circle's speed where v³/r² (the jerk of the
     # axes' sinusoids) reaches it, a bound that bites on small radii first: the NIST Hurco's
-    # 0.35-0.42-mm helices run at 11-12 m/s³ (354-366 mm/s²), its 6.5-mm corners at ~500 mm/s²
+    # 0.35-0.42-mm helices run at 10-12 m/s³ (354-366 mm/s²), its 6.5-mm corners at ~500 mm/s²
     # and 4-5 m/s³ (docs/validation.md)
     arc_jerk: float = P(0.0, "mm/s^3", "normal-jerk limit on feed arcs: v^3/r^2, the amplitude of each axis' jerk "
                         "on a circle, 0 = none [S: the path speed held where a contour's curvature gives the axes "
                         "more jerk than their limit: Heidenhain MP_axPathJerk, ISG kernel P-CHAN-00110] "
-                        "[E: ~12 m/s^3 on a Hurco VMX24]",
+                        "[E: 10-12 m/s^3 on a Hurco VMX24's 0.35-0.42-mm helices; not in its profile: docs/effects.md]",
                         "nonneg", hi=1e9)
     # a centre rounded to 0.0001 in leaves the end point off by one such increment (2.54 um): the
     # Hurco VMX24's logs show these arcs run slower than true circles, while arcs off by up to
@@ -96,8 +96,8 @@ class Controller:
     # NIST Hurco VMX24 does so at a lower normal acceleration than the same circle drawn true
     spiral_acceleration: float = P(0.0, "mm/s^2", "normal-acceleration limit on feed arcs whose end radius differs "
                                    "from their start radius by more than spiral_min (a spiral: a rounded centre), 0 = as "
-                                   "circles [E: ~340 mm/s^2 on a Hurco VMX24 (with spiral_jerk), whose true circles of the "
-                                   "same radii run at ~360 (arc_jerk)]", "nonneg")
+                                   "circles [E: a Hurco VMX24 runs them at ~350-370 mm/s^2 (with spiral_jerk), true "
+                                   "circles at ~400]", "nonneg")
     # below that limit the same spirals still run 3-4 % under F where true circles reach it: on
     # the NIST plate 12's 0.35-0.42 mm helices at F508, 4.8-5.6 ms more per half circle
     spiral_block_time: float = P(0.0, "s", "time the control spends on each spiral block beyond what its path takes "
