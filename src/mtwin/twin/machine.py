@@ -79,7 +79,7 @@ class Controller:
     # a control that limits each axis' jerk holds a circle's speed where v³/r² (the jerk of the
     # axes' sinusoids) reaches it, a bound that bites on small radii first: the NIST Hurco's
     # 0.35-0.42-mm helices run at 10-12 m/s³ (354-366 mm/s²), its 6.5-mm corners at ~500 mm/s²
-    # and 4-5 m/s³ (docs/validation.md)
+    # and 4-5 m/s³ (docs/effects.md: why its profile does not use it)
     arc_jerk: float = P(0.0, "mm/s^3", "normal-jerk limit on feed arcs: v^3/r^2, the amplitude of each axis' jerk "
                         "on a circle, 0 = none [S: the path speed held where a contour's curvature gives the axes "
                         "more jerk than their limit: Heidenhain MP_axPathJerk, ISG kernel P-CHAN-00110] "
