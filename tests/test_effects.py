@@ -356,7 +356,7 @@ def test_arc_acceleration_is_the_arcs_own_limit_set_apart_from_the_axes():
 def test_arc_jerk_holds_small_circles_to_the_cube_root_of_j_r2():
     # a jerk limit on arcs: each axis runs a sinusoid on a circle, whose jerk is v³/r², so the
     # speed is held at ∛(J·r²) where that is below √(a·r): on small radii first.  At a = 500 mm/s²
-    # and J = 12 m/s³ the two cross at r = J²/a³ = 1.15 mm: the NIST plates' 0.35-mm helices
+    # and J = 12 m/s³ the two cross at r = a³/J² = 0.87 mm: the NIST plates' 0.35-mm helices
     # are held by the jerk (11.4 mm/s, not 13.2), their 6.5-mm corners by the acceleration.
     import math
 

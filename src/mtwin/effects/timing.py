@@ -94,14 +94,15 @@ class ArcAcceleration(Effect):
                    "share of it (small arcs run at it), and may hold small circles lower still by a jerk limit "
                    "v³/r²")
     stage = "plan"
-    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0, "normal-acceleration limit on arcs, 0 = none",
+    params = (Param("acceleration", "mm/s^2", 0.0, 0.0, 100000.0,
+                    "normal-acceleration limit on arcs, 0 = the twin file's (controller.arc_acceleration)",
                     ceiling=True),
               Param("jerk", "mm/s^3", 0.0, 0.0, 1e6, "normal-jerk limit on arcs (v³/r², each axis' jerk on a circle: "
                     "binds on small radii first), 0 = the twin file's (controller.arc_jerk; none unless set)",
                     ceiling=True))
     signals = ("feed",)
     # the jerk limit is fitted where asked (fit=acceleration+jerk): it takes arcs on both sides of
-    # the radius where the two limits cross (J²/a³) run at them to tell the two apart, and where
+    # the radius where the two limits cross (a³/J²) run at them to tell the two apart, and where
     # only small ones do, the v²/r limit is left to the least value the logs allow — on the NIST
     # Hurco, a fold without plate 13 set it anywhere from 356 to 481 mm/s² and predicted plate
     # 13's cycle 0.5-1.3 % long (CHANGELOG): not in its profile
