@@ -164,11 +164,17 @@ def test_fit_finds_an_arc_jerk_limit_and_the_acceleration_limit_from_small_and_l
 
 def test_the_walk_down_an_unreached_limit_by_its_branches():
     # a synthetic cost: ten residuals of 1 wherever the limit does not bind (x >= 500), rising
-    # as it binds below — from a search left at 4,000 the least value the data allow is 500;
+    # as it binds below — the least value the data allow is where the cost has risen by one
+    # variance per degree of freedom (10/9): 10 (1 + d/50)² = 10 + 10/9 at d = 2.70, 497.30,
+    # wherever the search left it (from 4,000 the walk's grid holds 500 and 450, from 3,000 it
+    # holds 546.75 and 492.08: the least value within the bound on the grid was 500 or 546.75);
     # flat everywhere: nothing bounds it; a dip at 300 below the flat part: a better fit there
     x = np.array([4000.0])
     binds = lambda y: np.full(10, 1.0 + max(0.0, 500.0 - y[0]) / 50.0)
-    assert T._least_unreached(binds, x, 0, 0.0, 1) == ("least", 500.0)
+    crossing = 500.0 - 50.0 * (np.sqrt(1.0 + 1.0 / 9.0) - 1.0)
+    for left in (4000.0, 3000.0, 5300.0, 510.0):
+        how, v = T._least_unreached(binds, np.array([left]), 0, 0.0, 1)
+        assert how == "least" and v == pytest.approx(crossing, rel=5e-4), left
     how, v = T._least_unreached(lambda y: np.ones(10), x, 0, 0.0, 1)
     assert how == "unbounded" and np.isnan(v)
     dip = lambda y: np.full(10, 1.0 + min(abs(y[0] - 300.0), 200.0) / 100.0)

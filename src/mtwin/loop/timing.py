@@ -410,6 +410,7 @@ def fit_timing(twin, cases, effects, base_params=(), passes: int = 2, scan: bool
 UNREACHED_HALVINGS = 20  # an unreached limit is halved at most this often to find where it binds
 UNREACHED_STEP = 0.9  # then walked down: each value this much below the last
 UNREACHED_STEPS = 40
+UNREACHED_BISECTIONS = 8  # then the crossing of its one-standard-deviation bound: to 0.05 % of the value
 
 
 def _ceilings(effects) -> set:
@@ -429,7 +430,7 @@ def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
     UNREACHED_STEP until the cost (noise-scaled squared residuals) rises clearly above the
     least seen (by four times its variance per degree of freedom: two standard deviations of a
     one-parameter profile); the least value whose cost is within one variance of that (one
-    standard deviation).  Set there, the twin promises no speed the logs have not shown: a limit
+    standard deviation), the crossing bisected between the walk's two values either side of it.  Set there, the twin promises no speed the logs have not shown: a limit
     fitted to programs that never reach it would keep wherever the search left it, and predict a
     program that does reach it faster than the machine."""
     def cost(v):
@@ -467,7 +468,22 @@ def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
         return "better", min(seen, key=lambda vc: vc[1])[0]
     # (the residuals changed below the halving's last value: the logs bound it there, whether or
     # not the walk saw the cost rise clearly before it stopped)
-    return "least", min(v for v, c in seen if c <= least + s2)
+    bound = least + s2
+    k = max(j for j, (v, c) in enumerate(seen) if c <= bound)
+    inside = seen[k][0]
+    if k + 1 < len(seen):
+        # the crossing between the walk's last value within one standard deviation and the next
+        # one down, found by bisection: where the search left the limit, or where the walk's grid
+        # happened to fall, no longer moves the value by up to a step (in a flat cost, by more)
+        outside = seen[k + 1][0]
+        for _ in range(UNREACHED_BISECTIONS):
+            mid = 0.5 * (inside + outside)
+            c = cost(mid)
+            if math.isfinite(c) and c <= bound:
+                inside = mid
+            else:
+                outside = mid
+    return "least", inside
 
 
 def fit_timing_steps(twin, cases, steps, base_params=()) -> TimingFit:
