@@ -610,6 +610,25 @@ def test_without_wait_for_stop_the_moves_after_m5_run_while_the_spindle_brakes()
     assert free.total_time == pytest.approx(tw.plan(prog).total_time - retract, rel=1e-6)
 
 
+@pytest.mark.parametrize("overlap", [False, True])
+def test_the_spindle_runs_up_on_the_block_that_starts_it_not_at_the_m01_or_the_m6_before(overlap):
+    # M5, a retract, M01, T2 M6, then G0 X Y S6000 M3: the trace's spindle is down through the
+    # M01 and the tool change and runs up from the M3 block on (the Hurco logs its Spindle_Speed
+    # at 0 there)
+    text = (b"G21 G90 G17 G94\nT1 M6\nS3000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X40 F900\nG0 Z5\nM5\nG0 Z50\n"
+            b"M01\nT2 M6\nG0 X10 Y10 S6000 M3\nZ5\nG1 Z-1 F300\nG1 X40\nG0 Z5\nM30\n")
+    tw = mtwin.Twin()
+    if overlap:  # (as the Hurco profile: moves run while it brakes, the rapid while it runs up)
+        tw = tw.with_effects("spindle-runup:acceleration=2000,braking=1500").with_params(
+            {"spindle.wait_for_stop": False, "spindle.runup_overlap": True})
+    prog = tw.load(text, path="tc.nc")
+    tr = tw.simulate(prog)
+    line, speed = np.asarray(tr.line), np.asarray(tr.signal("spindle_speed"))
+    assert np.all(speed[np.isin(line, (10, 11))] <= speed[line == 9].max() + 1e-6)  # the M01 and the M6
+    assert speed[line == 11].max() < 1.0  # down through the tool change
+    assert speed[line == 12][0] < 100.0 and speed[line >= 14].min() == pytest.approx(6000.0, rel=1e-3)
+
+
 def test_a_braking_overlapping_motion_waits_at_the_m01_at_once_before_a_restart_and_counts_dwells():
     # 3 s of braking (6,000 rpm at 2,000 rpm/s), moves allowed to run meanwhile
     from mtwin.motion.path import PAUSE

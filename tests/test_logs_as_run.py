@@ -405,6 +405,26 @@ def test_values_calibrated_from_a_log_without_overrides_are_labelled_effective(s
     assert any("not logged" in n and "effective" in n for n in entry["notes"])
 
 
+def test_a_twin_file_calibrated_from_the_default_machine_runs_its_own_program(setup, tmp_path):
+    # the program goes to Y 300, beyond the default machine's 250: a warning, never a hard
+    # limit of a twin file that gives no travel (calibrate's output: effects and a journal) —
+    # the loop commands tell it as simulate does
+    d, tw, prog = setup
+    (d / "plain3.txt").write_text(_log(tw, prog))
+    r = _cli("calibrate", str(d / "PART.NC"), str(d / "plain3.txt"), "--fit", "block-time", "-o",
+             str(tmp_path / "t.toml"))
+    assert r.returncode == 0, r.stderr
+    assert "travel limit 250 mm of axis Y" in r.stderr and "warning" in r.stderr
+    assert "[axes" not in (tmp_path / "t.toml").read_text()
+    r = _cli("compare", str(d / "PART.NC"), str(d / "plain3.txt"), "--twin", str(tmp_path / "t.toml"))
+    assert r.returncode == 0, r.stderr
+    assert "travel limit 250 mm of axis Y" in r.stderr
+    # a file that gives the travel makes it the machine's: hard
+    (tmp_path / "m.toml").write_text("[axes.y]\nmin_travel = -250.0\nmax_travel = 250.0\n")
+    r = _cli("compare", str(d / "PART.NC"), str(d / "plain3.txt"), "--twin", str(tmp_path / "m.toml"))
+    assert r.returncode == 2 and "PART.NC:10:1:" in r.stderr and "axes.y.max_travel" in r.stderr
+
+
 def _events(text: str) -> list:
     """The log's lines as (seconds since BASE, rest)."""
     out = []
@@ -467,6 +487,41 @@ def test_a_restart_in_the_middle_counts_no_time_twice(setup, tmp_path):
     assert r.returncode == 0, r.stderr
     c = json.loads(r.stdout)["cycle_time"]
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+
+
+def test_a_run_cut_by_a_restart_with_no_stop_logged_ends_where_the_block_number_went_back(setup, tmp_path):
+    # a logger that records no stop: the run goes to line 7 or so, then the block number is back
+    # at 0 and the program loaded again, then ACTIVE — what came before that ACTIVE is the new
+    # run's preamble: the cut run got to where it was before the block number went back, and the
+    # complete run compares as the log of it alone does
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 6.0]
+    t_go = head[-1][0] + 5.0
+    again = [(t + t_go + 2.0, r) for t, r in ev]
+    pre = [(t_go, "Program_Name_Running|PART.NC"), (t_go + 0.5, "Block_Number|0")]
+    text = "\n".join(f"{_ts(t)}|{r}" for t, r in head + pre + again) + "\n"
+    (d / "cut.txt").write_text(text)
+    (d / "alone.txt").write_text(_log(tw, prog))
+    m = read_measurement(str(d / "cut.txt"))
+    assert [r.complete for r in m.runs] == [False, True] and m.meta["run"] == "2"
+    reached = max(int(r.split("|")[1]) for t, r in head if r.startswith("Block_Number|"))
+    assert reached > 5 and m.runs[0].reached == reached  # (not the 0 the new run began with)
+    assert "started again from the program's start" in m.runs[0].ended
+    alone = read_measurement(str(d / "alone.txt"))
+    assert m.end_time == pytest.approx(alone.end_time, abs=1e-6)
+    assert np.array_equal(m.line, alone.line) and np.allclose(m.t, alone.t)
+    # the loop commands list the runs and take --run
+    r = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--json")
+    assert r.returncode == 0, r.stderr
+    assert "run 1: PART.NC, incomplete (stopped at line" in r.stderr and "the run compared" in r.stderr
+    r1 = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "1")
+    assert r1.returncode == 2 and "incomplete" in r1.stderr and "--partial" in r1.stderr
+    r1 = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "1", "--partial", "--json")
+    assert r1.returncode == 0, r1.stderr
+    assert json.loads(r1.stdout)["cycle_time"]["measured"] < json.loads(r.stdout)["cycle_time"]["measured"]
+    r3 = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "3")
+    assert r3.returncode == 2 and "--run 3: the log has 2 run(s)" in r3.stderr
 
 
 def _sampled_log(tw, prog, every: float = 0.2, feed_override: float | None = None) -> str:

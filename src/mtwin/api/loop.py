@@ -39,12 +39,18 @@ class Reading:
     ignore_items: tuple = ()
     any_program: bool = False
     partial: bool = False
+    run: Optional[int] = None  # which program run of an MTConnect log (1, 2, …; None: the last complete one)
 
 
 def measured_program(program, measurement, reading: Reading, messages: Messages):
     """(the program as the measurement says it ran — a control's logged overrides applied, cut
     at the last line reached with ``partial`` — and the measurement as read)."""
-    meas = read_measurement(measurement, reading.maps, reading.ignore_items)
+    meas = read_measurement(measurement, reading.maps, reading.ignore_items, reading.run)
+    if meas.runs and len(meas.runs) > 1:  # (a log of several runs: which one this is, and the others)
+        for k, r in enumerate(meas.runs, 1):
+            chosen = str(k) == meas.meta.get("run")
+            messages.note(f"{measurement}: run {k}: {r.describe()}"
+                          + (" — the run compared" if chosen else ""))
     check_against_program(meas, program, reading.any_program)
     run = as_run(program, meas, reading.partial)
     for n in run.notes:
@@ -56,6 +62,14 @@ def _inputs(twin, program, measurement, reading, msgs):
     tw = open_twin(twin)
     prog, meas = measured_program(load_part(tw, program, msgs), measurement, reading or Reading(), msgs)
     return tw, prog, meas
+
+
+def _plan_warnings(tw, prog, msgs) -> None:
+    """What the machine's plan says of the program (speeds clamped to the spindle's, a move
+    beyond the default machine's travel), told as simulate tells it: a fit to a run the twin
+    cannot reproduce is no surprise then."""
+    for w in tw.plan(prog).warnings:
+        msgs.warn(w)
 
 
 # ------------------------------------------------------------------------------ synthesize
@@ -153,6 +167,8 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     # the cut loads the drives too: simulate it whenever the program cuts, whatever is measured
     trace = simulate_measured(tw, prog, meas, stock=stock, cutting=not prog.turning_line(),
                               tooth_resolution=tooth_resolution)
+    for w in trace.summary.warnings:  # (what simulate says of the program on this machine: clamped speeds …)
+        msgs.warn(w)
     res = run_compare(trace, meas, align, xcorr_signal, program=prog)
     for n in res.notes:
         msgs.note(n)
@@ -264,6 +280,7 @@ def diagnose(twin=None, program=None, measurement=None, *, signals=None, candida
     if objective_for(objective, meas) == "chatter":
         return _chatter_diagnosis(tw, prog, measurement, meas, stock, msgs)
     if objective_for(objective, meas) == "timing":
+        _plan_warnings(tw, prog, msgs)
         case = timing_case(tw, prog, meas, str(measurement))
         _case_notes(case, msgs)
         t = diagnose_timing(tw, [case], list(candidates) if candidates else None)
@@ -428,10 +445,12 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     pairs = [(program, measurement)] + [tuple(p) for p in more]
     sig = list(signals) if signals else None
     if how == "timing":
+        _plan_warnings(tw, prog, msgs)
         cases = [timing_case(tw, prog, meas, os.path.basename(str(measurement)))]
         _case_notes(cases[0], msgs)
         for p_i, m_i in pairs[1:]:
             prog_i, meas_i = measured_program(load_part(tw, p_i, msgs), m_i, reading, msgs)
+            _plan_warnings(tw, prog_i, msgs)
             cases.append(timing_case(tw, prog_i, meas_i, os.path.basename(str(m_i))))
             _case_notes(cases[-1], msgs)
         res = fit_timing(tw, cases, new, tuple(params))

@@ -33,7 +33,7 @@ def import_mtconnect(
     log: str = typer.Argument(..., help="SHDR log (timestamp|item|value) or MTConnectStreams XML."),
     output: str = typer.Option(..., "-o", "--output", help="Measurement file (.csv; '-' for stdout)."),
     run: Optional[int] = typer.Option(None, "--run", help="Which program run of the log (1, 2, …; default: the "
-                                                           "first complete one)."),
+                                                           "last complete one)."),
     block_is: str = typer.Option("line", "--block-is", help="What Block_Number counts: line (the file's line, "
                                                              "default) | n (the N word; needs --program)."),
     program: Optional[str] = typer.Option(None, "--program", help="The program the log ran (for --block-is n)."),

@@ -114,10 +114,10 @@ LOOP = twin_options(effects=True, stock=True, ledger=True)  # synth, compare, di
 
 # ---------------------------------------------------------------------- the measurement options
 
-def _reading(maps, ignore_item, any_program, partial):
+def _reading(maps, ignore_item, any_program, partial, run):
     from ..api import Reading
 
-    return Reading(tuple(maps or ()), tuple(ignore_item or ()), any_program, partial)
+    return Reading(tuple(maps or ()), tuple(ignore_item or ()), any_program, partial, run)
 
 
 READING = Group({
@@ -130,6 +130,9 @@ READING = Group({
                                                             "item is an error).")),
     "partial": (bool, typer.Option(False, "--partial", help="A log whose run did not finish: compare the part that "
                                                              "ran (up to the last line reached) instead of refusing it.")),
+    "run": (Optional[int], typer.Option(None, "--run", metavar="K",
+                                        help="Which program run of an MTConnect log (1, 2, …; default: the last "
+                                             "complete one; the runs are listed on stderr).")),
 }, _reading)
 
 

@@ -176,16 +176,20 @@ def check_against_program(meas: Measurement, program, any_program: bool = False)
                                where)
 
 
-def read_measurement(path: str, maps=(), ignore_items=()) -> Measurement:
+def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None) -> Measurement:
     """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there), or
-    an MTConnect log (``ignore_items``: its data items to read past)."""
+    an MTConnect log (``ignore_items``: its data items to read past; ``run``: which program run
+    of it, 1, 2, …, the last complete one by default)."""
     mapping = parse_maps(maps)
     name = str(path)
     if not name.endswith(".parquet") and name != "-":
         from .mtconnect import is_mtconnect, read_mtconnect
 
         if is_mtconnect(name):  # an MTConnect log (SHDR or agent XML): read directly
-            return read_mtconnect(name, ignore_items=ignore_items)
+            return read_mtconnect(name, run=run, ignore_items=ignore_items)
+    if run is not None:
+        raise MeasurementError(f"--run {run}: only an MTConnect log holds several program runs; {name} is a "
+                               f"measurement file of one", SourceLocation(name, 0, 0))
     if name.endswith(".parquet"):
         header, rows, meta, first_row = _read_parquet(name)
     else:

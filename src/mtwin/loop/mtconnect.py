@@ -275,7 +275,7 @@ def runs(events: list) -> list:
                 paused = None
                 continue
             if start is not None:  # ACTIVE again without an end: the earlier run was cut
-                out.append(Run(name, start, k, False, holds, stops))
+                out.append(_cut_run(events, name, start, k, holds, stops))
             start, holds, stops = k, [], []
         elif start is not None and (v == "FEED_HOLD" or v in _STOP):
             # (the pause began at the first of them; a stop after a feed hold makes it a stop)
@@ -300,6 +300,34 @@ def runs(events: list) -> list:
     return out
 
 
+def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: list) -> Run:
+    """The run from ``start`` that the control started again at ``k`` (ACTIVE) with no end state
+    logged between.  What the log reported for the new run before its ACTIVE — the block number
+    back at the program's start, the program loaded — belongs to the new run, not to how far the
+    cut one got."""
+    blocks = [(j, b) for j in range(start, k) if events[j].item == "block" and (b := _block(events[j])) is not None]
+    nxt = next((b for j in range(k, min(k + 200, len(events))) if events[j].item == "block"
+                and (b := _block(events[j])) is not None), None)
+    end = k
+    if blocks and nxt is not None:
+        low = max(nxt, blocks[0][1]) + RESTART_SLACK
+        tail = len(blocks)
+        while tail > 0 and blocks[tail - 1][1] <= low:
+            tail -= 1
+        if 0 < tail < len(blocks):  # it went back to the start before the new ACTIVE
+            end = blocks[tail][0]
+            while end > blocks[tail - 1][0] + 1 and events[end - 1].item in ("program", "program_editing"):
+                end -= 1  # (the program loaded again: the new run's)
+    t0 = events[start].t
+    last = [b for j, b in blocks if j < end]
+    if end < k:
+        ended = (f"stopped at line {last[-1]} at {events[end - 1].t - t0:.0f} s and started again from the program's "
+                 f"start {events[k].t - events[end - 1].t:.0f} s later (no stop or end state logged)")
+    else:
+        ended = f"cut at {events[k - 1].t - t0:.0f} s: the control started a run again with no end state logged"
+    return Run(name, start, end, False, holds, stops, reached=last[-1] if last else -1, ended=ended)
+
+
 # a run that resumes after a stop at a block number within this many of its first one — or
 # within this share of where it stopped — started again from the program's start
 RESTART_SLACK = 2
@@ -322,7 +350,7 @@ def _restarts(events: list, r: Run) -> list:
     the first pass through the repeated lines is set to be skipped (``skip``) and taken out of
     the timing with the stop (state RESTART), so no time is counted twice."""
     blocks = [(k, b) for k in range(r.start, r.end) if events[k].item == "block" and (b := _block(events[k])) is not None]
-    if blocks:
+    if blocks and r.reached < 0:
         r.reached = blocks[-1][1]
     if not r.stops or len(blocks) < 2:
         return [r]

@@ -28,6 +28,22 @@ CATEGORY_NAMES = ("rapid", "cutting", "dwell", "tool_change", "spindle_wait")
 # How a segment may end
 END_CONTINUE, END_STOP = 0, 1
 
+def spindle_records(seg: np.ndarray) -> np.ndarray:
+    """The record whose spindle command is in force during each segment (-1: none yet, the
+    spindle stopped).  A segment's own record's, except for pauses that stand before their
+    record's block has started the spindle: during a tool change (the block after the M6
+    carries the new S and M3) the record before's; during a wait for the spindle to stop
+    (``since``: 1 + the record the braking began at) the braking record's, 0 rpm.  So the
+    run-up starts with the block that asks for it, not at the M01 or the M6 before it."""
+    r = seg["rec"].astype(np.int64).copy()
+    pause = seg["kind"] == PAUSE
+    tool = pause & (seg["cat"] == CAT_TOOL)
+    r[tool] -= 1
+    since = pause & (seg["cat"] == CAT_SPINDLE) & (seg["since"] > 0)
+    r[since] = seg["since"][since] - 1
+    return r
+
+
 SEG_DTYPE = np.dtype(
     [
         ("kind", np.int8),
@@ -175,7 +191,16 @@ def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str, warnings:
         recs = [np.arange(len(rec)), np.arange(len(rec)), arcs, arcs]
     else:
         recs = [np.arange(len(rec)), np.arange(len(rec))]
-    for p, r in zip(pts, recs):
+    # the first move that goes beyond: its end point or arc, where the start of the move after it
+    # is found first in the table (the end points before the start points at the same record)
+    first = []
+    for order, (p, r) in enumerate(zip(pts, recs)):
+        badrow = ((p < lo - 1e-9) | (p > hi + 1e-9)).any(axis=1)
+        if badrow.any():
+            j = int(np.argmax(badrow))
+            first.append((int(r[j]) - (order == 0), order == 0, order))
+    for _, _, order in sorted(first)[:1]:
+        p, r = pts[order], recs[order]
         below = p < lo - 1e-9
         above = p > hi + 1e-9
         badrow = (below | above).any(axis=1)
@@ -193,5 +218,6 @@ def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str, warnings:
             from ..errors import warning_text
 
             warnings.append(warning_text(path, line, msg + " of the default machine; simulated anyway (give "
-                                         "--twin with your machine's travel to make it an error)"))
+                                         "your machine's travel, [axes.x] min_travel and max_travel …, in a twin "
+                                         "file, --twin, to make it an error)"))
             return

@@ -10,7 +10,7 @@ from ..errors import GCodeError, MtwinError, SourceLocation, warning_text
 from ..layout import (C_MRR, C_POWER, L_FIRST_MOVE, L_LAST_MOVE, L_SEG, L_STATUS, LOOP_PUSHED, LOOP_RUNNING,
                       LOOP_UNSETTLED, N_PROF, N_Q, N_SUMS)
 from . import _runkernel as RK
-from .path import CAT_CUT, CAT_RAPID, PAUSE
+from .path import CAT_CUT, CAT_RAPID, PAUSE, spindle_records
 from .linetime import line_times
 from .trace import AXES, CuttingSummary, Summary, Trace
 
@@ -104,9 +104,12 @@ def _cutting_args(m, cut, program, plan, stock, enabled: bool, tooth: bool = Fal
     spin_cmd = np.zeros(nseg)
     hand = np.ones(nseg)
     if len(seg):
-        r = rec[seg["rec"]]
-        speed = r["spindle"] if program.spindle_scale is None else r["spindle"] * program.spindle_scale[seg["rec"]]
-        spin_cmd[:] = r["spindle_dir"] * np.minimum(speed, m.spindle.max_speed)
+        k = spindle_records(seg)
+        on = k >= 0
+        k = np.maximum(k, 0)
+        r = rec[k]
+        speed = r["spindle"] if program.spindle_scale is None else r["spindle"] * program.spindle_scale[k]
+        spin_cmd[:] = np.where(on, r["spindle_dir"] * np.minimum(speed, m.spindle.max_speed), 0.0)
         hand[:] = np.where(r["spindle_dir"] < 0, -1.0, 1.0)
     curve = np.array([m.spindle.rated_power, m.spindle.base_speed])
     if not enabled or not len(seg):

@@ -251,7 +251,8 @@ class Machine:
     timing: Timing = field(default_factory=Timing)
     cost: Cost = field(default_factory=Cost)
     # The embedded default machine is nobody's machine: a move beyond its travel is a warning.
-    # A twin file describes a real machine, whose limits are hard, as on its control.
+    # A twin file that names its machine or gives its travel describes a real machine, whose
+    # limits are hard, as on its control.
     hard_travel_limits: bool = False
 
     @property
@@ -316,7 +317,12 @@ def machine_from_dict(raw: dict, where: str = "twin file") -> Machine:
         if name not in AXES:
             raise ConfigError(f"{where}: unknown axis axes.{name} (x, y, z)")
         changes[name] = _parse_into(getattr(m, name), body, f"axes.{name}", where)
-    m = replace(m, hard_travel_limits=True, **changes)
+    # a file that names its machine or gives travel describes a real one: hard limits; one of
+    # effects, offsets and a journal alone (calibrate's output from the default machine) runs
+    # on the default's travel, still nobody's
+    hard = "name" in changes or any(isinstance(b, dict) and ({"min_travel", "max_travel"} & set(b))
+                                    for b in axes.values())
+    m = replace(m, hard_travel_limits=hard, **changes)
     if "name" not in changes:
         # a file that names no machine is described by its own values, never by the default's
         m = replace(m, name=f"{os.path.basename(str(where))}: {m.describe()}")
