@@ -425,6 +425,23 @@ def test_a_twin_file_calibrated_from_the_default_machine_runs_its_own_program(se
     assert r.returncode == 2 and "PART.NC:10:1:" in r.stderr and "axes.y.max_travel" in r.stderr
 
 
+def test_a_log_copied_while_written_ends_in_a_record_cut_short_which_is_left_out(setup, tmp_path):
+    d, tw, prog = setup
+    text = _log(tw, prog)
+    cut = text[:text.index("Block_Number|12")] + "Block_Nu"  # (no newline after it)
+    (d / "copied.txt").write_text(cut)
+    r = _cli("compare", str(d / "PART.NC"), str(d / "copied.txt"))
+    assert r.returncode == 2 and "incomplete" in r.stderr and "--partial" in r.stderr
+    r = _cli("compare", str(d / "PART.NC"), str(d / "copied.txt"), "--partial", "--json")
+    assert r.returncode == 0, r.stderr
+    assert "the last, is not a whole record" in r.stderr and "left out" in r.stderr
+    # the same record cut short in the middle of a log is an error with its place
+    (d / "broken.txt").write_text(cut + "\n" + text[text.index("Block_Number|12"):])
+    r = _cli("compare", str(d / "PART.NC"), str(d / "broken.txt"), "--partial")
+    n = cut.count("\n") + 1
+    assert r.returncode == 2 and f"broken.txt:{n}:" in r.stderr and "unknown data item 'Block_Nu'" in r.stderr
+
+
 def _events(text: str) -> list:
     """The log's lines as (seconds since BASE, rest)."""
     out = []

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import SourceLocation
+from ..errors import MtwinError, SourceLocation
 from ..gcode import records as R
 from .blocks import HELD
 from .measurement import MeasurementError
@@ -235,6 +235,11 @@ def programmed_lines(program, trace, sig: str) -> dict:
         tf = np.asarray(trace.signal("feed"))
     else:
         col, kinds = "spindle", rec["spindle"] > 0
+        tl = np.asarray(trace.line)
+        try:
+            ts = np.abs(np.asarray(trace.signal("spindle_speed")))
+        except MtwinError:  # (a trace without the cutting model: no spindle to hold it to)
+            ts = None
     by_line: dict = {}
     for ln in np.unique(rec["line"][kinds]):
         vals = np.unique(np.round(rec[col][kinds & (rec["line"] == ln)], 6))
@@ -248,6 +253,10 @@ def programmed_lines(program, trace, sig: str) -> dict:
             reach = tf[tl == ln]
             if not len(reach) or reach.max() < 0.98 * prog_v:
                 continue  # the twin does not reach F there (a short block): no steady feed to hold
+        elif ts is not None:
+            held = ts[tl == ln]
+            if not len(held) or held.min() < 0.98 * held.max():
+                continue  # the spindle runs up (or brakes) in this line: no steady speed to hold
         by_line[int(ln)] = prog_v
     return by_line
 

@@ -170,39 +170,63 @@ def read_shdr(path: str, ignore=()) -> list:
         raise MeasurementError(f"cannot read {path}: {exc.strerror or exc}", SourceLocation(path, 0, 0)) from None
     out: list = []
     lines = text.splitlines()
+    # a log copied while the agent still wrote it ends in a record cut short: no newline after
+    # it, and not a whole record — left out (and said so) rather than refusing the whole log
+    last = len(lines) if lines and not text.endswith(("\n", "\r")) else 0
     for i, raw in enumerate(lines, 1):
         ln = raw.strip().lstrip("\ufeff")
         if not ln:
             continue
-        if "|" not in ln:
-            # a broken record: a value alone on the line after an item logged without one
-            if out and out[-1].value == "" and out[-1].line == i - 1:
-                out[-1].value = ln
-                continue
-            raise MeasurementError(f"not an SHDR record (timestamp|item|value): {ln[:40]!r}", SourceLocation(path, i, 1))
-        parts = ln.split("|")
-        if not _TS.match(parts[0]):
-            raise MeasurementError(f"not an SHDR timestamp: {parts[0][:40]!r}", SourceLocation(path, i, 1))
-        t = _seconds(parts[0], path, i)
-        if out and t < out[-1].t - 1e-6:
-            raise MeasurementError(f"the timestamp {parts[0]} is before the previous record's (line "
-                                   f"{out[-1].line}): the log's records are out of order", SourceLocation(path, i, 1))
-        pairs = parts[1:]
-        if len(pairs) % 2:
-            pairs.append("")
-        col = len(parts[0]) + 2
-        for k in range(0, len(pairs), 2):
-            name = pairs[k].strip()
-            key = name.lower()
-            if key not in _ITEMS and key not in ignore and not _UNUSED.fullmatch(key):
-                raise MeasurementError(f"unknown data item {name!r} (read: {', '.join(sorted(_NAMES))}, and items "
-                                       f"known to be unused such as positions, loads and alarms): --ignore-item "
-                                       f"{name} reads past it", SourceLocation(path, i, col))
-            out.append(Event(t, _ITEMS.get(key, name), pairs[k + 1].strip(), i))
-            col += len(pairs[k]) + len(pairs[k + 1]) + 2
+        if i == last:
+            try:
+                _record(ln, out, path, i, ignore)
+            except MeasurementError as exc:
+                if not out:
+                    raise
+                out = Events(out)
+                out.cut_last = f"line {i}, the last, is not a whole record ({exc.message}): cut short, a log still " \
+                               f"being written when it was copied — left out"
+            continue
+        _record(ln, out, path, i, ignore)
     if not out:
         raise MeasurementError("the log holds no records", SourceLocation(path, 1, 1))
     return out
+
+
+class Events(list):
+    """A log's events, with what reading them left out (``cut_last``: a last record cut short)."""
+
+    cut_last: str = ""
+
+
+def _record(ln: str, out: list, path: str, i: int, ignore: set) -> None:
+    """The events of SHDR line ``i`` (``ln``, stripped), appended to ``out``."""
+    if "|" not in ln:
+        # a broken record: a value alone on the line after an item logged without one
+        if out and out[-1].value == "" and out[-1].line == i - 1:
+            out[-1].value = ln
+            return
+        raise MeasurementError(f"not an SHDR record (timestamp|item|value): {ln[:40]!r}", SourceLocation(path, i, 1))
+    parts = ln.split("|")
+    if not _TS.match(parts[0]):
+        raise MeasurementError(f"not an SHDR timestamp: {parts[0][:40]!r}", SourceLocation(path, i, 1))
+    t = _seconds(parts[0], path, i)
+    if out and t < out[-1].t - 1e-6:
+        raise MeasurementError(f"the timestamp {parts[0]} is before the previous record's (line "
+                               f"{out[-1].line}): the log's records are out of order", SourceLocation(path, i, 1))
+    pairs = parts[1:]
+    if len(pairs) % 2:
+        pairs.append("")
+    col = len(parts[0]) + 2
+    for k in range(0, len(pairs), 2):
+        name = pairs[k].strip()
+        key = name.lower()
+        if key not in _ITEMS and key not in ignore and not _UNUSED.fullmatch(key):
+            raise MeasurementError(f"unknown data item {name!r} (read: {', '.join(sorted(_NAMES))}, and items "
+                                   f"known to be unused such as positions, loads and alarms): --ignore-item "
+                                   f"{name} reads past it", SourceLocation(path, i, col))
+        out.append(Event(t, _ITEMS.get(key, name), pairs[k + 1].strip(), i))
+        col += len(pairs[k]) + len(pairs[k + 1]) + 2
 
 
 def read_streams(path: str) -> list:
@@ -464,6 +488,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     others = [f"run {k}: {r.describe()}" for k, r in enumerate(all_runs, 1) if r is not chosen and not r.complete]
     if others:
         meta["other_runs"] = "; ".join(others)
+    if getattr(events, "cut_last", ""):
+        meta["cut_last"] = events.cut_last
     if chosen.holds:
         meta["feed_holds_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.holds)
     if chosen.stops:
