@@ -442,6 +442,21 @@ def test_a_log_copied_while_written_ends_in_a_record_cut_short_which_is_left_out
     assert r.returncode == 2 and f"broken.txt:{n}:" in r.stderr and "unknown data item 'Block_Nu'" in r.stderr
 
 
+def test_the_compare_report_of_a_log_holds_its_block_timing_and_units(setup, tmp_path):
+    # what compare prints of a control's log — the error by block kind, the worst blocks with
+    # their G-code, the notes — is in the report too, the signals with their units
+    d, tw, prog = setup
+    (d / "rep.txt").write_text(_sampled_log(tw, prog))
+    out = tmp_path / "c.html"
+    r = _cli("compare", str(d / "PART.NC"), str(d / "rep.txt"), "--report", str(out))
+    assert r.returncode == 0, r.stderr
+    page = out.read_text()
+    assert "<h2>Block timing</h2>" in page and "<td>rapid</td>" in page and "Worst blocks" in page
+    assert "G0 X400 Y300" in page  # (a worst block's own line)
+    assert "<td>feed</td><td>mm/min</td>" in page and "[mm/min]" in page  # the table's unit, the plot's axis
+    assert "override not logged" in page  # the notes
+
+
 def _events(text: str) -> list:
     """The log's lines as (seconds since BASE, rest)."""
     out = []
@@ -620,8 +635,8 @@ def test_a_limit_the_log_never_shows_is_said_so_and_left_at_its_start(setup, tmp
     out = tmp_path / "t.toml"
     r = _cli("calibrate", str(d / "PART.NC"), str(d / "noarcs.txt"), "--fit", "arc-acceleration", "-o", str(out))
     assert r.returncode == 0, r.stderr
-    assert "effects.arc-acceleration.acceleration = 2500 (not identifiable from the signals fitted: left at its " \
-           "start)" in " ".join(r.stderr.split())
+    assert "effects.arc-acceleration.acceleration = 2500 mm/s^2 (not identifiable from the signals fitted: left at " \
+           "its start)" in " ".join(r.stderr.split())
     (entry,) = mtwin.loop.journal.read_journal(str(out))
     assert entry["not_identifiable"] == ["effects.arc-acceleration.acceleration"]
 

@@ -137,3 +137,15 @@ def convert(value, unit: str, key: str) -> float:
 #: The units of every JSON output, whatever the program's (an inch program's F10 is 254 mm/min).
 SI_UNITS = {"length": "mm", "time": "s", "feed": "mm/min", "spindle": "rpm", "force": "N", "power": "W",
             "torque": "N·m", "energy": "J"}
+
+
+def figure(x, signed: bool = False) -> str:
+    """A figure to four significant digits, never in exponent form between 1e4 and 1e12
+    (14,820 mm/min, not 1.482e+04); '-' for None."""
+    if x is None:
+        return "-"
+    x = float(x)
+    sign = "+" if signed else ""
+    if 1e4 <= abs(x) < 1e12:
+        return format(x, f"{sign},.0f")
+    return format(x, f"{sign}.4g")

@@ -2,6 +2,8 @@
 ``calibrate``, ``journal``."""
 from __future__ import annotations
 
+import math
+
 from typing import Optional
 
 import typer
@@ -10,7 +12,7 @@ from ..errors import MtwinError
 from .app import app, err, reports_errors
 from .argtypes import check_outputs, check_report, names, write_output
 from .options import ALIGN, JSON, LOOP, MEASURED_PART, OBJECTIVE, PART, READING, SIGNALS, groups
-from .render import emit_json, message, say
+from .render import emit_json, message, num, say, warn
 
 def _loop_command(short_help: str):
     """A command against a measurement: registered, its errors reported, and the twin and
@@ -112,8 +114,10 @@ def compare(
     c = run_compare(setup, part, measurement, align=align, xcorr_signal=xcorr_signal,
                     tooth_resolution=tooth_resolution, reading=reading, stock=setup.stock_box(), on_message=message)
     if report:
+        b = c.result.blocks
         write_output(compare_html(c.result, c.program.path, measurement, read_journal(setup.twin) if setup.twin
-                                  else None), report, [part, measurement])
+                                  else None, blocks=b.as_dict(c.program.text_lines) if b is not None and len(b.measured)
+                                  else None, notes=[text for _, text in c.messages]), report, [part, measurement])
         err.print(f"wrote {report}", soft_wrap=True)
     if json_out:
         emit_json(c.as_dict())
@@ -142,15 +146,15 @@ def _print_comparison(c, measurement: str) -> None:
     t.columns[0].no_wrap = True
     fmt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
     for s, m in res.signals.items():
-        t.add_row(s, signal_unit(s), fmt(m["rms"], ".4g"), fmt(m["nrmse"], ".2%"), fmt(m["max_error"], ".4g"),
-                  fmt(m["bias"], "+.4g"), fmt(m["correlation"], ".3f"), f"{m['samples']:,}")
+        t.add_row(s, signal_unit(s), num(m["rms"]), fmt(m["nrmse"], ".2%"), num(m["max_error"]),
+                  num(m["bias"], signed=True), fmt(m["correlation"], ".3f"), f"{m['samples']:,}")
     err.print(t)
     if res.worst_regions:
         w = table("signal", "unit", "lines", "RMS", "share", "samples",
                   title="where it fails (share of each signal's squared error)")
         for r in res.worst_regions:
             lines = str(r["first_line"]) if r["first_line"] == r["last_line"] else f"{r['first_line']}–{r['last_line']}"
-            w.add_row(r["signal"], signal_unit(r["signal"]), lines, f"{r['rms']:.4g}", f"{r['share']:.1%}",
+            w.add_row(r["signal"], signal_unit(r["signal"]), lines, num(r["rms"]), f"{r['share']:.1%}",
                       f"{r['samples']:,}")
         err.print(w)
 
@@ -219,9 +223,11 @@ def diagnose(
     elif d.objective == "timing":
         t = d.timing
         c0 = t["before"]["cases"][0]
+        verdict = {"fits": "fits: at the noise", "explained": "explained by the effect(s) below",
+                   "unexplained": "unexplained: no effect tried removes it"}.get(t["verdict"], t["verdict"])
         err.print(f"[bold]block timing[/bold]: cycle time {c0['cycle_error']:+.2%}; per-group RMS {t['rms']:.3g} s "
-                  f"(noise {t['noise']:.2g}); over {t['before']['windows']} windows: RMS {t['window_rms']:.3g} s "
-                  f"(noise {t['window_noise']:.2g}) — {t['verdict']}", soft_wrap=True)
+                  f"(noise {t['noise']:.2g} s); over {t['before']['windows']} windows: RMS {t['window_rms']:.3g} s "
+                  f"(noise {t['window_noise']:.2g} s) — {verdict}", soft_wrap=True)
         for c in t["candidates"]:
             err.print(f"  {c['evidence']}", soft_wrap=True)
     elif d.objective == "chatter":
@@ -302,16 +308,41 @@ def calibrate(
         _print_calibration(cal, output)
 
 
+def _param_unit(name: str) -> str:
+    """The unit of a fitted parameter by its dotted name ('' where it has none or is not known)."""
+    from ..errors import ConfigError
+    from ..params import is_effect_param, split_effect_param
+
+    try:
+        if is_effect_param(name):
+            from ..effects import get
+
+            effect, param = split_effect_param(name)
+            return next((d.unit for d in get(effect).params if d.name == param), "")
+        from ..twin.machine import param_unit
+
+        return param_unit(name)
+    except (ConfigError, KeyError, ValueError):
+        return ""
+
+
 def _print_calibration(cal, output: str) -> None:
+    from ..loop.measurement import signal_unit
+
     res = cal.result
     blind = getattr(res, "not_identifiable", [])
     unreached = getattr(res, "unreached", {})
     for k, v in res.params.items():
         u = res.uncertainty.get(k)
+        unit = _param_unit(k)
+        unit = f" {unit}" if unit and unit not in ("1", "int", "bool", "str") else ""
         read = k in getattr(res, "rapid_rates", {})
-        err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None else "")
+        err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None and math.isfinite(u) else "") + unit
                   + (" (read off the logged rapids)" if read else "")
                   + (" (not identifiable from the signals fitted: left at its start)" if k in blind else "")
+                  + (" (no standard deviation: the logs hardly bound it — a value where the search stopped, "
+                     "not a measured one)" if (u is None or not math.isfinite(u)) and k not in blind
+                     and k not in unreached and not read else "")
                   + (f" (no logged block reaches this limit: any value from {v:.4g} up fits the logs as well, "
                      f"the search had left it at {unreached[k]['fitted']:.4g}; set at the least, so that the twin "
                      f"promises no speed the logs have not shown)" if k in unreached else ""),
@@ -321,13 +352,20 @@ def _print_calibration(cal, output: str) -> None:
                   f"back from its parsed form: its comments are not kept, but its opening comment block is)",
                   soft_wrap=True)
     for s_ in res.rms_before:
-        err.print(f"{s_}: RMS {res.rms_before[s_]:.4g} → {res.rms_after[s_]:.4g} (noise {res.noise[s_]:.4g})",
-                  soft_wrap=True)
+        unit = " s" if s_ == "window_time" else (f" {signal_unit(s_)}" if signal_unit(s_) else "")
+        err.print(f"{s_}: RMS {res.rms_before[s_]:.4g}{unit} → {res.rms_after[s_]:.4g}{unit} (noise "
+                  f"{res.noise[s_]:.4g}{unit})", soft_wrap=True, markup=False)
     if cal.objective == "timing":
         for b_, a_ in zip(res.before["cases"], res.after["cases"]):
             err.print(f"{a_['measurement']}: cycle time {b_['cycle_error']:+.2%} → {a_['cycle_error']:+.2%} "
                       f"(measured {a_['cycle_measured']:.1f} s, simulated {a_['cycle_simulated']:.1f} s); "
-                      f"windows RMS {b_['window_rms']:.3g} → {a_['window_rms']:.3g} s", soft_wrap=True)
+                      f"windows RMS {b_['window_rms']:.3g} → {a_['window_rms']:.3g} s; per-group RMS "
+                      f"{b_['rms']:.3g} → {a_['rms']:.3g} s", soft_wrap=True)
+            if a_["rms"] > 1.2 * b_["rms"]:
+                warn(f"{a_['measurement']}: the per-group RMS rose by {a_['rms'] / b_['rms'] - 1:.0%}: the fit holds "
+                     f"~10-s windows of blocks and the sums by block kind, and here trades single block groups for "
+                     f"them — the effect times the right total on other lines than the machine's (mtwin compare "
+                     f"--twin {output} lists the worst blocks)")
     v = cal.validation
     if v:
         err.print(f"validation on {v['measurement']}: " + ", ".join(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from ..units import figure as num  # noqa: F401  (the commands' one number format)
 from .app import err
 
 

@@ -473,6 +473,21 @@ def _path(name: str) -> list[str]:
     return parts
 
 
+def param_unit(name: str) -> str:
+    """The unit of a machine parameter by its dotted name (``axes.x.max_acceleration``: mm/s^2;
+    '' for a dimensionless one); a ConfigError for a name the machine does not have."""
+    obj = Machine()
+    parts = _path(name)
+    for part in parts[:-1]:
+        if not hasattr(obj, part) or not dataclasses.is_dataclass(getattr(obj, part)):
+            raise ConfigError(f"unknown machine parameter {name!r}")
+        obj = getattr(obj, part)
+    known = {f.name: f for f in fields(obj)}
+    if parts[-1] not in known:
+        raise ConfigError(f"unknown machine parameter {name!r}")
+    return known[parts[-1]].metadata.get("unit", "")
+
+
 def with_params(m: Machine, values: dict) -> Machine:
     """A copy of ``m`` with parameters set by dotted name, validated like the twin file."""
     for name, value in values.items():
