@@ -182,10 +182,10 @@ def _print_blocks(b: dict) -> None:
               f"{b.get('report_period') or 0:.2f} s would show them (a short line is reported late by about half "
               "its length, a long one by half the interval), less what logs of the twin's own run show by kind "
               "(how the groups are cut depends on where the samples fall)"
-              + ("; logged F / programmed F: the log's steady path feed over F in the blocks where the twin reaches "
-                 "F, and in brackets the same of logs of the twin's own run sampled alike (samples in a short "
-                 "block fall on its acceleration: a ratio below 1 that the twin's own logs show too is the "
-                 "sampling's, not the machine's)" if ratio else ""))
+              + ("; logged F / programmed F: the log's path feed over F in the blocks where the twin runs at F "
+                 "for most of the block (80 % of its time: not short blocks or plunges, whose samples fall on "
+                 "the ramps), and in brackets the same of logs of the twin's own run sampled alike (what the "
+                 "sampling alone makes of it)" if ratio else ""))
     w = Table(title="worst blocks", title_justify="left")
     for col in ("lines", "kind", "measured s", "simulated s", "error s", "G-code"):
         w.add_column(col, justify="right" if col.endswith(" s") else "left")

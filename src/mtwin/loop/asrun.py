@@ -217,14 +217,16 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
 
 #: a logged/programmed ratio this far from 1, over this many samples, with this little spread,
 #: is reported: an unlogged override, or another version of the program
+HOLDS_F = 0.8  # a line's logged feed is held against F where the twin runs at F this share of its time
 RATIO_OFF = 0.03
 RATIO_SAMPLES = 20
 RATIO_SPREAD = 0.10
 
 
 def programmed_lines(program, trace, sig: str) -> dict:
-    """Line -> its one programmed value of ``sig`` ("feed": F, only where the twin's run reaches
-    it; "spindle_speed": S): the lines whose logged samples :func:`logged_against_programmed`
+    """Line -> its one programmed value of ``sig`` ("feed": F, only where the twin's run holds it
+    for most of the line, HOLDS_F of its time; "spindle_speed": S, where the twin's spindle is
+    steady through the line): the lines whose logged samples :func:`logged_against_programmed`
     holds against the program.  Of the program and the twin's run alone, not of a log."""
     rec = program.records
     if sig == "feed":
@@ -251,8 +253,10 @@ def programmed_lines(program, trace, sig: str) -> dict:
             continue  # a canned cycle, or a line that rapids too: the logged feed is not F's
         if sig == "feed":
             reach = tf[tl == ln]
-            if not len(reach) or reach.max() < 0.98 * prog_v:
-                continue  # the twin does not reach F there (a short block): no steady feed to hold
+            if not len(reach) or np.mean(reach >= 0.98 * prog_v) < HOLDS_F:
+                # the twin does not hold F over most of the line (a short block, a plunge that
+                # accelerates and stops again): a log's samples there fall on the ramps
+                continue
         elif ts is not None:
             held = ts[tl == ln]
             if not len(held) or held.min() < 0.98 * held.max():
@@ -263,7 +267,7 @@ def programmed_lines(program, trace, sig: str) -> dict:
 
 def logged_against_programmed(program, meas, trace, kind_of: dict | None = None, lines: dict | None = None) -> dict:
     """The log's own feed (and spindle speed) against the program's: per sample in a feed move
-    whose programmed F the twin reaches in that block, the logged path feed over F; for the
+    whose programmed F the twin holds for most of that block, the logged path feed over F; for the
     spindle, the logged speed over S.  Returns {signal: {ratio, samples, blocks, spread,
     by_kind, suspect}} for the signals the log has (``program``: as run, its logged overrides
     applied — a logged override leaves a ratio of 1).  ``kind_of``: line -> block kind

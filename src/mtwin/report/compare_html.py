@@ -125,9 +125,9 @@ def _blocks_html(b: dict) -> str:
            f"after it), RMS {b['rms']:.3f} s per group against a noise floor of about "
            f"{b['noise_floor_per_group']:.2f} s.  <i>As logged</i>: the simulated groups as a log sampling every "
            f"{b.get('report_period') or 0:.2f} s would show them, less what logs of the twin's own run show by kind."
-           + (" <i>Logged F / programmed F</i>: the log's steady path feed over F where the twin reaches F; in "
-              "brackets the same of logs of the twin's own run sampled alike (a ratio below 1 they show too is the "
-              "sampling's, not the machine's)." if ratio else "")
+           + (" <i>Logged F / programmed F</i>: the log's path feed over F in the blocks where the twin runs at F "
+              "for most of the block (80 % of its time); in brackets the same of logs of the twin's own run sampled "
+              "alike (what the sampling alone makes of it)." if ratio else "")
            + "</p><table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>" + "".join(rows)
            + "</table>")
     if b.get("worst"):
