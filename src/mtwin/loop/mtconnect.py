@@ -346,7 +346,7 @@ def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: li
     last = [b for j, b in blocks if j < end]
     if end < k:
         ended = (f"stopped at line {last[-1]} at {events[end - 1].t - t0:.0f} s and started again from the program's "
-                 f"start {events[k].t - events[end - 1].t:.0f} s later (no stop or end state logged)")
+                 f"start {events[k].t - events[end - 1].t:.0f} s later; no stop or end state logged")
     else:
         ended = f"cut at {events[k - 1].t - t0:.0f} s: the control started a run again with no end state logged"
     return Run(name, start, end, False, holds, stops, reached=last[-1] if last else -1, ended=ended)
