@@ -172,6 +172,29 @@ def test_block_timing_of_a_sampled_trace_of_the_twin_itself():
     assert {"tool change", "plunge"} <= kinds
 
 
+def test_the_measured_groups_are_the_logs_whatever_the_twin_reaches_at_its_end():
+    # a log that reports the M30 line (the control stands there) against a twin whose run ends
+    # on the last move: the last move's group is timed to the twin's end and the M30's group is
+    # kept at 0 s simulated — not dropped, so the measured side (the groups, their kinds and
+    # times) does not depend on the twin compared
+    import mtwin
+    from mtwin.loop.blocks import block_timing
+
+    tw = mtwin.Twin()
+    prog = tw.load(b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X40 F900\nG0 Z5\nG0 X100\nM30\n", path="e.nc")
+    tr = tw.simulate(prog, cutting=False)
+    t, line = np.asarray(tr.t), np.asarray(tr.line)
+    assert line.max() == 6  # (the twin spends no time on the M30)
+    pick = np.searchsorted(t, np.arange(0.0, t[-1], 0.2))
+    end = float(t[-1]) + 0.7
+    mt, ml = np.r_[t[pick], t[-1] + 0.1], np.r_[line[pick], 7]
+    b = block_timing(prog, mt, ml, t, line, end)
+    assert list(b.first_line[-2:]) == [6, 7] and b.kind[-1] == "program end"
+    assert b.simulated[-1] == 0.0 and b.measured[-1] == pytest.approx(0.6)
+    t6 = float(t[np.argmax(line == 6)])
+    assert b.simulated[-2] == pytest.approx(float(t[-1]) - t6)
+
+
 @pytest.mark.skipif(not HURCO.is_dir(), reason=f"{HURCO} not present (the development workspace's real logs)")
 def test_per_block_timing_on_plate_13_shows_where_the_default_twin_is_wrong():
     import mtwin

@@ -35,6 +35,7 @@ from .loop import (
                    journal,
                    measured_program,
                    objective_for,
+                   param_unit,
                    synthesize,
 )
 from .program import Parsed, parse
@@ -45,4 +46,4 @@ from .verify import PathProof, prove_path, prove_stock
 __all__ = ["Calibration", "Comparison", "Diagnosis", "Messages", "Parsed", "PathProof", "Reading", "SI_UNITS", "Scaled",
            "Simulation", "Synthetic", "TwinSetup", "calibrate", "compare", "diagnose", "load_part", "measured_program",
            "objective_for", "open_twin", "parse", "prove_path", "prove_stock", "scale", "simulate", "simulate_runs",
-           "synthesize", "import_log", "journal", "tools", "tool", "signal_unit"]
+           "synthesize", "import_log", "journal", "tools", "tool", "signal_unit", "param_unit"]

@@ -546,6 +546,23 @@ def import_log(log: str, *, run: Optional[int] = None, block_is: str = "line", p
     return read_mtconnect(log, run, block_is, data, tuple(ignore_items or ()))
 
 
+def param_unit(name: str) -> str:
+    """The unit of a fitted parameter by its dotted name (an effect's, ``effects.NAME.PARAM``, or
+    the machine's, ``axes.x.max_acceleration``); '' where it has none or the name is not known."""
+    from ..effects import get
+    from ..errors import ConfigError
+    from ..params import is_effect_param, split_effect_param
+    from ..twin.machine import param_unit as machine_unit
+
+    try:
+        if is_effect_param(name):
+            effect, param = split_effect_param(name)
+            return next((d.unit for d in get(effect).params if d.name == param), "")
+        return machine_unit(name)
+    except (ConfigError, KeyError, ValueError):
+        return ""
+
+
 def journal(twin_file: str) -> list:
     """``mtwin journal``: each calibration a twin file records (effects fitted, values, the RMS
     error before and after), oldest first; empty when it has none."""

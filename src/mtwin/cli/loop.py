@@ -308,33 +308,15 @@ def calibrate(
         _print_calibration(cal, output)
 
 
-def _param_unit(name: str) -> str:
-    """The unit of a fitted parameter by its dotted name ('' where it has none or is not known)."""
-    from ..errors import ConfigError
-    from ..params import is_effect_param, split_effect_param
-
-    try:
-        if is_effect_param(name):
-            from ..effects import get
-
-            effect, param = split_effect_param(name)
-            return next((d.unit for d in get(effect).params if d.name == param), "")
-        from ..twin.machine import param_unit
-
-        return param_unit(name)
-    except (ConfigError, KeyError, ValueError):
-        return ""
-
-
 def _print_calibration(cal, output: str) -> None:
-    from ..loop.measurement import signal_unit
+    from ..api import param_unit, signal_unit
 
     res = cal.result
     blind = getattr(res, "not_identifiable", [])
     unreached = getattr(res, "unreached", {})
     for k, v in res.params.items():
         u = res.uncertainty.get(k)
-        unit = _param_unit(k)
+        unit = param_unit(k)
         unit = f" {unit}" if unit and unit not in ("1", "int", "bool", "str") else ""
         read = k in getattr(res, "rapid_rates", {})
         err.print(f"{k} = {v:.6g}" + (f" ± {u:.2g}" if u is not None and math.isfinite(u) else "") + unit

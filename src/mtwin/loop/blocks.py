@@ -416,12 +416,15 @@ def simulated_starts(sim_t: np.ndarray, sim_line: np.ndarray):
 
 def simulated_durations(groups: Groups, lines: np.ndarray, starts: np.ndarray, sim_end: float) -> np.ndarray:
     """Each group's simulated duration: from the time the interpolator reached its first line
-    (or the first line after it that it reaches) to the time it reached the next group's;
-    NaN where it never gets there."""
+    (or the first line after it that it reaches) to the time it reached the next group's; a
+    line after the last one the simulation reaches is reached at its end (the twin spends no
+    time on it: an M30 the control stands at, a park move another twin runs).  So the groups
+    kept, and the measured side, are the log's whatever the twin; NaN only without a simulation."""
     def at(ln):
         k = np.searchsorted(lines, ln)
         ok = k < len(lines)
-        return np.where(ok, starts[np.minimum(k, len(lines) - 1)] if len(lines) else np.nan, np.nan)
+        return np.where(ok, starts[np.minimum(k, len(lines) - 1)] if len(lines) else np.nan,
+                        sim_end if len(lines) else np.nan)
 
     s0 = at(groups.first_line)
     s1 = np.where(groups.next_line > 0, at(groups.next_line), sim_end)
