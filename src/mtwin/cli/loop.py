@@ -200,7 +200,8 @@ def _print_blocks(b: dict) -> None:
 @_loop_command("Which physical effect is missing from the twin.")
 def diagnose(
     part: str = MEASURED_PART,
-    measurement: str = typer.Argument(..., help="Measurement file."),
+    measurement: str = typer.Argument(..., help="Measurement file (measurement format: CSV or .parquet), an "
+                                                "MTConnect log (SHDR or agent XML), or a spectrum (freq, amplitude)."),
     signals: Optional[str] = SIGNALS,
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Comma-separated effects to try (default: all "
                                              "not yet in the twin)."),
@@ -269,7 +270,8 @@ def _print_diagnosis(signals: dict) -> None:
 @_loop_command("Fit effects to a measurement; write the twin file.")
 def calibrate(
     part: str = MEASURED_PART,
-    measurement: str = typer.Argument(..., help="Measurement file, or an MTConnect log."),
+    measurement: str = typer.Argument(..., help="Measurement file (measurement format: CSV or .parquet), or an "
+                                                "MTConnect log (SHDR or agent XML)."),
     more: Optional[list[str]] = typer.Argument(None, metavar="[PART MEASUREMENT]...",
                                                help="More programs with their measurements: a timing fit over all "
                                                     "of them."),

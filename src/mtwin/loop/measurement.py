@@ -315,7 +315,8 @@ def _read_csv(path: str):
     except OSError as exc:
         raise MtwinError(f"cannot read {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
-        raise MtwinError(f"{path}: not UTF-8 text (a measurement is a CSV file)") from None
+        raise MtwinError(f"{path}: not UTF-8 text (a measurement is a CSV file of the measurement format, or "
+                         f"a control's MTConnect log: SHDR timestamp|item|value lines or agent XML)") from None
     lines = text.splitlines()
     meta = {}
     k = 0
@@ -325,7 +326,8 @@ def _read_csv(path: str):
             meta[m.group(1).strip()] = m.group(2).strip()
         k += 1
     if k >= len(lines):
-        raise MeasurementError("the file is empty (no header row)", SourceLocation(path, max(k, 1), 1))
+        raise MeasurementError("the file is empty: neither a measurement (no header row) nor an MTConnect log (no "
+                               "timestamp|item|value record)", SourceLocation(path, max(k, 1), 1))
     reader = csv.reader(io.StringIO("\n".join(lines[k:])))
     try:
         header = next(reader)
