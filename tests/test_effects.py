@@ -629,6 +629,17 @@ def test_the_spindle_runs_up_on_the_block_that_starts_it_not_at_the_m01_or_the_m
     assert speed[line == 12][0] < 100.0 and speed[line >= 14].min() == pytest.approx(6000.0, rel=1e-3)
 
 
+def test_the_spindle_stays_down_when_the_tool_is_put_away_after_the_last_move():
+    # M5, a retract, then T0 M6 after the last move: that tool change stands after its record's
+    # motion and keeps its command (0), not the record before's S6000
+    tw = mtwin.Twin()
+    prog = tw.load(b"G21 G90 G94\nT1 M6\nS6000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X20 F900\nG0 Z20\nM5\nG0 Z50\n"
+                   b"T0 M6\nM30\n", path="end.nc")
+    tr = tw.simulate(prog)
+    line, speed = np.asarray(tr.line), np.asarray(tr.signal("spindle_speed"))
+    assert (line == 10).any() and speed[line == 10].max() < 1.0
+
+
 def test_a_braking_overlapping_motion_waits_at_the_m01_at_once_before_a_restart_and_counts_dwells():
     # 3 s of braking (6,000 rpm at 2,000 rpm/s), moves allowed to run meanwhile
     from mtwin.motion.path import PAUSE

@@ -344,8 +344,11 @@ def test_ctrl_c_stops_the_batch_keeps_the_finished_jobs_and_says_which_did_not_r
     progs = [SAMPLES / f for f in ("contour.nc", "pocket.nc", "finish_wall.nc", "wear_passes.nc")]
     m = _manifest(tmp_path, progs, TWINS)
     out = tmp_path / "out"
+    # (Ctrl-C's default restored in the child: a suite run in the background, `pytest &`, hands
+    # its children SIGINT ignored, and Python then installs no KeyboardInterrupt for it)
     batch = subprocess.Popen([sys.executable, "-m", "mtwin", "batch", "optimize", "--manifest", str(m), "-o", str(out),
-                              "--workers", "0", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                              "--workers", "0", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t0 = time.time()
     while not list(out.glob("*/result.json")) and time.time() - t0 < 120:
         time.sleep(0.05)

@@ -554,6 +554,12 @@ def test_a_run_cut_by_a_restart_with_no_stop_logged_ends_where_the_block_number_
     assert json.loads(r1.stdout)["cycle_time"]["measured"] < json.loads(r.stdout)["cycle_time"]["measured"]
     r3 = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "3")
     assert r3.returncode == 2 and "--run 3: the log has 2 run(s)" in r3.stderr
+    # calibrate: --run names a run of its first log; a measurement file to validate on has one
+    r = _cli("import", "mtconnect", str(d / "alone.txt"), "-o", str(tmp_path / "alone.csv"))
+    assert r.returncode == 0, r.stderr
+    r = _cli("calibrate", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "2", "--fit", "block-time", "--validate",
+             str(tmp_path / "alone.csv"), "-o", str(tmp_path / "t.toml"))
+    assert r.returncode == 0, r.stderr
 
 
 def _sampled_log(tw, prog, every: float = 0.2, feed_override: float | None = None) -> str:

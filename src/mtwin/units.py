@@ -146,6 +146,6 @@ def figure(x, signed: bool = False) -> str:
         return "-"
     x = float(x)
     sign = "+" if signed else ""
-    if 1e4 <= abs(x) < 1e12:
+    if 9999.5 <= abs(x) < 1e12:
         return format(x, f"{sign},.0f")
     return format(x, f"{sign}.4g")

@@ -4,7 +4,7 @@ written back with a journal entry)."""
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional
 
@@ -46,7 +46,7 @@ def measured_program(program, measurement, reading: Reading, messages: Messages)
     """(the program as the measurement says it ran — a control's logged overrides applied, cut
     at the last line reached with ``partial`` — and the measurement as read)."""
     meas = read_measurement(measurement, reading.maps, reading.ignore_items, reading.run)
-    if meas.meta.get("cut_last"):
+    if meas.meta.get("cut_last") and meas.meta.get("source", "").startswith("MTConnect"):
         messages.note(f"{measurement}: {meas.meta['cut_last']}")
     if meas.runs and len(meas.runs) > 1:  # (a log of several runs: which one this is, and the others)
         for k, r in enumerate(meas.runs, 1):
@@ -450,8 +450,9 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
         _plan_warnings(tw, prog, msgs)
         cases = [timing_case(tw, prog, meas, os.path.basename(str(measurement)))]
         _case_notes(cases[0], msgs)
+        more_reading = replace(reading, run=None)  # (--run names a run of the first log)
         for p_i, m_i in pairs[1:]:
-            prog_i, meas_i = measured_program(load_part(tw, p_i, msgs), m_i, reading, msgs)
+            prog_i, meas_i = measured_program(load_part(tw, p_i, msgs), m_i, more_reading, msgs)
             _plan_warnings(tw, prog_i, msgs)
             cases.append(timing_case(tw, prog_i, meas_i, os.path.basename(str(m_i))))
             _case_notes(cases[-1], msgs)
@@ -470,7 +471,7 @@ def calibrate(twin=None, program=None, measurement=None, *, fit=(), params=(), m
     if validate:
         fitted_base = tw.with_params(base) if base else tw
         tw2 = tw.replace(machine=fitted_base.machine, cutting=fitted_base.cutting, effects=effects, share_cache=False)
-        validation = _validation(tw2, program, validate, how, reading, align, sig, stock, msgs)
+        validation = _validation(tw2, program, validate, how, replace(reading, run=None), align, sig, stock, msgs)
     path = tw.path
     previous = read_journal(path) if path else []
     source = Path(path).read_text(encoding="utf-8") if path else ""

@@ -345,7 +345,7 @@ def _print_calibration(cal, output: str) -> None:
                       f"(measured {a_['cycle_measured']:.1f} s, simulated {a_['cycle_simulated']:.1f} s); "
                       f"windows RMS {b_['window_rms']:.3g} → {a_['window_rms']:.3g} s; per-group RMS "
                       f"{b_['rms']:.3g} → {a_['rms']:.3g} s", soft_wrap=True)
-            if a_["rms"] > 1.2 * b_["rms"]:
+            if b_["rms"] > 0 and a_["rms"] > 1.2 * b_["rms"]:
                 warn(f"{a_['measurement']}: the per-group RMS rose by {a_['rms'] / b_['rms'] - 1:.0%}: the fit holds "
                      f"~10-s windows of blocks and the sums by block kind, and here trades single block groups for "
                      f"them — the effect times the right total on other lines than the machine's (mtwin compare "

@@ -132,7 +132,8 @@ READING = Group({
                                                              "ran (up to the last line reached) instead of refusing it.")),
     "run": (Optional[int], typer.Option(None, "--run", metavar="K",
                                         help="Which program run of an MTConnect log (1, 2, …; default: the last "
-                                             "complete one; the runs are listed on stderr).")),
+                                             "complete one; the runs are listed on stderr). calibrate: of its first "
+                                             "log; the others' last complete runs are taken.")),
 }, _reading)
 
 

@@ -37,7 +37,12 @@ def spindle_records(seg: np.ndarray) -> np.ndarray:
     run-up starts with the block that asks for it, not at the M01 or the M6 before it."""
     r = seg["rec"].astype(np.int64).copy()
     pause = seg["kind"] == PAUSE
-    tool = pause & (seg["cat"] == CAT_TOOL)
+    # (a pause before its record's first motion; the tool put away after the last move stands
+    # after its record's motion, and keeps that record's command)
+    idx = np.arange(len(seg))
+    first_motion = np.full(int(r.max(initial=0)) + 1, len(seg))
+    np.minimum.at(first_motion, r[~pause], idx[~pause])
+    tool = pause & (seg["cat"] == CAT_TOOL) & (idx < first_motion[r])
     r[tool] -= 1
     since = pause & (seg["cat"] == CAT_SPINDLE) & (seg["since"] > 0)
     r[since] = seg["since"][since] - 1

@@ -65,7 +65,7 @@ class Controller:
     feed_rapid_wait: float = P(0.0, "s", "the control stops at the end of a cutting-feed block that a rapid follows "
                                "(pauses between them skipped; a drilling cycle's hole bottom too) and stands this "
                                "long before the rapid starts: its in-position check for cutting feed, as a fixed "
-                               "time, 0 = none [E: 40 ms fitted on a Hurco VMX24, docs/validation.md]", "nonneg",
+                               "time, 0 = none [E: 37 ms fitted on a Hurco VMX24, docs/validation.md]", "nonneg",
                                hi=1.0)
     # Fanuc sets the acc/dec of rapids apart from that of cutting feed (the rapid and the cutting
     # time constants are separate parameters, 1620 and 1622 on a 0i/30i): a control accelerates its
