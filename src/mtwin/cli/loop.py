@@ -164,19 +164,17 @@ def _print_blocks(b: dict) -> None:
 
     t = Table(title=f"per-block timing: {b['groups']:,} logged block groups, RMS {b['rms']:.3f} s "
                     f"(noise floor ≈ {b['noise_floor_per_group']:.2f} s per group)", title_justify="left")
-    ratio = any(k.get("logged_over_programmed_feed") is not None for k in b["by_kind"])
+    from ..report.compare_html import block_kind_table
+
     # "as logged": the simulation's group boundaries moved by the log's own reporting delays,
     # less what the twin's own run shows logged the same way (loop/blocks.py), the fair sum by
     # kind; the raw one keeps the log's bias between kinds
-    cols = ("kind", "groups", "measured s", "simulated s", "simulated − measured s", "as logged s", "RMS s") + \
-        (("logged F / programmed F (twin's log in brackets)",) if ratio else ())
+    cols, rows = block_kind_table(b)
+    ratio = cols[-1].startswith("logged F")
     for col in cols:
         t.add_column(col, justify="left" if col == "kind" else "right")
-    for k in b["by_kind"]:
-        r, r_twin = k.get("logged_over_programmed_feed"), k.get("twin_logged_over_programmed_feed")
-        shown = "-" if r is None else f"{r:.2f}" + (f" ({r_twin:.2f})" if r_twin is not None else "")
-        t.add_row(k["kind"], f"{k['groups']:,}", f"{k['measured']:.1f}", f"{k['simulated']:.1f}", f"{k['error']:+.1f}",
-                  f"{k['error_as_logged']:+.1f}", f"{k['rms']:.3f}", *((shown,) if ratio else ()))
+    for row in rows:
+        t.add_row(*row)
     err.print(t)
     err.print("  as logged: the simulated groups as a log sampling every "
               f"{b.get('report_period') or 0:.2f} s would show them (a short line is reported late by about half "

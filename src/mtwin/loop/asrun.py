@@ -215,9 +215,9 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
     return np.where(span > 1e-9, mean, at)
 
 
+HOLDS_F = 0.8  # a line's logged feed is held against F where the twin runs at F this share of its time
 #: a logged/programmed ratio this far from 1, over this many samples, with this little spread,
 #: is reported: an unlogged override, or another version of the program
-HOLDS_F = 0.8  # a line's logged feed is held against F where the twin runs at F this share of its time
 RATIO_OFF = 0.03
 RATIO_SAMPLES = 20
 RATIO_SPREAD = 0.10
@@ -229,15 +229,14 @@ def programmed_lines(program, trace, sig: str) -> dict:
     steady through the line): the lines whose logged samples :func:`logged_against_programmed`
     holds against the program.  Of the program and the twin's run alone, not of a log."""
     rec = program.records
+    tl = np.asarray(trace.line)
     if sig == "feed":
         col = "feed"
         kinds = ((rec["kind"] == R.LINEAR) | (rec["kind"] == R.ARC_CW) | (rec["kind"] == R.ARC_CCW)) & \
             ((rec["flags"] & R.FL_SYNC) == 0)
-        tl = np.asarray(trace.line)
         tf = np.asarray(trace.signal("feed"))
     else:
         col, kinds = "spindle", rec["spindle"] > 0
-        tl = np.asarray(trace.line)
         try:
             ts = np.abs(np.asarray(trace.signal("spindle_speed")))
         except MtwinError:  # (a trace without the cutting model: no spindle to hold it to)

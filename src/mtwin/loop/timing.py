@@ -430,7 +430,8 @@ def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
     UNREACHED_STEP until the cost (noise-scaled squared residuals) rises clearly above the
     least seen (by four times its variance per degree of freedom: two standard deviations of a
     one-parameter profile); the least value whose cost is within one variance of that (one
-    standard deviation), the crossing bisected between the walk's two values either side of it.  Set there, the twin promises no speed the logs have not shown: a limit
+    standard deviation), the crossing bisected between the walk's two values either side of it.
+    Set there, the twin promises no speed the logs have not shown: a limit
     fitted to programs that never reach it would keep wherever the search left it, and predict a
     program that does reach it faster than the machine."""
     def cost(v):
@@ -469,13 +470,13 @@ def _least_unreached(fun_x, x, i, lo_i, k: int) -> tuple[str, float]:
     # (the residuals changed below the halving's last value: the logs bound it there, whether or
     # not the walk saw the cost rise clearly before it stopped)
     bound = least + s2
-    k = max(j for j, (v, c) in enumerate(seen) if c <= bound)
-    inside = seen[k][0]
-    if k + 1 < len(seen):
+    last_in = max(j for j, (v, c) in enumerate(seen) if c <= bound)
+    inside = seen[last_in][0]
+    if last_in + 1 < len(seen):
         # the crossing between the walk's last value within one standard deviation and the next
         # one down, found by bisection: where the search left the limit, or where the walk's grid
         # happened to fall, no longer moves the value by up to a step (in a flat cost, by more)
-        outside = seen[k + 1][0]
+        outside = seen[last_in + 1][0]
         for _ in range(UNREACHED_BISECTIONS):
             mid = 0.5 * (inside + outside)
             c = cost(mid)

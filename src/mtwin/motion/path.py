@@ -200,29 +200,24 @@ def check_travel(rec: np.ndarray, seg: np.ndarray, machine, path: str, warnings:
     # is found first in the table (the end points before the start points at the same record)
     first = []
     for order, (p, r) in enumerate(zip(pts, recs)):
-        badrow = ((p < lo - 1e-9) | (p > hi + 1e-9)).any(axis=1)
-        if badrow.any():
-            j = int(np.argmax(badrow))
-            first.append((int(r[j]) - (order == 0), order == 0, order))
-    for _, _, order in sorted(first)[:1]:
-        p, r = pts[order], recs[order]
-        below = p < lo - 1e-9
-        above = p > hi + 1e-9
+        below, above = p < lo - 1e-9, p > hi + 1e-9
         badrow = (below | above).any(axis=1)
         if badrow.any():
             j = int(np.argmax(badrow))
-            ax = int(np.argmax(below[j] | above[j]))
-            limit = lo[ax] if below[j, ax] else hi[ax]
-            name = "XYZ"[ax]
-            msg = (f"move reaches {name} = {p[j, ax]:.3f} mm in machine coordinates, beyond the "
-                   f"{'lower' if below[j, ax] else 'upper'} travel limit {limit:g} mm of axis {name} "
-                   f"(axes.{name.lower()}.{'min' if below[j, ax] else 'max'}_travel)")
-            line = int(rec["line"][r[j]])
-            if warnings is None:
-                raise GCodeError(msg, SourceLocation(path, line, 1))
-            from ..errors import warning_text
+            first.append((int(r[j]) - (order == 0), order == 0, p, r, j, below, above))
+    if first:
+        *_, p, r, j, below, above = min(first, key=lambda x: x[:2])
+        ax = int(np.argmax(below[j] | above[j]))
+        limit = lo[ax] if below[j, ax] else hi[ax]
+        name = "XYZ"[ax]
+        msg = (f"move reaches {name} = {p[j, ax]:.3f} mm in machine coordinates, beyond the "
+               f"{'lower' if below[j, ax] else 'upper'} travel limit {limit:g} mm of axis {name} "
+               f"(axes.{name.lower()}.{'min' if below[j, ax] else 'max'}_travel)")
+        line = int(rec["line"][r[j]])
+        if warnings is None:
+            raise GCodeError(msg, SourceLocation(path, line, 1))
+        from ..errors import warning_text
 
-            warnings.append(warning_text(path, line, msg + " of the default machine; simulated anyway (give "
-                                         "your machine's travel, [axes.x] min_travel and max_travel …, in a twin "
-                                         "file, --twin, to make it an error)"))
-            return
+        warnings.append(warning_text(path, line, msg + " of the default machine; simulated anyway (give "
+                                     "your machine's travel, [axes.x] min_travel and max_travel …, in a twin "
+                                     "file, --twin, to make it an error)"))

@@ -108,19 +108,27 @@ def compare_html(comparison, program: str, measurement: str, journal: list | Non
     return doc.encode("utf-8")
 
 
-def _blocks_html(b: dict) -> str:
-    """The block timing against a control's log: the error by block kind and the worst blocks
-    with their G-code (what ``mtwin compare`` prints on stderr)."""
+def block_kind_table(b: dict) -> tuple[list, list]:
+    """(header, rows of cells) of the error by block kind (``BlockTiming.as_dict``): what
+    ``mtwin compare`` prints on stderr and the report shows, the same cells."""
     ratio = any(k.get("logged_over_programmed_feed") is not None for k in b["by_kind"])
     head = ["kind", "groups", "measured s", "simulated s", "simulated − measured s", "as logged s", "RMS s"] + \
-        (["logged F / programmed F (twin's log)"] if ratio else [])
+        (["logged F / programmed F (twin's log in brackets)"] if ratio else [])
     rows = []
     for k in b["by_kind"]:
         r, r_twin = k.get("logged_over_programmed_feed"), k.get("twin_logged_over_programmed_feed")
-        shown = "–" if r is None else f"{r:.2f}" + (f" ({r_twin:.2f})" if r_twin is not None else "")
-        cells = [html.escape(k["kind"]), f"{k['groups']:,}", f"{k['measured']:.1f}", f"{k['simulated']:.1f}",
-                 f"{k['error']:+.1f}", f"{k['error_as_logged']:+.1f}", f"{k['rms']:.3f}"] + ([shown] if ratio else [])
-        rows.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells) + "</tr>")
+        shown = "-" if r is None else f"{r:.2f}" + (f" ({r_twin:.2f})" if r_twin is not None else "")
+        rows.append([k["kind"], f"{k['groups']:,}", f"{k['measured']:.1f}", f"{k['simulated']:.1f}", f"{k['error']:+.1f}",
+                     f"{k['error_as_logged']:+.1f}", f"{k['rms']:.3f}"] + ([shown] if ratio else []))
+    return head, rows
+
+
+def _blocks_html(b: dict) -> str:
+    """The block timing against a control's log: the error by block kind and the worst blocks
+    with their G-code (what ``mtwin compare`` prints on stderr)."""
+    head, cells = block_kind_table(b)
+    ratio = head[-1].startswith("logged F")
+    rows = ["<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in row) + "</tr>" for row in cells]
     out = (f"<h2>Block timing</h2><p>{b['groups']:,} logged block groups (a logged line and the unlogged lines "
            f"after it), RMS {b['rms']:.3f} s per group against a noise floor of about "
            f"{b['noise_floor_per_group']:.2f} s.  <i>As logged</i>: the simulated groups as a log sampling every "

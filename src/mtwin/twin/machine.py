@@ -476,32 +476,29 @@ def _path(name: str) -> list[str]:
 def param_unit(name: str) -> str:
     """The unit of a machine parameter by its dotted name (``axes.x.max_acceleration``: mm/s^2;
     '' for a dimensionless one); a ConfigError for a name the machine does not have."""
-    obj = Machine()
+    return _walk(Machine(), name)[2].metadata.get("unit", "")
+
+
+def _walk(m: Machine, name: str):
+    """(the tables from ``m`` down to the one holding parameter ``name``, the dotted path's
+    parts, the parameter's field); a ConfigError for a name the machine does not have."""
     parts = _path(name)
+    objs = [m]
     for part in parts[:-1]:
-        if not hasattr(obj, part) or not dataclasses.is_dataclass(getattr(obj, part)):
+        if not hasattr(objs[-1], part) or not dataclasses.is_dataclass(getattr(objs[-1], part)):
             raise ConfigError(f"unknown machine parameter {name!r}")
-        obj = getattr(obj, part)
-    known = {f.name: f for f in fields(obj)}
-    if parts[-1] not in known:
+        objs.append(getattr(objs[-1], part))
+    known = {f.name: f for f in fields(objs[-1])}
+    if parts[-1] not in known or dataclasses.is_dataclass(getattr(objs[-1], parts[-1])):
         raise ConfigError(f"unknown machine parameter {name!r}")
-    return known[parts[-1]].metadata.get("unit", "")
+    return objs, parts, known[parts[-1]]
 
 
 def with_params(m: Machine, values: dict) -> Machine:
     """A copy of ``m`` with parameters set by dotted name, validated like the twin file."""
     for name, value in values.items():
-        parts = _path(name)
-        objs = [m]
-        for part in parts[:-1]:
-            if not hasattr(objs[-1], part) or not dataclasses.is_dataclass(getattr(objs[-1], part)):
-                raise ConfigError(f"unknown machine parameter {name!r}")
-            objs.append(getattr(objs[-1], part))
-        leaf = objs[-1]
-        known = {f.name: f for f in fields(leaf)}
-        if parts[-1] not in known or dataclasses.is_dataclass(getattr(leaf, parts[-1])):
-            raise ConfigError(f"unknown machine parameter {name!r}")
-        new = replace(leaf, **{parts[-1]: _check(value, known[parts[-1]].metadata, name)})
+        objs, parts, f = _walk(m, name)
+        new = replace(objs[-1], **{parts[-1]: _check(value, f.metadata, name)})
         for obj, part in zip(reversed(objs[:-1]), reversed(parts[:-1])):
             new = replace(obj, **{part: new})
         m = new
