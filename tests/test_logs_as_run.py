@@ -699,3 +699,19 @@ def _waiting_machine():
     run = tw.with_params({"controller.feed_rapid_wait": 0.06}).simulate(prog, cutting=False)
     grid = Measurement("grid", np.arange(0.0, float(run.t[-1]), 0.19), {}, np.zeros(0, np.int64))
     return tw, prog, run, twin_log(run, grid, seed=99)
+
+
+def test_a_last_record_without_its_line_end_is_read_and_said_so(tmp_path):
+    # a whole record may have lost digits of its value (Block_Number 18 of 1827): read as it
+    # stands, with a note; with its line end, or ending in a word, no note
+    from mtwin.loop.mtconnect import read_shdr
+
+    head = "2017-02-02T18:26:44.0Z|Block_Number|10\n2017-02-02T18:26:45.0Z|Program_Status|ACTIVE\n"
+    p = tmp_path / "a.txt"
+    p.write_text(head + "2017-02-02T18:26:46.0Z|Block_Number|18")
+    ev = read_shdr(str(p))
+    assert ev[-1].value == "18" and "no line end" in ev.cut_last and "18" in ev.cut_last
+    p.write_text(head + "2017-02-02T18:26:46.0Z|Block_Number|18\n")
+    assert getattr(read_shdr(str(p)), "cut_last", "") == ""
+    p.write_text(head + "2017-02-02T18:26:46.0Z|Program_Status|STOPPED")
+    assert getattr(read_shdr(str(p)), "cut_last", "") == ""

@@ -162,7 +162,7 @@ def _print_comparison(c, measurement: str) -> None:
 def _print_blocks(b: dict) -> None:
     from rich.table import Table
 
-    t = Table(title=f"per-block timing: {b['groups']:,} logged block groups, RMS {b['rms']:.3f} s "
+    t = Table(title=f"per-block timing: {b['groups']:,} logged block groups, RMS {b['rms']:.3f} s as logged "
                     f"(noise floor ≈ {b['noise_floor_per_group']:.2f} s per group)", title_justify="left")
     from ..report.compare_html import block_kind_table
 
@@ -185,11 +185,11 @@ def _print_blocks(b: dict) -> None:
                  "the ramps), and in brackets the same of logs of the twin's own run sampled alike (what the "
                  "sampling alone makes of it)" if ratio else ""))
     w = Table(title="worst blocks", title_justify="left")
-    for col in ("lines", "kind", "measured s", "simulated s", "error s", "G-code"):
+    for col in ("lines", "kind", "measured s", "simulated as logged s", "error s", "G-code"):
         w.add_column(col, justify="right" if col.endswith(" s") else "left")
     for x in b["worst"]:
         lines = f"{x['first_line']}" + (f"–{x['last_line']}" if x["last_line"] != x["first_line"] else "")
-        w.add_row(lines, x["kind"], f"{x['measured']:.2f}", f"{x['simulated']:.2f}", f"{x['error']:+.2f}", x["text"][:40])
+        w.add_row(lines, x["kind"], f"{x['measured']:.2f}", f"{x['simulated_as_logged']:.2f}", f"{x['error']:+.2f}", x["text"][:40])
     err.print(w)
 
 

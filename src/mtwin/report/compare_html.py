@@ -130,7 +130,7 @@ def _blocks_html(b: dict) -> str:
     ratio = head[-1].startswith("logged F")
     rows = ["<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in row) + "</tr>" for row in cells]
     out = (f"<h2>Block timing</h2><p>{b['groups']:,} logged block groups (a logged line and the unlogged lines "
-           f"after it), RMS {b['rms']:.3f} s per group against a noise floor of about "
+           f"after it), RMS {b['rms']:.3f} s per group, as logged, against a noise floor of about "
            f"{b['noise_floor_per_group']:.2f} s.  <i>As logged</i>: the simulated groups as a log sampling every "
            f"{b.get('report_period') or 0:.2f} s would show them, less what logs of the twin's own run show by kind."
            + (" <i>Logged F / programmed F</i>: the log's path feed over F in the blocks where the twin runs at F "
@@ -141,9 +141,9 @@ def _blocks_html(b: dict) -> str:
     if b.get("worst"):
         rows = "".join(
             f"<tr><td>{x['first_line']}" + (f"–{x['last_line']}" if x["last_line"] != x["first_line"] else "")
-            + f"</td><td>{html.escape(x['kind'])}</td><td>{x['measured']:.2f}</td><td>{x['simulated']:.2f}</td>"
+            + f"</td><td>{html.escape(x['kind'])}</td><td>{x['measured']:.2f}</td><td>{x['simulated_as_logged']:.2f}</td>"
             f"<td>{x['error']:+.2f}</td><td class='code'>{html.escape(x['text'][:60])}</td></tr>" for x in b["worst"])
-        out += ("<h3>Worst blocks</h3><table><tr><th>lines</th><th>kind</th><th>measured s</th><th>simulated s</th>"
+        out += ("<h3>Worst blocks</h3><table><tr><th>lines</th><th>kind</th><th>measured s</th><th>simulated as logged s</th>"
                 f"<th>simulated − measured s</th><th>G-code</th></tr>{rows}</table>")
     return out
 
