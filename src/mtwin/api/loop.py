@@ -42,10 +42,13 @@ class Reading:
     run: Optional[int] = None  # which program run of an MTConnect log (1, 2, …; None: the last complete one)
 
 
+STOPS_TOLD = 5  # program stops told one by one (single-block mode stops at every line)
+
+
 def measured_program(program, measurement, reading: Reading, messages: Messages):
     """(the program as the measurement says it ran — a control's logged overrides applied, cut
     at the last line reached with ``partial`` — and the measurement as read)."""
-    meas = read_measurement(measurement, reading.maps, reading.ignore_items, reading.run)
+    meas = read_measurement(measurement, reading.maps, reading.ignore_items, reading.run, program)
     if meas.meta.get("cut_last") and meas.meta.get("source", "").startswith("MTConnect"):
         messages.note(f"{measurement}: {meas.meta['cut_last']}")
     if meas.runs and len(meas.runs) > 1:  # (a log of several runs: which one this is, and the others)
@@ -53,6 +56,9 @@ def measured_program(program, measurement, reading: Reading, messages: Messages)
             chosen = str(k) == meas.meta.get("run")
             messages.note(f"{measurement}: run {k}: {r.describe()}"
                           + (" — the run compared" if chosen else ""))
+    if meas.meta.get("restarts"):
+        messages.note(f"{measurement}: restarted in the middle {meas.meta['restarts']} (its first pass through the "
+                      f"lines it ran again is taken out)")
     check_against_program(meas, program, reading.any_program)
     run = as_run(program, meas, reading.partial)
     for n in run.notes:
@@ -197,11 +203,20 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     if blocks is not None:
         if blocks.hold_time > 0:
             msgs.note(f"{blocks.hold_time:.1f} s of feed hold taken out of the measured times")
-        for x in blocks.stops:
+        for x in blocks.stops[:STOPS_TOLD]:
+            if x.get("state") == "RESTART":
+                msgs.note(f"{x['t0']:.1f}–{x['t1']:.1f} s: a restart's first pass through the lines it ran again, "
+                          f"and the stop before it ({x['wait']:.1f} s), taken out of the block timing and the cycle "
+                          f"time: no time is counted twice")
+                continue
             where = (f"line {x['line']} ({x['state']})" if "line" in x else
                      f"{x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']})")
             msgs.note(f"program stop at {where}: waited {x['wait']:.1f} s — the operator's time, taken out of the "
                       f"block timing and the cycle time")
+        if len(blocks.stops) > STOPS_TOLD:
+            rest = blocks.stops[STOPS_TOLD:]
+            msgs.note(f"{len(rest)} more program stops ({sum(x['wait'] for x in rest):.1f} s in all; single block?), "
+                      f"taken out alike")
         for x in blocks.excluded[:5]:
             msgs.note(f"lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} at "
                       f"{x['t0']:.1f}–{x['t1']:.1f} s")
@@ -237,9 +252,12 @@ def _case_notes(case, msgs: Messages) -> None:
     for x in g.stop_groups:
         msgs.note(f"{case.label}: program stop at line {x['line']} ({x['state']}): waited {x['wait']:.1f} s (the "
                   f"operator's time), left out of the fit")
-    for x in g.logged_stops:
-        msgs.note(f"{case.label}: program stop {x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']}), left out of "
-                  f"the fit")
+    for x in g.logged_stops[:STOPS_TOLD]:
+        what = ("a restart's first pass through the lines it ran again, and the stop before it" if x["state"] == "RESTART"
+                else f"program stop (logged {x['state']})")
+        msgs.note(f"{case.label}: {x['t0']:.1f}–{x['t1']:.1f} s, {what}, left out of the fit")
+    if len(g.logged_stops) > STOPS_TOLD:
+        msgs.note(f"{case.label}: {len(g.logged_stops) - STOPS_TOLD} more program stops left out of the fit")
     if g.hold_time > 0:
         msgs.note(f"{case.label}: {g.hold_time:.1f} s of feed hold left out of the fit")
 
@@ -538,13 +556,15 @@ def import_log(log: str, *, run: Optional[int] = None, block_is: str = "line", p
     program runs the log holds).  ``program``: the program the log ran, a path (for
     ``block_is="n"``: the N words the log's block numbers count)."""
     from ..io import read_input
-    from ..loop.mtconnect import read_mtconnect
+    from ..loop.mtconnect import Outline, read_mtconnect
 
     try:
         data = read_input(program, "program") if program else None
     except OSError as exc:
         raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
-    return read_mtconnect(log, run, block_is, data, tuple(ignore_items or ()))
+    # (the program, where given, tells the runs that ran all of it from those that did not)
+    outline = Outline.of(load_part(None, data, need_motion=False)) if data and block_is == "line" else None
+    return read_mtconnect(log, run, block_is, data, tuple(ignore_items or ()), outline)
 
 
 def param_unit(name: str) -> str:

@@ -85,6 +85,9 @@ class Program:
     rapid_scale: np.ndarray | None = None
     # per record, the factor on the spindle speed (a logged spindle override); None: 1
     spindle_scale: np.ndarray | None = None
+    # the records are the rest of a run already under way (a log that starts in the middle of the
+    # program, mtwin.loop.asrun): the first record's tool is in the spindle, at its speed
+    running: bool = False
 
     @property
     def path(self) -> str:

@@ -26,6 +26,7 @@ from ..errors import MtwinError, SourceLocation
 from ..gcode import records as R
 from .blocks import HELD
 from .measurement import MeasurementError
+from .mtconnect import Outline
 
 #: override column -> what it scales
 SCALES = {"feed_override": "feed moves' feed", "rapid_override": "rapids' speed", "spindle_override": "spindle speed"}
@@ -39,7 +40,9 @@ class AsRun:
     measurement: object = None  # the measurement to compare with (cut at the last line reached: --partial)
     applied: dict = field(default_factory=dict)  # override column -> (lowest, highest) % applied
     not_logged: list = field(default_factory=list)  # override columns a control's log did not have
-    partial_to: int = 0  # the last line compared (--partial), 0: the whole program
+    partial_to: int = 0  # the last line compared (--partial), 0: to the program's end
+    partial_from: int = 0  # the first line compared (--partial: a run started in the middle), 0: the start
+    held: list = field(default_factory=list)  # (t0, t1) s an override stood at 0 %: taken out as feed holds
     whole_run: bool = False  # the log names no line: each override's mean over the run applied to all
 
     @property
@@ -51,9 +54,16 @@ class AsRun:
         if self.whole_run and self.applied:
             out.append("the log names no program line: each override's mean over the whole run is applied to every "
                        "block")
+        if self.held:
+            out.append(f"an override at 0 % held the machine for {sum(b - a for a, b in self.held):.1f} s ("
+                       + ", ".join(f"{a:.1f}–{b:.1f} s" for a, b in self.held[:3]) + (", …" if len(self.held) > 3 else "")
+                       + "): taken out of the measured times as a feed hold")
         if self.not_logged:
             out.append(f"{', '.join(k.split('_')[0] for k in self.not_logged)} override not logged: 100 % assumed "
                        f"(values calibrated from this run are effective: they include any override the operator set)")
+        if self.partial_from:
+            out.append(f"--partial: the run started at line {self.partial_from}; the program and the log are compared "
+                       f"from that line on (the lines before it never ran in this run)")
         if self.partial_to:
             out.append(f"--partial: the run stopped at line {self.partial_to}; the program and the log are compared "
                        f"up to the start of that line (cycle times to the moment it was reached)")
@@ -74,6 +84,11 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
     group = record_groups(program.records["line"], g_line) if has_lines else None
     if meas.complete is False:
         last = _last_line(meas)
+        late = int(meas.meta.get("started_at", 0) or 0)
+        if not partial and late:
+            raise MeasurementError(f"the run in the log starts at line {late} of {program.path or 'the program'}, not at "
+                                   f"its start (restarted in the middle, or logged from there) — compare the part "
+                                   f"that ran with --partial", SourceLocation(meas.path, 0, 0))
         if not partial:
             raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
                                    f"{program.path or 'the program'} (a logger that stopped, or the run was aborted) — "
@@ -82,16 +97,21 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
             raise MeasurementError("the run in the log is incomplete and the log names no program line, so where it "
                                    "stopped is not known: --partial cannot cut the program there",
                                    SourceLocation(meas.path, 0, 0))
+        # a run that started in the middle is compared from its first reported line (the
+        # records before it never ran); one that reached the program's end is not cut there
+        head = int(np.argmax(group >= 0)) if late and (group >= 0).any() else 0
+        reached_end = late and last >= Outline.of(program).end_line
         # both sides up to the moment the last line was entered (its last entry, in execution
         # order): how long the control ran it before the log stops is not known; the records
         # kept are all in the groups before it, whose ends (g_t0 of the next) are unchanged
-        t_last = float(g_t0[-1])
-        cut = _cut(program.records["line"], group, len(g_t0) - 1, int(g_line[-1]))
-        if cut == 0 or not (program.records["kind"][:cut] != R.DWELL).any():
+        t_last = float(meas.end_time if meas.end_time is not None else meas.t[-1]) if reached_end else float(g_t0[-1])
+        cut = len(group) if reached_end else _cut(program.records["line"], group, len(g_t0) - 1, int(g_line[-1]))
+        if cut <= head or not (program.records["kind"][head:cut] != R.DWELL).any():
             raise MeasurementError(f"the run in the log stops at line {last}, before the program's first move: there "
                                    f"is nothing to compare", SourceLocation(meas.path, 0, 0))
-        program = replace(program, records=program.records[:cut].copy(), end_tool_change=0)
-        group = group[:cut]
+        program = replace(program, records=program.records[head:cut].copy(), running=head > 0,
+                          end_tool_change=program.end_tool_change if reached_end else 0)
+        group = group[head:cut]
         keep = meas.t <= t_last
         meas = replace(meas, t=meas.t[keep], line=np.where(meas.t[keep] < t_last, meas.line[keep], -1),
                        signals={k: v[keep] for k, v in meas.signals.items()},
@@ -99,10 +119,18 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
                        holds=_clip(meas.holds, t_last), stops=_clip(meas.stops, t_last),
                        source_line=None if meas.source_line is None else meas.source_line[keep])
         out.measurement = meas
-        out.partial_to = last
+        out.partial_to = 0 if reached_end else last
+        out.partial_from = late
     logged = {k: np.asarray(v, np.float64) for k, v in meas.extra.items() if k in SCALES}
     if meas.meta.get("source", "").startswith("MTConnect") or "overrides" in meas.meta or "block_is" in meas.meta:
         out.not_logged = [k for k in SCALES if k not in logged or np.isnan(logged[k]).all()]
+    # an override at 0 % held the machine (the operator's time, as a feed hold is): taken out of
+    # the measured times, and out of the overrides' means over the blocks it fell in
+    held = _held(meas.t, logged, meas.end_time if meas.end_time is not None else float(meas.t[-1]))
+    if held:
+        meas = replace(meas, holds=sorted(list(meas.holds or []) + held))
+        out.measurement = meas
+        out.held = held
     active = {k: v for k, v in logged.items() if not np.isnan(v).all() and (np.abs(v[~np.isnan(v)] - 100.0) > 1e-9).any()}
     if not active:
         out.program = program
@@ -120,7 +148,7 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
     moving = rec["kind"] != R.DWELL
     new = rec.copy()
     for k, v in active.items():
-        f = np.clip(_time_mean(meas.t, v, t0, t1), HELD, None) / 100.0
+        f = np.clip(_time_mean(meas.t, v, t0, t1, held), HELD, None) / 100.0
         if k == "feed_override":
             m = moving & (rec["kind"] != R.RAPID) & ((rec["flags"] & R.FL_SYNC) == 0)
             new["feed"] = np.where(m, rec["feed"] * f, rec["feed"])
@@ -197,9 +225,30 @@ def _cut(lines: np.ndarray, group: np.ndarray, last_group: int, last_line: int) 
     return len(lines)
 
 
-def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _held(t: np.ndarray, logged: dict, end: float) -> list:
+    """(t0, t1) spans where a logged override stood below HELD % (merged)."""
+    spans = []
+    for v in logged.values():
+        low = np.nan_to_num(v, nan=100.0) < HELD
+        if not low.any():
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[False, low, False].astype(np.int8)))
+        for i, j in zip(edges[::2], edges[1::2]):
+            spans.append((float(t[i]), float(t[j]) if j < len(t) else float(end)))
+    spans.sort()
+    out: list = []
+    for a, b in spans:
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return [x for x in out if x[1] > x[0]]
+
+
+def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=()) -> np.ndarray:
     """Mean over [a, b) of the step function that holds v[i] from t[i] (NaN: 100 %) — its value
-    at a where b <= a; before the first sample, the first value."""
+    at a where b <= a; before the first sample, the first value.  ``held``: (t0, t1) spans left
+    out (where the machine stood held: their values, near 0, are not the override it ran at)."""
     v = np.where(np.isnan(v), 100.0, v)
     # the integral at the sample times, then linear between them (a step's integral is linear)
     cum = np.concatenate([[0.0], np.cumsum(v[:-1] * np.diff(t))])
@@ -209,10 +258,18 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
         return cum[i] + v[i] * (x - t[i])
 
     at = v[np.clip(np.searchsorted(t, a, side="right") - 1, 0, len(t) - 1)]
-    span = b - a
+    # the held spans' time and their own values' integral, taken off
+    gone, gone_int = np.zeros(np.shape(a)), np.zeros(np.shape(a))
+    for h0, h1 in held:
+        lo, hi = np.maximum(a, h0), np.minimum(b, h1)
+        gone += np.maximum(hi - lo, 0.0)
+        gone_int += np.where(hi > lo, integral(np.maximum(hi, lo)) - integral(lo), 0.0)
+    span = b - a - gone
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = (integral(b) - integral(a)) / span
-    return np.where(span > 1e-9, mean, at)
+        mean = (integral(b) - integral(a) - gone_int) / span
+    # (a span held throughout ran at the value it resumed at)
+    after = v[np.clip(np.searchsorted(t, b, side="left"), 0, len(t) - 1)]
+    return np.where(span > 1e-9, mean, np.where(gone > 0, after, at))
 
 
 HOLDS_F = 0.8  # a line's logged feed is held against F where the twin runs at F this share of its time

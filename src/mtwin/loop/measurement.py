@@ -176,17 +176,21 @@ def check_against_program(meas: Measurement, program, any_program: bool = False)
                                where)
 
 
-def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None) -> Measurement:
+def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None, program=None) -> Measurement:
     """Read a measurement file (CSV; Parquet when it ends in .parquet and pyarrow is there), or
     an MTConnect log (``ignore_items``: its data items to read past; ``run``: which program run
-    of it, 1, 2, …, the last complete one by default)."""
+    of it, 1, 2, …, the last complete one by default; ``program``: the loaded program it is read
+    against, which tells a log's runs that ran all of it from those that did not)."""
     mapping = parse_maps(maps)
     name = str(path)
     if not name.endswith(".parquet") and name != "-":
         from .mtconnect import is_mtconnect, read_mtconnect
 
         if is_mtconnect(name):  # an MTConnect log (SHDR or agent XML): read directly
-            return read_mtconnect(name, run=run, ignore_items=ignore_items)
+            from .mtconnect import Outline
+
+            return read_mtconnect(name, run=run, ignore_items=ignore_items,
+                                  outline=Outline.of(program) if program is not None else None)
     if run is not None:
         raise MeasurementError(f"--run {run}: only an MTConnect log holds several program runs; {name} is a "
                                f"measurement file of one", SourceLocation(name, 0, 0))

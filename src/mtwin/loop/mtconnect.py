@@ -38,10 +38,11 @@ Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
 from __future__ import annotations
 
 import math
+import os
 
 import re
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timezone
 
 import numpy as np
 
@@ -130,6 +131,8 @@ class Run:
     ended: str = ""  # how an incomplete run ended, in words
     skip: list = field(default_factory=list)  # (k0, k1) events of a first pass a restart repeated
     restarts: list = field(default_factory=list)  # (t s since the run's start, from line, back to line)
+    late: int = 0  # the first line a run reported that started past the program's start (0: it did not)
+    end_state: str = ""  # the end state logged (PROGRAM_COMPLETED, READY)
 
     def describe(self) -> str:
         """One line for a person: the program, complete or how it ended, its pauses."""
@@ -147,15 +150,76 @@ class Run:
         return out
 
 
+# a run whose first reported line lies past the program's first few moves started in the middle
+# (or its logger late); one whose last lies before its last few did not finish (a reset to
+# READY looks like an end): the moves a log may miss at either end (each shorter than a report)
+EDGE_MOVES = 5
+# lines a program's own jump back (a loop, a subprogram's return) may lie from where the log saw
+# it go back: the lines the log did not report either side of it
+JUMP_LINES = 50
+
+
+@dataclass(frozen=True)
+class Outline:
+    """What a log's runs are read against: the program's file name, and the line of each of its
+    moves in execution order — where a run must start and end to be the program's whole cycle,
+    and where the program itself goes back (a loop, a subprogram), which a restart is not."""
+
+    name: str
+    moves: np.ndarray  # (moves,) line of each move record, in execution order
+
+    @classmethod
+    def of(cls, program) -> "Outline":
+        from ..gcode import records as R
+
+        rec = program.records
+        lines = np.asarray(rec["line"][(rec["kind"] != R.DWELL) & (rec["line"] > 0)], np.int64)
+        return cls(os.path.basename(program.path or ""), lines)
+
+    @property
+    def start_line(self) -> int:
+        """A run that first reports a line past this one did not start at the program's start."""
+        return int(self.moves[min(EDGE_MOVES, len(self.moves)) - 1]) if len(self.moves) else 0
+
+    @property
+    def end_line(self) -> int:
+        """A run that last reports a line before this one did not reach the program's end."""
+        return int(self.moves[-min(EDGE_MOVES, len(self.moves))]) if len(self.moves) else 0
+
+    def goes_back(self, was: int, now: int) -> bool:
+        """Whether the program itself jumps back from about ``was`` to about ``now`` (the log
+        reported ``was`` last before going back and ``now`` first after it)."""
+        m = self.moves
+        k = np.flatnonzero(m[1:] < m[:-1])
+        a, b = m[k], m[k + 1]
+        return bool(np.any((a >= was) & (a <= was + JUMP_LINES) & (b <= now) & (b >= now - JUMP_LINES)))
+
+    def names(self, logged: str) -> bool:
+        """Whether a logged program name is this program's (file name, with or without extension)."""
+        a, b = os.path.basename(logged).lower(), self.name.lower()
+        return bool(b) and (a == b or os.path.splitext(a)[0] == os.path.splitext(b)[0])
+
+
+_ZONE = re.compile(r"(Z|[+-]\d\d:?\d\d)$", re.IGNORECASE)
+
+
 def _seconds(ts: str, path: str, ln: int) -> float:
-    s = ts.rstrip("Z")
+    """s since the epoch of an ISO 8601 timestamp.  Its zone is honoured (+01:00, +0200, Z): a
+    log written across a daylight-saving change, or one adapter in local time beside another in
+    UTC, keeps its true durations; one without a zone is UTC (what MTConnect writes), never the
+    zone of the computer that reads it."""
+    m = _ZONE.search(ts)
+    s, zone = (ts[:m.start()], m.group(1)) if m else (ts, "")
     if "." in s:
         head, frac = s.split(".", 1)
         s = f"{head}.{frac[:6]}"  # datetime takes microseconds (7-digit .NET ticks are common)
+    if zone and zone.upper() != "Z":
+        s += zone if ":" in zone else f"{zone[:3]}:{zone[3:]}"
     try:
-        return datetime.fromisoformat(s).timestamp()
+        d = datetime.fromisoformat(s)
     except ValueError:
         raise MeasurementError(f"cannot read the timestamp {ts!r}", SourceLocation(path, ln, 1)) from None
+    return (d if d.tzinfo else d.replace(tzinfo=timezone.utc)).timestamp()
 
 
 def read_shdr(path: str, ignore=()) -> list:
@@ -282,10 +346,12 @@ def read_streams(path: str) -> list:
     return out
 
 
-def runs(events: list) -> list:
+def runs(events: list, outline: Outline | None = None) -> list:
     """The program runs in a log: ACTIVE to the next end state.  A feed hold (FEED_HOLD) or a
     program stop (STOPPED, OPTIONAL_STOP, PROGRAM_STOPPED, INTERRUPTED) followed by ACTIVE is an
-    interval of the run; a stop followed by READY ends it, incomplete (aborted)."""
+    interval of the run; a stop followed by READY ends it, incomplete (aborted).  ``outline``:
+    the program the log is read against — a run is complete only where it ran the program from
+    its start to its end, and a jump back it does not make itself is a restart."""
     out = []
     name = ""
     start = None
@@ -317,11 +383,13 @@ def runs(events: list) -> list:
             paused = (e.t, v) if paused is None else (paused[0], v if v in _STOP else paused[1])
         elif start is not None and v in _END:
             aborted = paused is not None and paused[1] != "FEED_HOLD"
-            out.append(Run(name, start, k + 1, not aborted, holds, stops))
+            out.append(Run(name, start, k + 1, not aborted, holds, stops, end_state=v))
             start, holds, stops, paused = None, [], [], None
     if start is not None:
         out.append(Run(name, start, len(events), False, holds, stops))
-    out = [x for r in out for x in _restarts(events, r)]
+    out = [x for r in out for x in _restarts(events, r, outline)]
+    for r in out:
+        _against(events, r, outline)
     # the name running at the start of each run (names may switch before it); else the name
     # last loaded for editing before it
     for r in out:
@@ -367,6 +435,9 @@ def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: li
 # within this share of where it stopped — started again from the program's start
 RESTART_SLACK = 2
 RESTART_SHARE = 0.02
+# s between the last report before a jump back to the start and the first after it, with no
+# state logged and no program to tell a subprogram's return from a restart: the machine stood
+RESTART_GAP = 10.0
 
 
 def _block(e: Event) -> int | None:
@@ -377,22 +448,50 @@ def _block(e: Event) -> int | None:
     return int(v) if math.isfinite(v) and v >= 0 and v == int(v) else None
 
 
-def _restarts(events: list, r: Run) -> list:
-    """A run as the control ran it.  After a program stop, execution that resumes with the
-    block number back near the run's first block is a new run from the start (the one before
-    was aborted: a restart, often with the runtime counter reset); one that resumes further
-    back than where it stopped, but not at the start, repeated lines — a restart in the middle:
-    the first pass through the repeated lines is set to be skipped (``skip``) and taken out of
-    the timing with the stop (state RESTART), so no time is counted twice."""
+def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
+    """A run as the control ran it.  Where execution resumes — after a logged program stop, or
+    where the block number goes back with no state logged — with the block number back near the
+    run's first block, a new run began from the start (the one before was aborted: a restart,
+    often with the runtime counter reset); where it resumes further back than where it was, but
+    not at the start, it repeated lines — a restart in the middle: the first pass through the
+    repeated lines is set to be skipped (``skip``) and taken out of the timing with the stop
+    (state RESTART), so no time is counted twice.  A jump back that the program itself makes (a
+    loop, a subprogram's return: ``outline``) is neither; without an outline only a jump back to
+    the start is taken for a restart."""
     blocks = [(k, b) for k in range(r.start, r.end) if events[k].item == "block" and (b := _block(events[k])) is not None]
     if blocks and r.reached < 0:
         r.reached = blocks[-1][1]
-    if not r.stops or len(blocks) < 2:
+    if len(blocks) < 2:
         return [r]
     t_start = events[r.start].t
-    first = blocks[0][1]
-    for a, b, state in r.stops:
-        ta, tb = t_start + a, t_start + b
+    first = next((b for _, b in blocks if b > 0), blocks[0][1])
+
+    def at_start(now: int, was: int) -> bool:
+        return now <= first + RESTART_SLACK or now <= RESTART_SHARE * was
+
+    # where execution resumed: (t before, t after, event that resumed it, logged)
+    resumed = []
+    for a, b, _state in r.stops:
+        k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= t_start + b - 1e-9
+                      and events[k].value.upper() == "ACTIVE"), None)
+        resumed.append((t_start + a, t_start + b, k_res, True))
+    spans = [(t_start + a, t_start + b) for a, b, _ in r.stops] + [(t_start + a, t_start + b) for a, b in r.holds]
+    for (k0, was), (k1, now) in zip(blocks, blocks[1:]):
+        if now >= was - RESTART_SLACK:
+            continue
+        t0, t1 = events[k0].t, events[k1].t
+        if any(a <= t1 and b >= t0 for a, b in spans):
+            continue  # (a logged stop: taken above)
+        if outline is not None and outline.goes_back(was, now) or outline is None and not (
+                at_start(now, was) and t1 - t0 >= RESTART_GAP):
+            continue  # the program's own jump (or, with no program to tell, perhaps one: a subprogram's return)
+        if now == 0:  # (block 0: the program reset; the new run starts at its first line)
+            k1 = next((k for k, v in blocks if k > k1 and v > 0), k1)
+        while k1 > k0 + 1 and events[k1 - 1].t == events[k1].t:
+            k1 -= 1
+        resumed.append((t0, t1, k1, False))
+    resumed.sort(key=lambda x: x[0])
+    for ta, tb, k_res, logged in resumed:
         before = [x for x in blocks if events[x[0]].t <= ta]
         after = [x for x in blocks if events[x[0]].t >= tb]
         if not before or not after:
@@ -400,18 +499,24 @@ def _restarts(events: list, r: Run) -> list:
         was, now = before[-1][1], after[0][1]
         if now >= was - 1:
             continue  # it went on where it stopped (an M00/M01 wait)
-        # the ACTIVE that resumed it
-        k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= tb - 1e-9
-                      and events[k].value.upper() == "ACTIVE"), after[0][0])
-        if now <= first + RESTART_SLACK or now <= RESTART_SHARE * was:
-            aborted = Run(r.program, r.start, k_res, False, [h for h in r.holds if h[1] <= a],
+        if k_res is None:
+            k_res = after[0][0]
+        a, b = ta - t_start, tb - t_start
+        if at_start(now, was):
+            # the aborted run ends where the block number went back (what the control logged
+            # for the new run before its ACTIVE — line 0, its first line — is the new run's)
+            end = next((k for k, v in blocks if ta <= events[k].t and k <= k_res and v < was - RESTART_SLACK), k_res)
+            while end > before[-1][0] + 1 and events[end - 1].item in ("program", "program_editing"):
+                end -= 1
+            how = "" if logged else "; no stop or end state logged"
+            aborted = Run(r.program, r.start, end, False, [h for h in r.holds if h[1] <= a],
                           [x for x in r.stops if x[1] <= a], reached=was,
                           ended=f"stopped at line {was} at {a:.0f} s and started again from the program's start "
-                                f"{b - a:.0f} s later")
+                                f"{b - a:.0f} s later{how}")
             dt = events[k_res].t - t_start
             rest = Run(r.program, k_res, r.end, r.complete, [(h0 - dt, h1 - dt) for h0, h1 in r.holds if h0 >= b],
                        [(x0 - dt, x1 - dt, st) for x0, x1, st in r.stops if x0 >= b], ended=r.ended)
-            return [aborted] + _restarts(events, rest)
+            return [aborted] + _restarts(events, rest, outline)
         # in the middle: the first pass from where it first reached the line it resumed at
         k_first = next((k for k, v in blocks if v >= now and events[k].t <= ta), None)
         if k_first is None:
@@ -427,6 +532,31 @@ def _restarts(events: list, r: Run) -> list:
     return [r]
 
 
+def _against(events: list, r: Run, outline: Outline | None) -> None:
+    """Whether ``r`` is the program's whole cycle, told from the lines it reported: a run that
+    started past the program's first moves (``late``) or ended before its last ones — reset to
+    READY, which a log also writes at a program's end — is not complete."""
+    if outline is None or not len(outline.moves):
+        return
+    skipped = set()
+    for k0, k1 in r.skip:
+        skipped.update(range(k0, k1))
+    blocks = [b for k in range(r.start, r.end) if k not in skipped and events[k].item == "block"
+              and (b := _block(events[k])) is not None and b > 0]
+    if not blocks:
+        return
+    if blocks[0] > outline.start_line:
+        r.late = blocks[0]
+        if r.complete:
+            r.complete = False
+            r.ended = (f"started at line {blocks[0]}, not at the program's start (its first moves are at lines "
+                       f"{int(outline.moves[0])}–{outline.start_line}): restarted in the middle, or logged from there")
+    if r.complete and max(blocks) < outline.end_line:
+        r.complete = False
+        r.ended = (f"ended at line {r.reached} ({r.end_state or 'its end state'}) before the program's last moves "
+                   f"(line {outline.end_line} on): reset, not finished")
+
+
 def n_to_lines(program_data: bytes) -> dict:
     """N number -> the lines that carry it, in file order."""
     table: dict = {}
@@ -438,16 +568,20 @@ def n_to_lines(program_data: bytes) -> dict:
 
 
 def to_measurement(path: str, events: list, run: int | None = None, block_is: str = "line",
-                   program_data: bytes | None = None) -> Measurement:
-    """The chosen run of a log as a measurement (a sample at every logged change)."""
-    all_runs = runs(events)
+                   program_data: bytes | None = None, outline: Outline | None = None) -> Measurement:
+    """The chosen run of a log as a measurement (a sample at every logged change); ``outline``:
+    the program it is read against (:func:`runs`; block numbers as lines only)."""
+    all_runs = runs(events, outline if block_is == "line" else None)
     if not all_runs:
         raise MeasurementError("no program run in the log (no Program_Status / Execution ACTIVE)",
                                SourceLocation(path, events[0].line, 1))
     if run is None:
-        # the last complete run: an aborted run before it, restarted from the start, is the
-        # operator's false start, the complete one the part
+        # the last complete run (of the program read against, where the log names it): an
+        # aborted run before it, restarted from the start, is the operator's false start, the
+        # complete one the part
         complete = [r for r in all_runs if r.complete]
+        if outline is not None and any(outline.names(r.program) for r in complete):
+            complete = [r for r in complete if outline.names(r.program)]
         chosen = complete[-1] if complete else all_runs[0]
     else:
         if not 1 <= run <= len(all_runs):
@@ -462,9 +596,13 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
              **{col: np.nan for col in OVERRIDES.values()}}
     rows_t: list = []
     rows: list = []
-    # the state before the run: the last value of each item logged before ACTIVE
-    for e in events[:chosen.start]:
-        _apply(state, e, path, None, [0])
+    # the state before the run: the last value of each item logged before ACTIVE — the block
+    # number only from what was logged after the run before it ended (a new run reports its
+    # line anew; the line an aborted run stopped at is not where this one starts)
+    prev_end = max((r.end for r in all_runs if r.end <= chosen.start), default=0)
+    for k, e in enumerate(events[:chosen.start]):
+        if e.item != "block" or k >= prev_end:
+            _apply(state, e, path, None, [0])
     pos = [0]  # the line an N word was last mapped to
     src: list = []  # the log line of each sample
     skipped = np.zeros(len(ev), bool)
@@ -491,6 +629,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     meta = {"source": f"MTConnect log {path}", "program": chosen.program, "run": str(all_runs.index(chosen) + 1),
             "runs": str(len(all_runs)), "complete": "yes" if chosen.complete else "no",
             "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
+    if chosen.late:
+        meta["started_at"] = str(chosen.late)
     missing = [col.split("_")[0] for col in OVERRIDES.values() if col not in extra]
     if missing:
         meta["overrides"] = f"{', '.join(missing)} not logged: 100 % assumed"
@@ -555,8 +695,9 @@ def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
 
 
 def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", program_data: bytes | None = None,
-                   ignore_items=()):
-    """Read an SHDR log or an MTConnectStreams XML into a measurement."""
+                   ignore_items=(), outline: Outline | None = None):
+    """Read an SHDR log or an MTConnectStreams XML into a measurement (``outline``: the program
+    it is read against, :func:`runs`)."""
     if block_is not in ("line", "n"):
         raise MeasurementError(f"--block-is must be line or n, got {block_is!r}", SourceLocation(path, 0, 0))
     try:
@@ -568,4 +709,4 @@ def read_mtconnect(path: str, run: int | None = None, block_is: str = "line", pr
     except OSError as exc:
         raise MeasurementError(f"cannot read {path}: {exc.strerror or exc}", SourceLocation(path, 0, 0)) from None
     events = read_streams(path) if b"<MTConnectStreams" in head else read_shdr(path, ignore_items)
-    return to_measurement(path, events, run, block_is, program_data)
+    return to_measurement(path, events, run, block_is, program_data, outline)

@@ -260,11 +260,13 @@ def runup_time(n0: float, n1: float, acceleration: float, power_speed: float = 0
 
 def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program>",
             m6: np.ndarray | None = None, stops: np.ndarray | None = None, ends: np.ndarray | None = None,
-            starts: np.ndarray | None = None, end_change: int = 0, tool_changes: bool = True):
+            starts: np.ndarray | None = None, end_change: int = 0, tool_changes: bool = True,
+            running: bool = False):
     """(record index, category, duration) of the pauses before each record, and dwells.  ``m6``,
     ``stops``, ``ends``, ``starts``: the lines holding M6, M00/M01, M2/M30 and M3/M4 words (None
     when not known: a macro program); ``end_change``: the line of a tool change after the last
-    move (0: none)."""
+    move (0: none); ``running``: the records continue a run under way (the first record's tool
+    in the spindle and its speed reached)."""
     out = []
     sp = machine.spindle
     clamped = False
@@ -273,20 +275,21 @@ def _pauses(rec: np.ndarray, machine, warnings: list[str], path: str = "<program
     over = rec["spindle"] > sp.max_speed
     if over.any():
         clamped = True
-    change_tool = np.nonzero(tools != np.concatenate(([0], tools[:-1])))[0]
-    change_speed = np.nonzero(target != np.concatenate(([0.0], target[:-1])))[0]
+    tool0, speed0 = (tools[0], target[0]) if running and len(rec) else (0, 0.0)
+    change_tool = np.nonzero(tools != np.concatenate(([tool0], tools[:-1])))[0]
+    change_speed = np.nonzero(target != np.concatenate(([speed0], target[:-1])))[0]
     change_line: dict = {}  # tool-change record -> the line its time belongs to
     for i in change_tool:
         if machine.timing.tool_change > 0 and tool_changes:
             # the time belongs to the M6 line between the previous move and this one, where known
             line = int(rec["line"][i])
             line = _last_within(m6, int(rec["line"][i - 1]) if i > 0 else 0, line) or line
-            first = i == change_tool[0] and tools[i] != 0
+            first = not running and i == change_tool[0] and tools[i] != 0
             extra = getattr(machine.timing, "first_tool_change_extra", 0.0) if first else 0.0
             out.append((int(i), 0, CAT_TOOL, machine.timing.tool_change + extra, line))
             change_line[int(i)] = line
     if sp.wait_for_speed:
-        prev = np.concatenate(([0.0], target[:-1]))
+        prev = np.concatenate(([speed0], target[:-1]))
         for i in change_speed:
             dt = runup_time(prev[i], target[i], sp.acceleration, getattr(sp, "runup_power_speed", 0.0),
                             getattr(sp, "braking", 0.0))
@@ -593,7 +596,8 @@ def plan_program(program, machine, like: Plan | None = None, keep_geometry: bool
     pauses = _pauses(rec, machine, warnings, program.path, _m_lines(program, 6.0), _m_lines(program, 0.0, 1.0),
                      _m_lines(program, 2.0, 30.0), _m_lines(program, 3.0, 4.0),
                      end_change if machine.timing.tool_change > 0 else 0,
-                     tool_changes=not getattr(program, "tools_by_selection", False))
+                     tool_changes=not getattr(program, "tools_by_selection", False),
+                     running=getattr(program, "running", False))
     if end_change and len(rec) and machine.timing.tool_change > 0:
         # a tool change after the last move (the tool put away before M30)
         pauses.append((len(rec) - 1, 4, CAT_TOOL, machine.timing.tool_change, end_change))
