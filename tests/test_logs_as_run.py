@@ -715,3 +715,145 @@ def test_a_last_record_without_its_line_end_is_read_and_said_so(tmp_path):
     assert getattr(read_shdr(str(p)), "cut_last", "") == ""
     p.write_text(head + "2017-02-02T18:26:46.0Z|Program_Status|STOPPED")
     assert getattr(read_shdr(str(p)), "cut_last", "") == ""
+
+
+# --- runs as the program says they ran (a trial of hostile shop logs) -----------------------
+
+def _text(ev) -> str:
+    return "\n".join(f"{_ts(t)}|{r}" for t, r in ev) + "\n"
+
+
+def _json_cycle(r) -> dict:
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)["cycle_time"]
+
+
+def test_a_reset_to_ready_is_not_a_finished_run(setup, tmp_path):
+    # READY also follows a program's end, so the state alone cannot tell: the lines the run
+    # reported can — a run that never reached the program's last moves was reset
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 6.0]
+    t_go = head[-1][0] + 30.0
+    text = _text(head + [(head[-1][0] + 0.1, "Program_Status|READY")] + [(t + t_go, r) for t, r in ev])
+    (tmp_path / "ready.txt").write_text(text)
+    m = read_measurement(str(tmp_path / "ready.txt"), program=prog)
+    assert [r.complete for r in m.runs] == [False, True] and m.meta["run"] == "2"
+    assert "reset, not finished" in m.runs[0].ended and "READY" in m.runs[0].ended
+    # without the program the state is all there is
+    assert [r.complete for r in read_measurement(str(tmp_path / "ready.txt")).runs] == [True, True]
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "ready.txt"), "--run", "1")
+    assert r.returncode == 2 and "incomplete" in r.stderr and "--partial" in r.stderr
+    assert "reset, not finished" in r.stderr
+
+
+def test_a_run_that_starts_in_the_middle_is_refused_or_compared_from_its_first_line(setup, tmp_path):
+    # a logger started late (or a restart from a block after a reset): not the program's cycle;
+    # --partial compares it from its first line, the twin taking the run as under way (its tool
+    # in the spindle, at speed) — no tool change or run-up the machine never did
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|15"))
+    t0 = ev[k][0]
+    late = [(-0.5, "Program_Name_Running|PART.NC"), (0.0, "Program_Status|ACTIVE")] + \
+           [(t - t0, r) for t, r in ev[k:]]
+    (tmp_path / "late.txt").write_text(_text(late))
+    m = read_measurement(str(tmp_path / "late.txt"), program=prog)
+    assert m.complete is False and m.meta["started_at"] == "15" and "started at line 15" in m.runs[0].ended
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "late.txt"))
+    assert r.returncode == 2 and "starts at line 15" in r.stderr and "--partial" in r.stderr
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "late.txt"), "--partial", "--json")
+    c = _json_cycle(r)
+    assert "compared from that line on" in r.stderr
+    assert abs(c["simulated"] - c["measured"]) < 0.1, c  # (the log's own run: ~exact)
+
+
+def test_a_restart_in_the_middle_with_no_state_logged_counts_no_time_twice(setup, tmp_path):
+    # the block number jumps back from the line it was at to line 11 with no stop logged: the
+    # program never goes back there itself, so it is a restart, and the first pass is taken out
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 22.0 and "PROGRAM_COMPLETED" not in r]
+    k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|11"))
+    t_go = head[-1][0] + 40.0
+    text = _text(head + [(t - ev[k][0] + t_go, r) for t, r in ev[k:]])
+    (tmp_path / "nostate.txt").write_text(text)
+    m = read_measurement(str(tmp_path / "nostate.txt"), program=prog)
+    (t, was, now), = m.runs[0].restarts
+    assert now == 11 and was > 11 and m.runs[0].complete
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "nostate.txt"), "--json")
+    c = _json_cycle(r)
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+    assert "restarted in the middle" in r.stderr and "no time is counted twice" in r.stderr
+
+
+def test_a_restart_from_the_start_with_no_state_logged_is_a_new_run(setup, tmp_path):
+    # no status at all: the block number back at 0 after the machine stood, then the program
+    # again — found with the program, and without it (the machine stood 40 s)
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 8.0]
+    t_go = head[-1][0] + 40.0
+    again = [(t + t_go, r) for t, r in ev if not r.startswith(("Program_Status|ACTIVE", "Program_Name"))]
+    text = _text(head + [(t_go - 1.0, "Block_Number|0")] + again)
+    (tmp_path / "again.txt").write_text(text)
+    for m in (read_measurement(str(tmp_path / "again.txt"), program=prog),
+              read_measurement(str(tmp_path / "again.txt"))):
+        assert [r.complete for r in m.runs] == [False, True] and "no stop or end state logged" in m.runs[0].ended
+        assert m.runs[0].reached > 5
+        truth = _truth(tw, prog).summary.cycle_time + WAIT
+        assert m.end_time == pytest.approx(truth, abs=0.5)
+
+
+def test_an_aborted_run_ends_where_the_block_number_went_back(setup, tmp_path):
+    # what the control reports of the new run before its ACTIVE (line 0, its first line) is
+    # not the aborted run's: --run 1 holds only the lines it ran, and its time ends at the stop
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 8.0]
+    t_stop = head[-1][0] + 0.01
+    t_go = t_stop + 20.0
+    again = [(t + t_go, r) for t, r in ev if t >= 0]
+    pre = [(t_stop, "Program_Status|STOPPED"), (t_stop + 5.0, "Block_Number|0"), (t_stop + 5.1, "Block_Number|4")]
+    (tmp_path / "abort.txt").write_text(_text(head + pre + again))
+    m = read_measurement(str(tmp_path / "abort.txt"), run=1, program=prog)
+    reached = m.runs[0].reached
+    assert reached > 5 and int(m.line[m.line > 0][-1]) == reached
+    assert m.end_time < t_stop + 5.0 + 1e-6
+    m2 = read_measurement(str(tmp_path / "abort.txt"), program=prog)
+    assert m2.meta["run"] == "2" and int(m2.line[m2.line > 0][0]) == 4
+
+
+def test_timestamps_keep_their_zones(setup, tmp_path):
+    # the same instants written in +01:00 for the first half and +02:00 for the second (a
+    # daylight-saving change, or two adapters) read as the log in UTC does
+    d, tw, prog = setup
+    text = _log(tw, prog)
+    lines = text.splitlines()
+    out = []
+    for i, ln in enumerate(lines):
+        ts, rest = ln.split("|", 1)
+        t = datetime.strptime(ts[:26], "%Y-%m-%dT%H:%M:%S.%f").replace(tzinfo=timezone.utc)
+        zone = timezone(timedelta(hours=1 if i < len(lines) // 2 else 2))
+        out.append(t.astimezone(zone).isoformat(timespec="microseconds") + "|" + rest)
+    (tmp_path / "utc.txt").write_text(text)
+    (tmp_path / "zones.txt").write_text("\n".join(out) + "\n")
+    a, b = (read_measurement(str(tmp_path / f)) for f in ("utc.txt", "zones.txt"))
+    assert b.end_time == pytest.approx(a.end_time, abs=1e-6) and np.allclose(a.t, b.t)
+
+
+def test_an_override_at_zero_holds_the_machine_and_is_taken_out(setup, tmp_path):
+    # the operator turns the feed override to 0 % for 60 s inside a feed line: a feed hold in
+    # all but name — its time is the operator's, and the line runs at the override it resumed at
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|12"))
+    t_hold = ev[k][0] + 0.3
+    ev2 = [(-0.4, "Feed_Override|100.000000")] + [(t if t < t_hold else t + 60.0, r) for t, r in ev] + \
+          [(t_hold, "Feed_Override|0.000000"), (t_hold + 60.0, "Feed_Override|100.000000")]
+    ev2.sort(key=lambda x: x[0])
+    (tmp_path / "ovr0.txt").write_text(_text(ev2))
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "ovr0.txt"), "--json")
+    c = _json_cycle(r)
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+    assert "an override at 0 % held the machine for 60.0 s" in r.stderr
