@@ -857,3 +857,15 @@ def test_an_override_at_zero_holds_the_machine_and_is_taken_out(setup, tmp_path)
     c = _json_cycle(r)
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
     assert "an override at 0 % held the machine for 60.0 s" in r.stderr
+
+
+def test_a_standstill_nothing_logged_explains_is_told(setup, tmp_path):
+    # the machine stood 60 s inside a feed line and the log says nothing of it: not model error
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|12"))
+    t_hold = ev[k][0] + 0.3
+    (tmp_path / "stood.txt").write_text(_text([(t if t < t_hold else t + 60.0, r) for t, r in ev]))
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "stood.txt"))
+    assert r.returncode == 0, r.stderr
+    assert "line 12 took 6" in r.stderr and "with no hold or stop logged: the machine stood" in " ".join(r.stderr.split())

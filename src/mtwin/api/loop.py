@@ -8,6 +8,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
+
 from ..version import __version__
 from ..effects import Effect, parse_effect_spec
 from ..errors import MtwinError
@@ -43,6 +45,7 @@ class Reading:
 
 
 STOPS_TOLD = 5  # program stops told one by one (single-block mode stops at every line)
+STOOD = 30.0  # s a block group outlasts the twin's by, with nothing logged, that is told as a standstill
 
 
 def measured_program(program, measurement, reading: Reading, messages: Messages):
@@ -222,6 +225,14 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
                       f"{x['t0']:.1f}–{x['t1']:.1f} s")
         if len(blocks.excluded) > 5:
             msgs.note(f"{len(blocks.excluded) - 5} more block groups left out (the machine held)")
+        # a group far longer than the twin's, with nothing logged to say why: the machine stood
+        # (a hold or stop the control did not log) — no model error, and said so
+        long = np.flatnonzero(blocks.measured - blocks.simulated > STOOD)
+        for i in long[:STOPS_TOLD]:
+            a, z = int(blocks.first_line[i]), int(blocks.last_line[i])
+            msgs.warn(f"{f'lines {a}–{z}' if z > a else f'line {a}'} took {blocks.measured[i]:.1f} s on the log "
+                      f"where the twin takes {blocks.simulated[i]:.1f} s, with no hold or stop logged: the machine "
+                      f"stood (an unlogged feed hold or stop?) — that time is in the measured cycle")
     return Comparison(prog, meas, res, trace, msgs.items)
 
 

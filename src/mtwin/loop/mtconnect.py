@@ -391,15 +391,14 @@ def runs(events: list, outline: Outline | None = None) -> list:
     for r in out:
         _against(events, r, outline)
     # the name running at the start of each run (names may switch before it); else the name
-    # last loaded for editing before it
+    # logged last before it, running or loaded for editing (a control that logs only the loaded
+    # program's name for a second program: not the first one's running name carried over)
     for r in out:
-        for e in events[r.start:min(r.start + 20, r.end)]:
-            if e.item == "program" and e.value:
-                r.program = e.value
-                break
-        if not r.program:
-            edit = [e.value for e in events[:r.start] if e.item == "program_editing" and e.value]
-            r.program = edit[-1] if edit else ""
+        named = next((e.value for e in events[r.start:min(r.start + 20, r.end)] if e.item == "program" and e.value), "")
+        if not named:
+            before = [e.value for e in events[:r.start] if e.item in ("program", "program_editing") and e.value]
+            named = before[-1] if before else ""
+        r.program = named
     return out
 
 
@@ -619,7 +618,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
             rows.append(dict(state))
             src.append(e.line)
     if not rows:
-        raise MeasurementError("the run holds no samples", SourceLocation(path, ev[0].line, 1))
+        raise MeasurementError("the run holds no samples: the control went ACTIVE and ended before it logged a line, "
+                               "a feed or a speed", SourceLocation(path, ev[0].line, 1))
     t = np.array(rows_t)
     signals = {"feed": np.array([r["feed"] for r in rows]), "spindle_speed": np.array([r["spindle_speed"] for r in rows])}
     extra = {k: np.array([r[k] for r in rows]) for k in ("tool", *OVERRIDES.values())
