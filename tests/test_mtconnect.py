@@ -145,6 +145,21 @@ def test_compare_reads_the_log_directly(tmp_path):
 
     doc = json.loads(r.stdout)
     assert doc["cycle_time"]["measured"] == pytest.approx(926.4, abs=2)
+    assert not doc["logged_against_programmed"]["feed"]["suspect"]
+    # the same log at an unlogged 130 % (its feed values scaled): on the default machine, whose
+    # arcs run otherwise than the Hurco's, the pooled ratio spreads 35 % — the straight feed
+    # moves alone tell the override
+    text = (HURCO / "Split" / "Plate-Op1-Hurco04-13of20.txt").read_text()
+    scaled = "\n".join(f"{a}|{b}|{float(c) * 1.3!r}" if b == "Feed_Rate" else ln
+                       for ln in text.splitlines() for a, b, c in [(ln.split("|") + ["", "", ""])[:3]])
+    (tmp_path / "fast.txt").write_text(scaled + "\n")
+    r = subprocess.run([sys.executable, "-m", "mtwin", "compare", str(HURCO / "NC-Code" / "NIST_MTC_CRADA_PLATE-13.NC"),
+                        str(tmp_path / "fast.txt"), "--json"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    x = json.loads(r.stdout)["logged_against_programmed"]["feed"]
+    assert x["suspect"] and x["suspect_kind"] == "feed" and x["spread"] > 0.2
+    assert x["by_kind"]["feed"]["ratio"] == pytest.approx(1.3, abs=0.02)
+    assert "straight feed moves ran at 1.29× the programmed F" in " ".join(r.stderr.split())
     imp = subprocess.run([sys.executable, "-m", "mtwin", "import", "mtconnect",
                           str(HURCO / "Split" / "Plate-Op1-Hurco04-13of20.txt"), "-o", str(tmp_path / "m.csv")],
                          capture_output=True, text=True)
