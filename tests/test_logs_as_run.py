@@ -850,7 +850,8 @@ def test_an_override_at_zero_holds_the_machine_and_is_taken_out(setup, tmp_path)
     k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|12"))
     t_hold = ev[k][0] + 0.3
     ev2 = [(-0.4, "Feed_Override|100.000000")] + [(t if t < t_hold else t + 60.0, r) for t, r in ev] + \
-          [(t_hold, "Feed_Override|0.000000"), (t_hold + 60.0, "Feed_Override|100.000000")]
+          [(t_hold, "Feed_Override|0.000000"), (t_hold + 0.05, "Feed_Rate|0.000000"),
+           (t_hold + 60.0, "Feed_Override|100.000000")]
     ev2.sort(key=lambda x: x[0])
     (tmp_path / "ovr0.txt").write_text(_text(ev2))
     r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "ovr0.txt"), "--json")
@@ -869,3 +870,59 @@ def test_a_standstill_nothing_logged_explains_is_told(setup, tmp_path):
     r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "stood.txt"))
     assert r.returncode == 0, r.stderr
     assert "line 12 took 6" in r.stderr and "with no hold or stop logged: the machine stood" in " ".join(r.stderr.split())
+
+
+def _sub_events(tmp_path):
+    (tmp_path / "PART.NC").write_text(SUB)
+    tw = mtwin.Twin()
+    prog = tw.load(str(tmp_path / "PART.NC"))
+    text, _ = _sub_log(tw, prog, second_at=100.0)
+    return tw, prog, _events(text)
+
+
+def test_a_subprograms_return_reported_at_a_line_without_a_move_is_no_restart(tmp_path):
+    # the log reports the M99 (no move) before the main program's next line: the program's own
+    # jump back, not a restart, though neither end is a move line
+    tw, prog, ev = _sub_events(tmp_path)
+    k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|13"))
+    ev = ev[:k + 1] + [(ev[k][0] + 0.05, "Block_Number|14")] + ev[k + 1:]
+    (tmp_path / "m99.txt").write_text(_text(ev))
+    m = read_measurement(str(tmp_path / "m99.txt"), program=prog)
+    assert len(m.runs) == 1 and m.runs[0].complete and not m.runs[0].restarts
+    r = _cli("compare", str(tmp_path / "PART.NC"), str(tmp_path / "m99.txt"), "--json")
+    c = _json_cycle(r)
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+
+
+def test_a_restart_in_a_subprograms_second_call_repeats_only_that_call(tmp_path):
+    # stopped in the second call and resumed at the subprogram's first line: the repeated pass
+    # began where the run last entered that line, not at the first call
+    tw, prog, ev = _sub_events(tmp_path)
+    calls = [i for i, (t, r) in enumerate(ev) if r.startswith(f"Block_Number|{SUB_RAPID}")]
+    stop = next(i for i in range(calls[1], len(ev)) if ev[i][1].startswith("Block_Number|12"))
+    t_stop = ev[stop][0] + 0.3
+    head = ev[:stop + 1] + [(t_stop, "Program_Status|STOPPED")]
+    t_go = t_stop + 20.0
+    again = [(t - ev[calls[1]][0] + t_go, r) for t, r in ev[calls[1]:]]
+    (tmp_path / "mid.txt").write_text(_text(head + [(t_go, "Program_Status|ACTIVE")] + again))
+    m = read_measurement(str(tmp_path / "mid.txt"), program=prog)
+    (t, was, now), = m.runs[0].restarts
+    assert now == SUB_RAPID and was == 12
+    r = _cli("compare", str(tmp_path / "PART.NC"), str(tmp_path / "mid.txt"), "--json")
+    c = _json_cycle(r)
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+
+
+def test_an_override_at_zero_inside_a_logged_stop_is_not_taken_out_twice(setup, tmp_path):
+    # the operator turns the feed override to 0 during an M01 stop the control logged: the
+    # stop's time is taken out once
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog, status_stop=True))
+    t_stop = next(t for t, r in ev if r.endswith("OPTIONAL_STOP"))
+    ev2 = sorted(ev + [(-0.4, "Feed_Override|100.000000"), (t_stop + 1.0, "Feed_Override|0.000000"),
+                       (t_stop + 1.0, "Feed_Rate|0.000000"), (t_stop + WAIT - 0.5, "Feed_Override|100.000000")],
+                 key=lambda x: x[0])
+    (tmp_path / "both.txt").write_text(_text(ev2))
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "both.txt"), "--json")
+    c = _json_cycle(r)
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c

@@ -159,7 +159,7 @@ def test_compare_reads_the_log_directly(tmp_path):
     x = json.loads(r.stdout)["logged_against_programmed"]["feed"]
     assert x["suspect"] and x["suspect_kind"] == "feed" and x["spread"] > 0.2
     assert x["by_kind"]["feed"]["ratio"] == pytest.approx(1.3, abs=0.02)
-    assert "straight feed moves ran at 1.29× the programmed F" in " ".join(r.stderr.split())
+    assert "feed lines and large arcs ran at 1.29× the programmed F" in " ".join(r.stderr.split())
     imp = subprocess.run([sys.executable, "-m", "mtwin", "import", "mtconnect",
                           str(HURCO / "Split" / "Plate-Op1-Hurco04-13of20.txt"), "-o", str(tmp_path / "m.csv")],
                          capture_output=True, text=True)

@@ -44,7 +44,7 @@ class Reading:
     run: Optional[int] = None  # which program run of an MTConnect log (1, 2, …; None: the last complete one)
 
 
-STOPS_TOLD = 5  # program stops told one by one (single-block mode stops at every line)
+TOLD = 5  # notes of one kind told one by one, the rest counted (single-block mode stops at every line)
 STOOD = 30.0  # s a block group outlasts the twin's by, with nothing logged, that is told as a standstill
 
 
@@ -206,18 +206,18 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
     if blocks is not None:
         if blocks.hold_time > 0:
             msgs.note(f"{blocks.hold_time:.1f} s of feed hold taken out of the measured times")
-        for x in blocks.stops[:STOPS_TOLD]:
+        for x in blocks.stops[:TOLD]:
             if x.get("state") == "RESTART":
-                msgs.note(f"{x['t0']:.1f}–{x['t1']:.1f} s: a restart's first pass through the lines it ran again, "
-                          f"and the stop before it ({x['wait']:.1f} s), taken out of the block timing and the cycle "
+                msgs.note(f"{x['t0']:.1f}–{x['t1']:.1f} s ({x['wait']:.1f} s): a restart's first pass through the "
+                          f"lines it ran again, and the stop before it, taken out of the block timing and the cycle "
                           f"time: no time is counted twice")
                 continue
             where = (f"line {x['line']} ({x['state']})" if "line" in x else
                      f"{x['t0']:.1f}–{x['t1']:.1f} s (logged {x['state']})")
             msgs.note(f"program stop at {where}: waited {x['wait']:.1f} s — the operator's time, taken out of the "
                       f"block timing and the cycle time")
-        if len(blocks.stops) > STOPS_TOLD:
-            rest = blocks.stops[STOPS_TOLD:]
+        if len(blocks.stops) > TOLD:
+            rest = blocks.stops[TOLD:]
             msgs.note(f"{len(rest)} more program stops ({sum(x['wait'] for x in rest):.1f} s in all; single block?), "
                       f"taken out alike")
         for x in blocks.excluded[:5]:
@@ -228,7 +228,10 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
         # a group far longer than the twin's, with nothing logged to say why: the machine stood
         # (a hold or stop the control did not log) — no model error, and said so
         long = np.flatnonzero(blocks.measured - blocks.simulated > STOOD)
-        for i in long[:STOPS_TOLD]:
+        if len(long) > TOLD:
+            msgs.warn(f"{len(long) - TOLD} more block groups took over {STOOD:.0f} s longer on the log than in the "
+                      f"twin with no hold or stop logged")
+        for i in long[:TOLD]:
             a, z = int(blocks.first_line[i]), int(blocks.last_line[i])
             msgs.warn(f"{f'lines {a}–{z}' if z > a else f'line {a}'} took {blocks.measured[i]:.1f} s on the log "
                       f"where the twin takes {blocks.simulated[i]:.1f} s, with no hold or stop logged: the machine "
@@ -263,12 +266,12 @@ def _case_notes(case, msgs: Messages) -> None:
     for x in g.stop_groups:
         msgs.note(f"{case.label}: program stop at line {x['line']} ({x['state']}): waited {x['wait']:.1f} s (the "
                   f"operator's time), left out of the fit")
-    for x in g.logged_stops[:STOPS_TOLD]:
+    for x in g.logged_stops[:TOLD]:
         what = ("a restart's first pass through the lines it ran again, and the stop before it" if x["state"] == "RESTART"
                 else f"program stop (logged {x['state']})")
         msgs.note(f"{case.label}: {x['t0']:.1f}–{x['t1']:.1f} s, {what}, left out of the fit")
-    if len(g.logged_stops) > STOPS_TOLD:
-        msgs.note(f"{case.label}: {len(g.logged_stops) - STOPS_TOLD} more program stops left out of the fit")
+    if len(g.logged_stops) > TOLD:
+        msgs.note(f"{case.label}: {len(g.logged_stops) - TOLD} more program stops left out of the fit")
     if g.hold_time > 0:
         msgs.note(f"{case.label}: {g.hold_time:.1f} s of feed hold left out of the fit")
 
@@ -573,8 +576,14 @@ def import_log(log: str, *, run: Optional[int] = None, block_is: str = "line", p
         data = read_input(program, "program") if program else None
     except OSError as exc:
         raise MtwinError(f"cannot read --program {program}: {exc.strerror or exc}") from None
-    # (the program, where given, tells the runs that ran all of it from those that did not)
-    outline = Outline.of(load_part(None, data, need_motion=False)) if data and block_is == "line" else None
+    # (the program, where given, tells the runs that ran all of it from those that did not; one
+    # the twin cannot interpret — a subprogram not at hand — leaves the log read on its own terms)
+    outline = None
+    if data and block_is == "line":
+        try:
+            outline = Outline.of(load_part(None, program if program != "-" else data, need_motion=False))
+        except MtwinError:
+            outline = None
     return read_mtconnect(log, run, block_is, data, tuple(ignore_items or ()), outline)
 
 

@@ -126,7 +126,7 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
         out.not_logged = [k for k in SCALES if k not in logged or np.isnan(logged[k]).all()]
     # an override at 0 % held the machine (the operator's time, as a feed hold is): taken out of
     # the measured times, and out of the overrides' means over the blocks it fell in
-    held = _held(meas.t, logged, meas.end_time if meas.end_time is not None else float(meas.t[-1]))
+    held = _held(meas, logged.get("feed_override"))
     if held:
         meas = replace(meas, holds=sorted(list(meas.holds or []) + held))
         out.measurement = meas
@@ -225,24 +225,45 @@ def _cut(lines: np.ndarray, group: np.ndarray, last_group: int, last_line: int) 
     return len(lines)
 
 
-def _held(t: np.ndarray, logged: dict, end: float) -> list:
-    """(t0, t1) spans where a logged override stood below HELD % (merged)."""
-    spans = []
-    for v in logged.values():
-        low = np.nan_to_num(v, nan=100.0) < HELD
-        if not low.any():
-            continue
-        edges = np.flatnonzero(np.diff(np.r_[False, low, False].astype(np.int8)))
-        for i, j in zip(edges[::2], edges[1::2]):
-            spans.append((float(t[i]), float(t[j]) if j < len(t) else float(end)))
-    spans.sort()
+def _held(meas, v: np.ndarray | None) -> list:
+    """(t0, t1) spans where the feed override stood below HELD % and the machine stood (its
+    logged feed 0, where it logs one: on a Fanuc-style control rapids run on at a feed override
+    of 0), less what the log's own holds and stops already take out (never counted twice).  A
+    rapid override at 0 is the control's slowest rapid (F0), not a hold."""
+    if v is None:
+        return []
+    t = np.asarray(meas.t, float)
+    end = float(meas.end_time) if meas.end_time is not None else float(t[-1])
+    low = np.nan_to_num(v, nan=100.0) < HELD
+    feed = meas.signals.get("feed")
     out: list = []
-    for a, b in spans:
-        if out and a <= out[-1][1]:
-            out[-1] = (out[-1][0], max(out[-1][1], b))
-        else:
-            out.append((a, b))
-    return [x for x in out if x[1] > x[0]]
+    edges = np.flatnonzero(np.diff(np.r_[False, low, False].astype(np.int8)))
+    for i, j in zip(edges[::2], edges[1::2]):
+        if feed is not None:
+            f = np.nan_to_num(np.asarray(feed, float)[i:j], nan=0.0)
+            still = np.flatnonzero(f <= MOVING)  # (the feed logged at the turn of the knob is the last one's)
+            if not len(still) or (f[still[0]:] > MOVING).any():
+                continue  # (it moved: not held)
+        out.append((float(t[i]), float(t[j]) if j < len(t) else end))
+    cover = sorted([(a, b) for a, b in (meas.holds or [])] + [(a, b) for a, b, *_ in (meas.stops or [])])
+    return [x for a, b in out for x in _minus(a, b, cover) if x[1] > x[0]]
+
+
+MOVING = 1.0  # mm/min: a logged path feed above this is motion
+
+
+def _minus(a: float, b: float, cover: list) -> list:
+    """[a, b) less the spans of ``cover`` (sorted)."""
+    out, at = [], a
+    for c0, c1 in cover:
+        if c1 <= at or c0 >= b:
+            continue
+        if c0 > at:
+            out.append((at, c0))
+        at = max(at, c1)
+    if at < b:
+        out.append((at, b))
+    return out
 
 
 def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=()) -> np.ndarray:
@@ -267,9 +288,15 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=
     span = b - a - gone
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (integral(b) - integral(a) - gone_int) / span
-    # (a span held throughout ran at the value it resumed at)
-    after = v[np.clip(np.searchsorted(t, b, side="left"), 0, len(t) - 1)]
-    return np.where(span > 1e-9, mean, np.where(gone > 0, after, at))
+    # (a span held throughout ran at the value it resumed at; at a hold to the run's end, the
+    # value before it)
+    resumed = np.array(at, float)
+    for h0, h1 in held:
+        inside = (a >= h0) & (b <= h1)
+        k = int(np.searchsorted(t, h1, side="left"))
+        resumed = np.where(inside, v[k] if k < len(t) else v[max(int(np.searchsorted(t, h0, side="right")) - 2, 0)],
+                           resumed)
+    return np.where(span > 1e-9, mean, np.where(gone > 0, resumed, at))
 
 
 HOLDS_F = 0.8  # a line's logged feed is held against F where the twin runs at F this share of its time
@@ -375,8 +402,9 @@ def logged_against_programmed(program, meas, trace, kind_of: dict | None = None,
             if m.sum() >= 3:
                 by_kind[k] = {"ratio": float(np.median(r[m])), "samples": int(m.sum()), "spread": _spread(r[m])}
         suspect = _off(med, len(idx), spread)
-        # straight feed moves alone: where the machine's path limits and the twin's cannot differ
-        # (an arc limit the twin does not have spreads the pooled ratio, and hides an override)
+        # the straight moves alone (blocks.KINDS' "feed": lines, and arcs of 2 mm or more, that
+        # reach F): where the machine's path limits and the twin's differ least (an arc limit the
+        # twin does not have spreads the pooled ratio, and hides an override)
         # (its spread, where the twin's ramps and the machine's differ in length, may pass the
         # pooled bound: the ratio is told where 1 lies well outside its samples' middle half)
         on = next((k for k in STRAIGHT if k in by_kind and _off(by_kind[k]["ratio"], by_kind[k]["samples"],
@@ -491,7 +519,7 @@ def ratio_note(sig: str, x: dict, advice: bool = True) -> str:
     what to run next, for the feed: the effect that fits it)."""
     what = "feed moves ran" if sig == "feed" else "the spindle turned"
     prog = "programmed F" if sig == "feed" else "programmed S"
-    names = {"line": "straight moves", "arc": "arcs", "feed": "straight feed moves"}
+    names = {"line": "straight moves", "arc": "arcs", "feed": "feed lines and large arcs"}
     kinds = ", ".join(f"{names.get(k, k)} {v['ratio']:.2f}× over {v['samples']}" for k, v in x["by_kind"].items())
     on = x.get("suspect_kind", "")
     if on:  # (the straight moves alone: the pooled ratio is spread by limits the twin and machine set apart)

@@ -144,13 +144,19 @@ def no_unknown_statistics(meas) -> None:
                                    SourceLocation(meas.path, meas.header_row, col))
 
 
+def same_program(logged: str, path: str) -> bool:
+    """Whether a program name a control logged is the file's (its name, with or without the
+    extension, in any case)."""
+    a, b = os.path.basename(logged).lower(), os.path.basename(path).lower()
+    return a == b or os.path.splitext(a)[0] == os.path.splitext(b)[0]
+
+
 def check_against_program(meas: Measurement, program, any_program: bool = False) -> None:
     """A measurement recorded on another program is an error: a logged program name that is
     not the program file's (unless ``any_program``: a renamed file), a line beyond its end."""
     logged = (meas.meta or {}).get("program", "")
     if logged and not any_program and program.path:
-        a, b = os.path.basename(logged).lower(), os.path.basename(program.path).lower()
-        if a != b and os.path.splitext(a)[0] != os.path.splitext(b)[0]:
+        if not same_program(logged, program.path):
             raise MeasurementError(f"the log ran {logged}, not {os.path.basename(program.path)}: compare it with that "
                                    f"program (--any-program if this file is it, renamed)",
                                    SourceLocation(meas.path, 0, 0))

@@ -150,10 +150,10 @@ class Run:
         return out
 
 
-# a run whose first reported line lies past the program's first few moves started in the middle
-# (or its logger late); one whose last lies before its last few did not finish (a reset to
-# READY looks like an end): the moves a log may miss at either end (each shorter than a report)
-EDGE_MOVES = 5
+# a run whose first reported line lies past the lines of the program's first few moves started
+# in the middle (or its logger late); one whose last lies before the lines of its last few did
+# not finish (a reset to READY looks like an end): the lines a log may miss at either end
+EDGE_LINES = 5
 # lines a program's own jump back (a loop, a subprogram's return) may lie from where the log saw
 # it go back: the lines the log did not report either side of it
 JUMP_LINES = 50
@@ -161,43 +161,45 @@ JUMP_LINES = 50
 
 @dataclass(frozen=True)
 class Outline:
-    """What a log's runs are read against: the program's file name, and the line of each of its
-    moves in execution order — where a run must start and end to be the program's whole cycle,
-    and where the program itself goes back (a loop, a subprogram), which a restart is not."""
+    """What a log's runs are read against: the program's file name, where a run must start and
+    end to be its whole cycle, and where the program itself goes back in lines (a loop, a
+    subprogram's return), which a restart is not."""
 
     name: str
-    moves: np.ndarray  # (moves,) line of each move record, in execution order
+    start_line: int  # a run that first reports a line past this one did not start at the start
+    end_line: int  # a run that last reports a line before this one did not reach the end
+    back: np.ndarray  # (jumps, 2): (from line, to line) of each jump back of the execution order
 
     @classmethod
     def of(cls, program) -> "Outline":
         from ..gcode import records as R
 
         rec = program.records
-        lines = np.asarray(rec["line"][(rec["kind"] != R.DWELL) & (rec["line"] > 0)], np.int64)
-        return cls(os.path.basename(program.path or ""), lines)
-
-    @property
-    def start_line(self) -> int:
-        """A run that first reports a line past this one did not start at the program's start."""
-        return int(self.moves[min(EDGE_MOVES, len(self.moves)) - 1]) if len(self.moves) else 0
-
-    @property
-    def end_line(self) -> int:
-        """A run that last reports a line before this one did not reach the program's end."""
-        return int(self.moves[-min(EDGE_MOVES, len(self.moves))]) if len(self.moves) else 0
+        ok = rec["line"] > 0
+        lines = np.asarray(rec["line"][ok], np.int64)  # (dwells too: a G4 may end a loop's body)
+        moves = np.asarray(rec["line"][ok & (rec["kind"] != R.DWELL)], np.int64)
+        if not len(moves):
+            return cls(os.path.basename(program.path or ""), 0, 0, np.zeros((0, 2), np.int64))
+        _, first = np.unique(moves, return_index=True)
+        ahead = moves[np.sort(first)]  # distinct lines in the order first run
+        _, last = np.unique(moves[::-1], return_index=True)
+        behind = moves[::-1][np.sort(last)]  # distinct lines, the last run first
+        k = np.flatnonzero(lines[1:] < lines[:-1])
+        return cls(os.path.basename(program.path or ""), int(ahead[min(EDGE_LINES, len(ahead)) - 1]),
+                   int(behind[min(EDGE_LINES, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1))
 
     def goes_back(self, was: int, now: int) -> bool:
         """Whether the program itself jumps back from about ``was`` to about ``now`` (the log
-        reported ``was`` last before going back and ``now`` first after it)."""
-        m = self.moves
-        k = np.flatnonzero(m[1:] < m[:-1])
-        a, b = m[k], m[k + 1]
-        return bool(np.any((a >= was) & (a <= was + JUMP_LINES) & (b <= now) & (b >= now - JUMP_LINES)))
+        reported ``was`` last before going back and ``now`` first after it: lines either side
+        of the jump may go unreported, or carry no move — an M99, a T M6 after the return)."""
+        a, b = self.back[:, 0], self.back[:, 1]
+        return bool(np.any((np.abs(a - was) <= JUMP_LINES) & (np.abs(b - now) <= JUMP_LINES)))
 
     def names(self, logged: str) -> bool:
-        """Whether a logged program name is this program's (file name, with or without extension)."""
-        a, b = os.path.basename(logged).lower(), self.name.lower()
-        return bool(b) and (a == b or os.path.splitext(a)[0] == os.path.splitext(b)[0])
+        """Whether a logged program name is this program's."""
+        from .measurement import same_program
+
+        return bool(self.name) and same_program(logged, self.name)
 
 
 _ZONE = re.compile(r"(Z|[+-]\d\d:?\d\d)$", re.IGNORECASE)
@@ -212,7 +214,9 @@ def _seconds(ts: str, path: str, ln: int) -> float:
     s, zone = (ts[:m.start()], m.group(1)) if m else (ts, "")
     if "." in s:
         head, frac = s.split(".", 1)
-        s = f"{head}.{frac[:6]}"  # datetime takes microseconds (7-digit .NET ticks are common)
+        # (datetime takes microseconds — 7-digit .NET ticks are common — and, before Python
+        # 3.11, only 3 or 6 digits)
+        s = f"{head}.{frac[:6].ljust(6, '0')}"
     if zone and zone.upper() != "Z":
         s += zone if ":" in zone else f"{zone[:3]}:{zone[3:]}"
     try:
@@ -387,19 +391,57 @@ def runs(events: list, outline: Outline | None = None) -> list:
             start, holds, stops, paused = None, [], [], None
     if start is not None:
         out.append(Run(name, start, len(events), False, holds, stops))
-    out = [x for r in out for x in _restarts(events, r, outline)]
+    # the name running at the start of each run (names may switch before it); else the one
+    # carried from before it — or the name loaded for editing since, where that one is the
+    # program read against and the carried one is not (a control that logs only the loaded
+    # name for a second program)
     for r in out:
-        _against(events, r, outline)
-    # the name running at the start of each run (names may switch before it); else the name
-    # logged last before it, running or loaded for editing (a control that logs only the loaded
-    # program's name for a second program: not the first one's running name carried over)
+        r.program = _run_name(events, r, outline)
+    split = []
+    prev_end = 0
     for r in out:
-        named = next((e.value for e in events[r.start:min(r.start + 20, r.end)] if e.item == "program" and e.value), "")
-        if not named:
-            before = [e.value for e in events[:r.start] if e.item in ("program", "program_editing") and e.value]
-            named = before[-1] if before else ""
-        r.program = named
-    return out
+        # (the outline is the program's: a run of another program is read on its own terms)
+        mine = outline if outline is not None and (not r.program or outline.names(r.program)) else None
+        for x in _restarts(events, r, mine):
+            _against(events, x, mine, _lead(events, prev_end, x.start))
+            split.append(x)
+            prev_end = x.end
+    return split
+
+
+def _blocks(events: list, k0: int, k1: int) -> list:
+    """(event index, block number) of the block numbers logged in events[k0:k1]."""
+    return [(k, b) for k in range(k0, k1) if events[k].item == "block" and (b := _block(events[k])) is not None]
+
+
+def _lead(events: list, k0: int, k1: int) -> int:
+    """The block number logged last in events[k0:k1] (a run's first line, which the control may
+    report just before its ACTIVE), 0 where none."""
+    b = _blocks(events, k0, k1)
+    return b[-1][1] if b else 0
+
+
+def _run_name(events: list, r: Run, outline: Outline | None) -> str:
+    running = next((e.value for e in events[r.start:min(r.start + 20, r.end)] if e.item == "program" and e.value), "")
+    if running:
+        return running
+    carried, edited = r.program, ""
+    for e in events[:r.start]:
+        if e.item == "program" and e.value:
+            carried, edited = e.value, ""
+        elif e.item == "program_editing" and e.value:
+            edited = e.value
+    if edited and outline is not None and outline.names(edited) and not (carried and outline.names(carried)):
+        return edited
+    return carried or edited
+
+
+def _back_over_names(events: list, end: int, floor: int) -> int:
+    """``end`` moved back over the program names logged just before it (the program loaded
+    again: the next run's), not below ``floor``."""
+    while end > floor and events[end - 1].item in ("program", "program_editing"):
+        end -= 1
+    return end
 
 
 def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: list) -> Run:
@@ -407,9 +449,8 @@ def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: li
     logged between.  What the log reported for the new run before its ACTIVE — the block number
     back at the program's start, the program loaded — belongs to the new run, not to how far the
     cut one got."""
-    blocks = [(j, b) for j in range(start, k) if events[j].item == "block" and (b := _block(events[j])) is not None]
-    nxt = next((b for j in range(k, min(k + 200, len(events))) if events[j].item == "block"
-                and (b := _block(events[j])) is not None), None)
+    blocks = _blocks(events, start, k)
+    nxt = next((b for _, b in _blocks(events, k, min(k + 200, len(events)))), None)
     end = k
     if blocks and nxt is not None:
         low = max(nxt, blocks[0][1]) + RESTART_SLACK
@@ -417,9 +458,7 @@ def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: li
         while tail > 0 and blocks[tail - 1][1] <= low:
             tail -= 1
         if 0 < tail < len(blocks):  # it went back to the start before the new ACTIVE
-            end = blocks[tail][0]
-            while end > blocks[tail - 1][0] + 1 and events[end - 1].item in ("program", "program_editing"):
-                end -= 1  # (the program loaded again: the new run's)
+            end = _back_over_names(events, blocks[tail][0], blocks[tail - 1][0] + 1)
     t0 = events[start].t
     last = [b for j, b in blocks if j < end]
     if end < k:
@@ -451,13 +490,14 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
     """A run as the control ran it.  Where execution resumes — after a logged program stop, or
     where the block number goes back with no state logged — with the block number back near the
     run's first block, a new run began from the start (the one before was aborted: a restart,
-    often with the runtime counter reset); where it resumes further back than where it was, but
+    often with the runtime counter reset; or, where it had reached the program's end, a pass
+    of a program that runs again, M99); where it resumes further back than where it was, but
     not at the start, it repeated lines — a restart in the middle: the first pass through the
     repeated lines is set to be skipped (``skip``) and taken out of the timing with the stop
     (state RESTART), so no time is counted twice.  A jump back that the program itself makes (a
     loop, a subprogram's return: ``outline``) is neither; without an outline only a jump back to
-    the start is taken for a restart."""
-    blocks = [(k, b) for k in range(r.start, r.end) if events[k].item == "block" and (b := _block(events[k])) is not None]
+    the start after the machine stood is taken for a restart."""
+    blocks = _blocks(events, r.start, r.end)
     if blocks and r.reached < 0:
         r.reached = blocks[-1][1]
     if len(blocks) < 2:
@@ -468,12 +508,12 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
     def at_start(now: int, was: int) -> bool:
         return now <= first + RESTART_SLACK or now <= RESTART_SHARE * was
 
-    # where execution resumed: (t before, t after, event that resumed it, logged)
+    # where execution resumed: (t before, t after, the event it resumed at or None, logged)
     resumed = []
-    for a, b, _state in r.stops:
-        k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= t_start + b - 1e-9
+    for t0, t1, _state in r.stops:
+        k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= t_start + t1 - 1e-9
                       and events[k].value.upper() == "ACTIVE"), None)
-        resumed.append((t_start + a, t_start + b, k_res, True))
+        resumed.append((t_start + t0, t_start + t1, k_res, True))
     spans = [(t_start + a, t_start + b) for a, b, _ in r.stops] + [(t_start + a, t_start + b) for a, b in r.holds]
     for (k0, was), (k1, now) in zip(blocks, blocks[1:]):
         if now >= was - RESTART_SLACK:
@@ -500,57 +540,63 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
             continue  # it went on where it stopped (an M00/M01 wait)
         if k_res is None:
             k_res = after[0][0]
-        a, b = ta - t_start, tb - t_start
+        stop_at, go_at = ta - t_start, tb - t_start  # s since the run's start
         if at_start(now, was):
-            # the aborted run ends where the block number went back (what the control logged
+            # the run before ends where the block number went back (what the control logged
             # for the new run before its ACTIVE — line 0, its first line — is the new run's)
             end = next((k for k, v in blocks if ta <= events[k].t and k <= k_res and v < was - RESTART_SLACK), k_res)
-            while end > before[-1][0] + 1 and events[end - 1].item in ("program", "program_editing"):
-                end -= 1
+            end = _back_over_names(events, end, before[-1][0] + 1)
+            finished = outline is not None and was >= outline.end_line  # (a pass that ran to the end: M99)
             how = "" if logged else "; no stop or end state logged"
-            aborted = Run(r.program, r.start, end, False, [h for h in r.holds if h[1] <= a],
-                          [x for x in r.stops if x[1] <= a], reached=was,
-                          ended=f"stopped at line {was} at {a:.0f} s and started again from the program's start "
-                                f"{b - a:.0f} s later{how}")
+            ended = "" if finished else (f"stopped at line {was} at {stop_at:.0f} s and started again from the "
+                                         f"program's start {go_at - stop_at:.0f} s later{how}")
+            done = Run(r.program, r.start, end, finished, [h for h in r.holds if h[1] <= stop_at],
+                       [x for x in r.stops if x[1] <= stop_at], reached=was, ended=ended,
+                       skip=[x for x in r.skip if x[1] <= end], restarts=[x for x in r.restarts if x[0] <= stop_at])
             dt = events[k_res].t - t_start
-            rest = Run(r.program, k_res, r.end, r.complete, [(h0 - dt, h1 - dt) for h0, h1 in r.holds if h0 >= b],
-                       [(x0 - dt, x1 - dt, st) for x0, x1, st in r.stops if x0 >= b], ended=r.ended)
-            return [aborted] + _restarts(events, rest, outline)
-        # in the middle: the first pass from where it first reached the line it resumed at
-        k_first = next((k for k, v in blocks if v >= now and events[k].t <= ta), None)
+            rest = Run(r.program, k_res, r.end, r.complete, [(h0 - dt, h1 - dt) for h0, h1 in r.holds if h0 >= go_at],
+                       [(x0 - dt, x1 - dt, st) for x0, x1, st in r.stops if x0 >= go_at], ended=r.ended,
+                       end_state=r.end_state)
+            return [done] + _restarts(events, rest, outline)
+        # in the middle: the repeated pass began where the run last entered the line it resumed
+        # at (in a loop, or after an earlier call of a subprogram, not where it first did)
+        i = len(before) - 1
+        while i > 0 and before[i - 1][1] >= now:
+            i -= 1
+        k_first = before[i][0] if before[i][1] >= now else None
         if k_first is None:
             continue
         while k_first > r.start and events[k_first - 1].t == events[k_first].t:
             k_first -= 1  # (what was logged at the same moment belongs to the repeated pass)
         t_first = events[k_first].t - t_start
         r.skip.append((k_first, k_res))
-        r.stops = [x for x in r.stops if not (x[0] >= t_first and x[1] <= b)] + [(t_first, b, "RESTART")]
+        r.stops = [x for x in r.stops if not (x[0] >= t_first and x[1] <= go_at)] + [(t_first, go_at, "RESTART")]
         r.stops.sort()
-        r.holds = [h for h in r.holds if not (h[0] >= t_first and h[1] <= b)]
-        r.restarts.append((a, was, now))
+        r.holds = [h for h in r.holds if not (h[0] >= t_first and h[1] <= go_at)]
+        r.restarts.append((stop_at, was, now))
     return [r]
 
 
-def _against(events: list, r: Run, outline: Outline | None) -> None:
-    """Whether ``r`` is the program's whole cycle, told from the lines it reported: a run that
-    started past the program's first moves (``late``) or ended before its last ones — reset to
-    READY, which a log also writes at a program's end — is not complete."""
-    if outline is None or not len(outline.moves):
+def _against(events: list, r: Run, outline: Outline | None, lead: int = 0) -> None:
+    """Whether ``r`` is the program's whole cycle, told from the lines it reported (``lead``:
+    the line logged just before its ACTIVE): a run that started past the program's first moves
+    (``late``) or ended before its last ones — reset to READY, which a log also writes at a
+    program's end — is not complete.  (A PROGRAM_COMPLETED is the control's word.)"""
+    if outline is None or not outline.start_line:
         return
     skipped = set()
     for k0, k1 in r.skip:
         skipped.update(range(k0, k1))
-    blocks = [b for k in range(r.start, r.end) if k not in skipped and events[k].item == "block"
-              and (b := _block(events[k])) is not None and b > 0]
+    blocks = ([lead] if lead > 0 else []) + [b for k, b in _blocks(events, r.start, r.end) if k not in skipped and b > 0]
     if not blocks:
         return
     if blocks[0] > outline.start_line:
         r.late = blocks[0]
         if r.complete:
             r.complete = False
-            r.ended = (f"started at line {blocks[0]}, not at the program's start (its first moves are at lines "
-                       f"{int(outline.moves[0])}–{outline.start_line}): restarted in the middle, or logged from there")
-    if r.complete and max(blocks) < outline.end_line:
+            r.ended = (f"started at line {blocks[0]}, not at the program's start (its first moves run to line "
+                       f"{outline.start_line}): restarted in the middle, or logged from there")
+    if r.complete and r.end_state != "PROGRAM_COMPLETED" and max(blocks) < outline.end_line:
         r.complete = False
         r.ended = (f"ended at line {r.reached} ({r.end_state or 'its end state'}) before the program's last moves "
                    f"(line {outline.end_line} on): reset, not finished")
@@ -604,6 +650,13 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
             _apply(state, e, path, None, [0])
     pos = [0]  # the line an N word was last mapped to
     src: list = []  # the log line of each sample
+    if any(np.isfinite(state[col]) for col in OVERRIDES.values()):
+        # an override set before the cycle start (a prove-out begun at 0 %) is in force from
+        # the run's first moment, not from the first change logged in it; the line it reports
+        # comes with its own report
+        rows_t.append(0.0)
+        rows.append({**state, "line": -1.0})
+        src.append(ev[0].line)
     skipped = np.zeros(len(ev), bool)
     for k0, k1 in chosen.skip:  # (a restart's repeated first pass: its state, not its samples)
         skipped[max(k0 - chosen.start, 0):max(k1 - chosen.start, 0)] = True

@@ -144,7 +144,7 @@ def _blocks_html(b: dict) -> str:
             + f"</td><td>{html.escape(x['kind'])}</td><td>{x['measured']:.2f}</td><td>{x['simulated_as_logged']:.2f}</td>"
             f"<td>{x['error']:+.2f}</td><td class='code'>{html.escape(x['text'][:60])}</td></tr>" for x in b["worst"])
         out += ("<h3>Worst blocks</h3><table><tr><th>lines</th><th>kind</th><th>measured s</th><th>simulated as logged s</th>"
-                f"<th>simulated − measured s</th><th>G-code</th></tr>{rows}</table>")
+                f"<th>error as logged s</th><th>G-code</th></tr>{rows}</table>")
     return out
 
 
