@@ -926,3 +926,38 @@ def test_an_override_at_zero_inside_a_logged_stop_is_not_taken_out_twice(setup, 
     r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "both.txt"), "--json")
     c = _json_cycle(r)
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+
+
+M99_MAIN = """\
+%
+O1000(PART)
+G21 G90 G17 G94
+T1 M6
+S6000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G1 X40 F900
+G1 Y40
+G0 Z50
+M99
+%
+"""
+
+
+def test_each_pass_of_a_program_that_runs_again_is_a_complete_run(tmp_path):
+    # an M99 main program runs again from its start: a pass that reached the program's end is a
+    # finished run (not an aborted one), and it lasts until the next pass begins
+    (tmp_path / "PART.NC").write_text(M99_MAIN)
+    tw = mtwin.Twin()
+    prog = tw.load(str(tmp_path / "PART.NC"))
+    tr = tw.simulate(prog, cutting=False)
+    t, line = np.asarray(tr.t), np.asarray(tr.line)
+    cyc = tr.summary.cycle_time
+    one = [(float(t[k]), f"Block_Number|{int(line[k])}") for k in np.flatnonzero(np.r_[True, line[1:] != line[:-1]])
+           if line[k] > 0]
+    ev = [(-1.0, "Program_Name_Running|PART.NC"), (0.0, "Program_Status|ACTIVE")] + one + \
+         [(x + cyc, r) for x, r in one] + [(2 * cyc, "Program_Status|READY")]
+    (tmp_path / "m99.txt").write_text(_text(ev))
+    m = read_measurement(str(tmp_path / "m99.txt"), run=1, program=prog)
+    assert [r.complete for r in m.runs] == [True, True]
+    assert m.end_time == pytest.approx(cyc, abs=1e-3)

@@ -89,10 +89,11 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
             raise MeasurementError(f"the run in the log starts at line {late} of {program.path or 'the program'}, not at "
                                    f"its start (restarted in the middle, or logged from there) — compare the part "
                                    f"that ran with --partial", SourceLocation(meas.path, 0, 0))
+        others = " (or another of the log's runs with --run K)" if len(meas.runs or ()) > 1 else ""
         if not partial:
             raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
                                    f"{program.path or 'the program'} (a logger that stopped, or the run was aborted) — "
-                                   f"compare the part that ran with --partial", SourceLocation(meas.path, 0, 0))
+                                   f"compare the part that ran with --partial{others}", SourceLocation(meas.path, 0, 0))
         if not has_lines:
             raise MeasurementError("the run in the log is incomplete and the log names no program line, so where it "
                                    "stopped is not known: --partial cannot cut the program there",

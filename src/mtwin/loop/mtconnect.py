@@ -133,6 +133,7 @@ class Run:
     restarts: list = field(default_factory=list)  # (t s since the run's start, from line, back to line)
     late: int = 0  # the first line a run reported that started past the program's start (0: it did not)
     end_state: str = ""  # the end state logged (PROGRAM_COMPLETED, READY)
+    until: float = 0.0  # s since the epoch the run ended at, where later than its last event (an M99 pass)
 
     def describe(self) -> str:
         """One line for a person: the program, complete or how it ended, its pauses."""
@@ -552,7 +553,8 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
                                          f"program's start {go_at - stop_at:.0f} s later{how}")
             done = Run(r.program, r.start, end, finished, [h for h in r.holds if h[1] <= stop_at],
                        [x for x in r.stops if x[1] <= stop_at], reached=was, ended=ended,
-                       skip=[x for x in r.skip if x[1] <= end], restarts=[x for x in r.restarts if x[0] <= stop_at])
+                       skip=[x for x in r.skip if x[1] <= end], restarts=[x for x in r.restarts if x[0] <= stop_at],
+                       until=events[k_res].t if finished else 0.0)  # (a pass lasts until the next begins)
             dt = events[k_res].t - t_start
             rest = Run(r.program, k_res, r.end, r.complete, [(h0 - dt, h1 - dt) for h0, h1 in r.holds if h0 >= go_at],
                        [(x0 - dt, x1 - dt, st) for x0, x1, st in r.stops if x0 >= go_at], ended=r.ended,
@@ -678,7 +680,7 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     extra = {k: np.array([r[k] for r in rows]) for k in ("tool", *OVERRIDES.values())
              if not np.all(np.isnan([r[k] for r in rows]))}
     line = np.array([int(r["line"]) for r in rows], np.int64)
-    end_t = ev[-1].t - t0
+    end_t = max(ev[-1].t, chosen.until) - t0
     meta = {"source": f"MTConnect log {path}", "program": chosen.program, "run": str(all_runs.index(chosen) + 1),
             "runs": str(len(all_runs)), "complete": "yes" if chosen.complete else "no",
             "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
