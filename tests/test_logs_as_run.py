@@ -961,3 +961,24 @@ def test_each_pass_of_a_program_that_runs_again_is_a_complete_run(tmp_path):
     m = read_measurement(str(tmp_path / "m99.txt"), run=1, program=prog)
     assert [r.complete for r in m.runs] == [True, True]
     assert m.end_time == pytest.approx(cyc, abs=1e-3)
+
+
+def test_a_reset_is_told_where_the_block_numbers_are_n_words(setup, tmp_path):
+    # a control that logs N words: the program's lines read as its N words, so a reset to
+    # READY is told from them as from lines
+    import re
+
+    d, tw, prog = setup
+    numbered = "\n".join(ln if ln.startswith(("%", "O")) or not ln else f"N{10 * i} {ln}"
+                         for i, ln in enumerate(PROGRAM.splitlines(), 1)) + "\n"
+    (tmp_path / "PART.NC").write_text(numbered)
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 6.0]
+    t_go = head[-1][0] + 30.0
+    log = head + [(head[-1][0] + 0.1, "Program_Status|READY")] + [(t + t_go, r) for t, r in ev]
+    n = [(t, re.sub(r"Block_Number\|(\d+)", lambda m: f"Block_Number|{10 * int(m.group(1))}", r)) for t, r in log]
+    (tmp_path / "n.txt").write_text(_text(n))
+    r = _cli("import", "mtconnect", str(tmp_path / "n.txt"), "--run", "1", "--block-is", "n", "--program",
+             str(tmp_path / "PART.NC"), "-o", str(tmp_path / "m.csv"))
+    assert r.returncode == 0, r.stderr
+    assert "reset, not finished" in r.stderr and "# complete: no" in (tmp_path / "m.csv").read_text()

@@ -579,7 +579,7 @@ def import_log(log: str, *, run: Optional[int] = None, block_is: str = "line", p
     # (the program, where given, tells the runs that ran all of it from those that did not; one
     # the twin cannot interpret — a subprogram not at hand — leaves the log read on its own terms)
     outline = None
-    if data and block_is == "line":
+    if data:
         try:
             outline = Outline.of(load_part(None, program if program != "-" else data, need_motion=False))
         except MtwinError:

@@ -170,6 +170,8 @@ class Outline:
     start_line: int  # a run that first reports a line past this one did not start at the start
     end_line: int  # a run that last reports a line before this one did not reach the end
     back: np.ndarray  # (jumps, 2): (from line, to line) of each jump back of the execution order
+    window: int = JUMP_LINES  # how far either side of a jump the log may have seen it (in block numbers)
+    label: str = "line"  # what the block numbers are, for a person ("line", or "N" for N words)
 
     @classmethod
     def of(cls, program) -> "Outline":
@@ -189,12 +191,32 @@ class Outline:
         return cls(os.path.basename(program.path or ""), int(ahead[min(EDGE_LINES, len(ahead)) - 1]),
                    int(behind[min(EDGE_LINES, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1))
 
+    def in_n_words(self, program_data: bytes) -> "Outline | None":
+        """The outline with N numbers for lines (a log whose block numbers are N words): each
+        line as the N word on it or the last before it.  None where the N words do not rise
+        through the file (numbers that repeat or wrap cannot be told apart)."""
+        table = n_to_lines(program_data)
+        if not table or any(len(v) > 1 for v in table.values()):
+            return None
+        ns = sorted((v[0], n) for n, v in table.items())
+        if any(b[1] <= a[1] for a, b in zip(ns, ns[1:])):
+            return None
+        at, num = np.array([x for x, _ in ns]), np.array([n for _, n in ns])
+
+        def n_of(line):
+            k = np.searchsorted(at, np.asarray(line), side="right") - 1
+            return np.where(k >= 0, num[np.maximum(k, 0)], 0)
+
+        step = max(int(np.median(np.diff(num) / np.maximum(np.diff(at), 1))), 1) if len(num) > 1 else 1
+        return Outline(self.name, int(n_of(self.start_line)), int(n_of(self.end_line)),
+                       n_of(self.back).reshape(-1, 2) if len(self.back) else self.back, JUMP_LINES * step, "N")
+
     def goes_back(self, was: int, now: int) -> bool:
         """Whether the program itself jumps back from about ``was`` to about ``now`` (the log
         reported ``was`` last before going back and ``now`` first after it: lines either side
         of the jump may go unreported, or carry no move — an M99, a T M6 after the return)."""
         a, b = self.back[:, 0], self.back[:, 1]
-        return bool(np.any((np.abs(a - was) <= JUMP_LINES) & (np.abs(b - now) <= JUMP_LINES)))
+        return bool(np.any((np.abs(a - was) <= self.window) & (np.abs(b - now) <= self.window)))
 
     def names(self, logged: str) -> bool:
         """Whether a logged program name is this program's."""
@@ -596,12 +618,16 @@ def _against(events: list, r: Run, outline: Outline | None, lead: int = 0) -> No
         r.late = blocks[0]
         if r.complete:
             r.complete = False
-            r.ended = (f"started at line {blocks[0]}, not at the program's start (its first moves run to line "
-                       f"{outline.start_line}): restarted in the middle, or logged from there")
+            r.ended = (f"started at {_at(outline, blocks[0])}, not at the program's start (its first moves run to "
+                       f"{_at(outline, outline.start_line)}): restarted in the middle, or logged from there")
     if r.complete and r.end_state != "PROGRAM_COMPLETED" and max(blocks) < outline.end_line:
         r.complete = False
-        r.ended = (f"ended at line {r.reached} ({r.end_state or 'its end state'}) before the program's last moves "
-                   f"(line {outline.end_line} on): reset, not finished")
+        r.ended = (f"ended at {_at(outline, r.reached)} ({r.end_state or 'its end state'}) before the program's last "
+                   f"moves ({_at(outline, outline.end_line)} on): reset, not finished")
+
+
+def _at(outline: Outline, block: int) -> str:
+    return f"line {block}" if outline.label == "line" else f"N{block}"
 
 
 def n_to_lines(program_data: bytes) -> dict:
@@ -618,7 +644,9 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
                    program_data: bytes | None = None, outline: Outline | None = None) -> Measurement:
     """The chosen run of a log as a measurement (a sample at every logged change); ``outline``:
     the program it is read against (:func:`runs`; block numbers as lines only)."""
-    all_runs = runs(events, outline if block_is == "line" else None)
+    if outline is not None and block_is == "n":
+        outline = outline.in_n_words(program_data) if program_data is not None else None
+    all_runs = runs(events, outline)
     if not all_runs:
         raise MeasurementError("no program run in the log (no Program_Status / Execution ACTIVE)",
                                SourceLocation(path, events[0].line, 1))
