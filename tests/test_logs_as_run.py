@@ -982,3 +982,70 @@ def test_a_reset_is_told_where_the_block_numbers_are_n_words(setup, tmp_path):
              str(tmp_path / "PART.NC"), "-o", str(tmp_path / "m.csv"))
     assert r.returncode == 0, r.stderr
     assert "reset, not finished" in r.stderr and "# complete: no" in (tmp_path / "m.csv").read_text()
+
+
+def test_a_renamed_program_is_still_read_against(setup, tmp_path):
+    # the log names PART.NC, the file is OTHER.NC (--any-program): the runs are still judged
+    # by the program's lines — a reset to READY is not a finish
+    d, tw, prog = setup
+    (tmp_path / "OTHER.NC").write_text(PROGRAM)
+    ev = _events(_log(tw, prog))
+    head = [(t, r) for t, r in ev if t <= 6.0]
+    t_go = head[-1][0] + 30.0
+    (tmp_path / "ready.txt").write_text(_text(head + [(head[-1][0] + 0.1, "Program_Status|READY")]
+                                              + [(t + t_go, r) for t, r in ev]))
+    r = _cli("compare", str(tmp_path / "OTHER.NC"), str(tmp_path / "ready.txt"), "--any-program", "--run", "1")
+    assert r.returncode == 2 and "reset, not finished" in r.stderr
+
+
+def test_a_run_whose_program_name_is_not_logged_is_not_taken_by_default(setup, tmp_path):
+    # PART.NC ran, then OTHER.NC was loaded (its name logged only for editing) and a run with no
+    # running name followed: the names cannot tell which program it was — it is listed with
+    # both, and the run of certain name is compared
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    t_go = ev[-1][0] + 20.0
+    second = [(t + t_go, r) for t, r in ev if not r.startswith("Program_Name")]
+    text = _text(ev + [(t_go - 5.0, "Program_Name_Editing|OTHER.NC")] + second)
+    (tmp_path / "two.txt").write_text(text)
+    m = read_measurement(str(tmp_path / "two.txt"), program=prog)
+    assert [r.other_name for r in m.runs] == ["", "OTHER.NC"] and m.meta["run"] == "1"
+    assert "or OTHER.NC" in m.runs[1].describe()
+
+
+def test_an_adapter_that_reconnects_leaves_one_run_with_a_gap(setup, tmp_path):
+    # the control UNAVAILABLE for 30 s and ACTIVE again on reconnect, the block number gone on:
+    # one run, nothing taken out (the machine ran), the gap said
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    t0, t1 = 10.0, 40.0
+    gap = [(t, r) for t, r in ev if not t0 < t < t1] + [(t0, "Program_Status|UNAVAILABLE"),
+                                                        (t1, "Program_Status|ACTIVE")]
+    gap.sort(key=lambda x: x[0])
+    (tmp_path / "gap.txt").write_text(_text(gap))
+    m = read_measurement(str(tmp_path / "gap.txt"), program=prog)
+    assert len(m.runs) == 1 and m.runs[0].complete and m.runs[0].gaps
+    truth = _truth(tw, prog).summary.cycle_time + WAIT
+    assert m.end_time == pytest.approx(truth, abs=0.5)
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "gap.txt"))
+    assert r.returncode == 0 and "no data" in r.stderr and "UNAVAILABLE" in r.stderr
+
+
+def test_a_state_word_cut_short_is_left_out(setup, tmp_path):
+    d, tw, prog = setup
+    text = _log(tw, prog).rstrip("\n")
+    cut = text[:text.rindex("PROGRAM_COMPLETED") + 1]  # "…|Program_Status|P", no newline
+    (tmp_path / "cut.txt").write_text(cut)
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "cut.txt"))
+    assert r.returncode == 2 and "its state 'P' is none the control logs" in r.stderr and "--partial" in r.stderr
+
+
+def test_a_feed_off_by_a_scale_the_times_deny_is_no_override(setup, tmp_path):
+    # the log's feed values 1.3× F but its times the twin's: a unit or scale, not an override
+    d, tw, prog = setup
+    ev = _events(_sampled_log(tw, prog))
+    scaled = [(t, f"Feed_Rate|{float(r.split('|')[1]) * 1.3:.6f}" if r.startswith("Feed_Rate|") else r) for t, r in ev]
+    (tmp_path / "scaled.txt").write_text(_text(scaled))
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "scaled.txt"))
+    assert r.returncode == 0, r.stderr
+    assert "unit or scale is off" in r.stderr and "diagnose ranks" not in r.stderr

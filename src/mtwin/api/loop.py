@@ -44,6 +44,7 @@ class Reading:
     run: Optional[int] = None  # which program run of an MTConnect log (1, 2, …; None: the last complete one)
 
 
+AGREES = 0.02  # a cycle this close to the twin's: the log's times show no override
 TOLD = 5  # notes of one kind told one by one, the rest counted (single-block mode stops at every line)
 STOOD = 30.0  # s a block group outlasts the twin's by, with nothing logged, that is told as a standstill
 
@@ -59,6 +60,9 @@ def measured_program(program, measurement, reading: Reading, messages: Messages)
             chosen = str(k) == meas.meta.get("run")
             messages.note(f"{measurement}: run {k}: {r.describe()}"
                           + (" — the run compared" if chosen else ""))
+    if meas.meta.get("data_gaps_s"):
+        messages.note(f"{measurement}: no data {meas.meta['data_gaps_s']} s (the control UNAVAILABLE: an adapter's "
+                      f"reconnect; the run went on, and the lines it ran meanwhile are timed as one group)")
     if meas.meta.get("restarts"):
         messages.note(f"{measurement}: restarted in the middle {meas.meta['restarts']} (its first pass through the "
                       f"lines it ran again is taken out)")
@@ -199,9 +203,17 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
         res.blocks.feed_ratio = {k: v["ratio"] for k, v in res.logged_ratio["feed"]["by_kind"].items()}
         res.blocks.feed_ratio_twin = {k: v["ratio"] for k, v in
                                       res.logged_ratio["feed"].get("twin", {}).get("by_kind", {}).items()}
+    rel = (res.cycle_time or {}).get("relative_error")
     for sig, x in res.logged_ratio.items():
-        if x["suspect"]:
-            msgs.note(ratio_note(sig, x))
+        if not x["suspect"]:
+            continue
+        if sig == "feed" and rel is not None and abs(rel) < AGREES and abs(x["ratio"] - 1.0) > 3 * AGREES:
+            # an override would change the times, and they agree: the logged values are off
+            msgs.note(f"the log's feed is {x['ratio']:.2f}× the programmed F over {x['samples']} logged samples, yet "
+                      f"its times agree with the twin's (cycle {rel:+.2%}): the logged feed's unit or scale is off, "
+                      f"not the machine's speed — no override to fit")
+            continue
+        msgs.note(ratio_note(sig, x))
     blocks = res.blocks
     if blocks is not None:
         if blocks.hold_time > 0:

@@ -406,6 +406,8 @@ def _overridden(t: np.ndarray, overrides, t0: float, t1: float) -> str:
     """Why a group's time is not the program's: an override at 0 % while it ran (the
     operator held the machine; any other value the twin applies)."""
     for name, v in (overrides or {}).items():
+        if name != "feed_override":
+            continue  # (a rapid override at 0 is the slowest rapid, F0; the twin replays it)
         # the value in force at t0 and every value logged before t1
         i0 = max(int(np.searchsorted(t, t0, "right")) - 1, 0)
         i1 = max(int(np.searchsorted(t, t1, "left")), i0 + 1)

@@ -47,7 +47,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from ..errors import SourceLocation
-from .measurement import Measurement, MeasurementError, max_override
+from .measurement import Measurement, MeasurementError, max_override, same_program
 
 _NAMES = ("Block_Number", "Feed_Rate", "Spindle_Speed", "Current_Tool", "Program_Status", "Execution",
           "Program_Name_Running", "Program", "Line", "PathFeedrate", "RotaryVelocity", "ToolNumber",
@@ -59,6 +59,7 @@ _END = {"PROGRAM_COMPLETED", "READY"}
 # a program stop (M00, M01 with optional stop on, an operator's stop or interruption): the run
 # goes on when the control is ACTIVE again; READY next means it was aborted
 _STOP = {"STOPPED", "INTERRUPTED", "PROGRAM_STOPPED", "OPTIONAL_STOP", "PROGRAM_OPTIONAL_STOP"}
+_STATES = _END | _STOP | {"ACTIVE", "FEED_HOLD", "WAIT", "UNAVAILABLE"}  # MTConnect's Execution values
 # data item names (SHDR item names or XML element names / names) -> what they are; the
 # MTConnect standard's types (PathFeedrateOverride with subType PROGRAMMED or RAPID,
 # RotaryVelocityOverride, Execution), the Hurco WinMax adapter's names and the short names
@@ -134,6 +135,8 @@ class Run:
     late: int = 0  # the first line a run reported that started past the program's start (0: it did not)
     end_state: str = ""  # the end state logged (PROGRAM_COMPLETED, READY)
     until: float = 0.0  # s since the epoch the run ended at, where later than its last event (an M99 pass)
+    gaps: list = field(default_factory=list)  # (t0, t1) s since the run's start the control's data was UNAVAILABLE
+    other_name: str = ""  # where the run logs no running name: the other name it may have had
 
     def describe(self) -> str:
         """One line for a person: the program, complete or how it ended, its pauses."""
@@ -145,6 +148,11 @@ class Run:
             out += f", {len(self.holds)} feed hold(s)"
         if self.stops:
             out += f", {len(self.stops)} program stop(s) ({', '.join(st for _, _, st in self.stops)})"
+        for a, b in self.gaps:
+            out += f", no data {a:.0f}–{b:.0f} s (the control UNAVAILABLE: an adapter's reconnect; the run went on)"
+        if self.other_name:
+            out += (f" (its running program is not logged: {self.program} or {self.other_name}, by the names "
+                    f"logged before it)")
         for t, a, b in self.restarts:
             out += f"; restarted at {t:.0f} s from line {a} back to line {b} (its first pass through lines {b}–{a} " \
                    f"is taken out: no time is counted twice)"
@@ -172,6 +180,7 @@ class Outline:
     back: np.ndarray  # (jumps, 2): (from line, to line) of each jump back of the execution order
     window: int = JUMP_LINES  # how far either side of a jump the log may have seen it (in block numbers)
     label: str = "line"  # what the block numbers are, for a person ("line", or "N" for N words)
+    last_line: int = 0  # the line of the program's last move: a pass that reached it ran to the end
 
     @classmethod
     def of(cls, program) -> "Outline":
@@ -189,7 +198,8 @@ class Outline:
         behind = moves[::-1][np.sort(last)]  # distinct lines, the last run first
         k = np.flatnonzero(lines[1:] < lines[:-1])
         return cls(os.path.basename(program.path or ""), int(ahead[min(EDGE_LINES, len(ahead)) - 1]),
-                   int(behind[min(EDGE_LINES, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1))
+                   int(behind[min(EDGE_LINES, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1),
+                   last_line=int(moves[-1]))
 
     def in_n_words(self, program_data: bytes) -> "Outline | None":
         """The outline with N numbers for lines (a log whose block numbers are N words): each
@@ -209,7 +219,8 @@ class Outline:
 
         step = max(int(np.median(np.diff(num) / np.maximum(np.diff(at), 1))), 1) if len(num) > 1 else 1
         return Outline(self.name, int(n_of(self.start_line)), int(n_of(self.end_line)),
-                       n_of(self.back).reshape(-1, 2) if len(self.back) else self.back, JUMP_LINES * step, "N")
+                       n_of(self.back).reshape(-1, 2) if len(self.back) else self.back, JUMP_LINES * step, "N",
+                       int(n_of(self.last_line)))
 
     def goes_back(self, was: int, now: int) -> bool:
         """Whether the program itself jumps back from about ``was`` to about ``now`` (the log
@@ -220,9 +231,7 @@ class Outline:
 
     def names(self, logged: str) -> bool:
         """Whether a logged program name is this program's."""
-        from .measurement import same_program
-
-        return bool(self.name) and same_program(logged, self.name)
+        return bool(self.name) and bool(logged) and same_program(logged, self.name)
 
 
 _ZONE = re.compile(r"(Z|[+-]\d\d:?\d\d)$", re.IGNORECASE)
@@ -281,7 +290,13 @@ def read_shdr(path: str, ignore=()) -> list:
             else:
                 # a whole record may still have lost digits of its value (Block_Number 18 of 1827):
                 # nothing in the record tells, so it is read as it stands, and said so
-                if len(out) > n and _NUMBER.match(out[-1].value or ""):
+                if len(out) > n and out[-1].item == "status" and out[-1].value.upper() not in _STATES:
+                    # a state word cut short (PROGRAM_COMPLETED as "P"): no state, left out
+                    cut = out.pop()
+                    out = Events(out)
+                    out.cut_last = (f"line {i}, the last, has no line end and its state {cut.value!r} is none the "
+                                    f"control logs: cut short, a log still being written when it was copied — left out")
+                elif len(out) > n and _NUMBER.match(out[-1].value or ""):
                     out = Events(out)
                     out.cut_last = f"line {i}, the last, has no line end: if the log was copied while still being " \
                                    f"written its value may be cut short (it reads {out[-1].value}); read as it stands"
@@ -385,6 +400,8 @@ def runs(events: list, outline: Outline | None = None) -> list:
     paused = None  # (t0, state) of a hold or stop in progress
     holds: list = []
     stops: list = []
+    gap = None  # t the control's data went UNAVAILABLE (an adapter's reconnect), in a run
+    gaps: list = []
     for k, e in enumerate(events):
         if e.item == "program" and e.value:
             if start is not None and paused is not None and name and e.value != name:
@@ -395,6 +412,15 @@ def runs(events: list, outline: Outline | None = None) -> list:
         if e.item != "status":
             continue
         v = e.value.upper()
+        if v == "UNAVAILABLE":
+            gap = e.t if start is not None and gap is None else gap
+            continue
+        if gap is not None and start is not None and v == "ACTIVE":
+            # the adapter came back with the state it had: the run went on (no data between)
+            gaps.append((gap - events[start].t, e.t - events[start].t))
+            gap = None
+            continue
+        gap = None
         if v == "ACTIVE":
             if paused is not None and start is not None:
                 t0, state = paused
@@ -404,27 +430,36 @@ def runs(events: list, outline: Outline | None = None) -> list:
                 continue
             if start is not None:  # ACTIVE again without an end: the earlier run was cut
                 out.append(_cut_run(events, name, start, k, holds, stops))
-            start, holds, stops = k, [], []
+                out[-1].gaps = gaps
+            start, holds, stops, gaps = k, [], [], []
         elif start is not None and (v == "FEED_HOLD" or v in _STOP):
             # (the pause began at the first of them; a stop after a feed hold makes it a stop)
             paused = (e.t, v) if paused is None else (paused[0], v if v in _STOP else paused[1])
         elif start is not None and v in _END:
             aborted = paused is not None and paused[1] != "FEED_HOLD"
-            out.append(Run(name, start, k + 1, not aborted, holds, stops, end_state=v))
-            start, holds, stops, paused = None, [], [], None
+            ended = ""
+            if aborted:
+                last = _blocks(events, start, k)
+                ended = (f"stopped ({paused[1]}) at line {last[-1][1] if last else '?'} at "
+                         f"{paused[0] - events[start].t:.0f} s and reset ({v})")
+            out.append(Run(name, start, k + 1, not aborted, holds, stops, end_state=v, ended=ended, gaps=gaps))
+            start, holds, stops, paused, gaps = None, [], [], None, []
     if start is not None:
-        out.append(Run(name, start, len(events), False, holds, stops))
+        out.append(Run(name, start, len(events), False, holds, stops, gaps=gaps))
     # the name running at the start of each run (names may switch before it); else the one
     # carried from before it — or the name loaded for editing since, where that one is the
     # program read against and the carried one is not (a control that logs only the loaded
     # name for a second program)
     for r in out:
-        r.program = _run_name(events, r, outline)
+        r.program, r.other_name = _run_name(events, r, outline)
+    # (the outline is the program's: a run of another program in the same log is read on its own
+    # terms — where the log names the program at all: a renamed file, --any-program, names none)
+    ours = outline is not None and any(outline.names(r.program) or outline.names(r.other_name) for r in out)
     split = []
     prev_end = 0
     for r in out:
-        # (the outline is the program's: a run of another program is read on its own terms)
-        mine = outline if outline is not None and (not r.program or outline.names(r.program)) else None
+        mine = outline if outline is not None and (not ours or not r.program or outline.names(r.program)
+                                                   or outline.names(r.other_name)) else None
         for x in _restarts(events, r, mine):
             _against(events, x, mine, _lead(events, prev_end, x.start))
             split.append(x)
@@ -444,19 +479,27 @@ def _lead(events: list, k0: int, k1: int) -> int:
     return b[-1][1] if b else 0
 
 
-def _run_name(events: list, r: Run, outline: Outline | None) -> str:
+def _run_name(events: list, r: Run, outline: Outline | None) -> tuple[str, str]:
+    """(the run's program name, the other name it may have had).  The name running at its start;
+    where it logs none, the one carried from before it — or, where another was loaded for editing
+    since, that one if it is the program read against and the carried one is not.  The names
+    alone cannot tell a second program logged only as loaded from the same program run again
+    with another open in the editor: the other is kept, and such a run is not taken by default
+    where a run of certain name is there."""
     running = next((e.value for e in events[r.start:min(r.start + 20, r.end)] if e.item == "program" and e.value), "")
     if running:
-        return running
+        return running, ""
     carried, edited = r.program, ""
     for e in events[:r.start]:
         if e.item == "program" and e.value:
             carried, edited = e.value, ""
         elif e.item == "program_editing" and e.value:
             edited = e.value
-    if edited and outline is not None and outline.names(edited) and not (carried and outline.names(carried)):
-        return edited
-    return carried or edited
+    if not carried or not edited or same_program(carried, edited):
+        return carried or edited, ""
+    if outline is not None and outline.names(edited) and not outline.names(carried):
+        return edited, carried
+    return carried, edited
 
 
 def _back_over_names(events: list, end: int, floor: int) -> int:
@@ -569,7 +612,9 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
             # for the new run before its ACTIVE — line 0, its first line — is the new run's)
             end = next((k for k, v in blocks if ta <= events[k].t and k <= k_res and v < was - RESTART_SLACK), k_res)
             end = _back_over_names(events, end, before[-1][0] + 1)
-            finished = outline is not None and was >= outline.end_line  # (a pass that ran to the end: M99)
+            # (a pass that ran to the program's last move and went on from its start with no stop:
+            # an M99 program running again)
+            finished = outline is not None and not logged and was >= outline.last_line
             how = "" if logged else "; no stop or end state logged"
             ended = "" if finished else (f"stopped at line {was} at {stop_at:.0f} s and started again from the "
                                          f"program's start {go_at - stop_at:.0f} s later{how}")
@@ -657,6 +702,7 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
         complete = [r for r in all_runs if r.complete]
         if outline is not None and any(outline.names(r.program) for r in complete):
             complete = [r for r in complete if outline.names(r.program)]
+            complete = [r for r in complete if not r.other_name] or complete
         chosen = complete[-1] if complete else all_runs[0]
     else:
         if not 1 <= run <= len(all_runs):
@@ -714,6 +760,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
             "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
     if chosen.late:
         meta["started_at"] = str(chosen.late)
+    if chosen.gaps:
+        meta["data_gaps_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.gaps)
     missing = [col.split("_")[0] for col in OVERRIDES.values() if col not in extra]
     if missing:
         meta["overrides"] = f"{', '.join(missing)} not logged: 100 % assumed"
