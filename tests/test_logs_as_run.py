@@ -928,20 +928,7 @@ def test_an_override_at_zero_inside_a_logged_stop_is_not_taken_out_twice(setup, 
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
 
 
-M99_MAIN = """\
-%
-O1000(PART)
-G21 G90 G17 G94
-T1 M6
-S6000 M3
-G0 X0 Y0 Z5
-G1 Z-1 F300
-G1 X40 F900
-G1 Y40
-G0 Z50
-M99
-%
-"""
+M99_MAIN = "".join(PROGRAM.splitlines(True)[:8]) + "G1 Y40\nG0 Z50\nM99\n%\n"  # (PROGRAM's start, run again)
 
 
 def test_each_pass_of_a_program_that_runs_again_is_a_complete_run(tmp_path):
