@@ -12,7 +12,7 @@ import numpy as np
 
 from ..version import __version__
 from ..effects import Effect, parse_effect_spec
-from ..errors import MtwinError
+from ..errors import MtwinError, warning_text
 from ..params import is_effect_param
 from ..io import write_bytes
 from ..loop.asrun import as_run
@@ -240,14 +240,16 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
         # a group far longer than the twin's, with nothing logged to say why: the machine stood
         # (a hold or stop the control did not log) — no model error, and said so
         long = np.flatnonzero(blocks.measured - blocks.simulated > STOOD)
-        if len(long) > TOLD:
-            msgs.warn(f"{len(long) - TOLD} more block groups took over {STOOD:.0f} s longer on the log than in the "
-                      f"twin with no hold or stop logged")
         for i in long[:TOLD]:
             a, z = int(blocks.first_line[i]), int(blocks.last_line[i])
-            msgs.warn(f"{f'lines {a}–{z}' if z > a else f'line {a}'} took {blocks.measured[i]:.1f} s on the log "
-                      f"where the twin takes {blocks.simulated[i]:.1f} s, with no hold or stop logged: the machine "
-                      f"stood (an unlogged feed hold or stop?) — that time is in the measured cycle")
+            msgs.warn(warning_text(str(measurement), 0,
+                                   f"{f'lines {a}–{z}' if z > a else f'line {a}'} took {blocks.measured[i]:.1f} s on "
+                                   f"the log where the twin takes {blocks.simulated[i]:.1f} s, with no hold or stop "
+                                   f"logged: the machine stood (an unlogged feed hold or stop?) — that time is in the "
+                                   f"measured cycle"))
+        if len(long) > TOLD:
+            msgs.warn(warning_text(str(measurement), 0, f"{len(long) - TOLD} more block groups took over {STOOD:.0f} s "
+                                   f"longer on the log than in the twin with no hold or stop logged"))
     return Comparison(prog, meas, res, trace, msgs.items)
 
 
