@@ -232,11 +232,11 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
             rest = blocks.stops[TOLD:]
             msgs.note(f"{len(rest)} more program stops ({sum(x['wait'] for x in rest):.1f} s in all; single block?), "
                       f"taken out alike")
-        for x in blocks.excluded[:5]:
+        for x in blocks.excluded[:TOLD]:
             msgs.note(f"lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} at "
                       f"{x['t0']:.1f}–{x['t1']:.1f} s")
-        if len(blocks.excluded) > 5:
-            msgs.note(f"{len(blocks.excluded) - 5} more block groups left out (the machine held)")
+        if len(blocks.excluded) > TOLD:
+            msgs.note(f"{len(blocks.excluded) - TOLD} more block groups left out (the machine held)")
         # a group far longer than the twin's, with nothing logged to say why: the machine stood
         # (a hold or stop the control did not log) — no model error, and said so
         long = np.flatnonzero(blocks.measured - blocks.simulated > STOOD)

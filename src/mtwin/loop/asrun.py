@@ -280,23 +280,19 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=
         return cum[i] + v[i] * (x - t[i])
 
     at = v[np.clip(np.searchsorted(t, a, side="right") - 1, 0, len(t) - 1)]
-    # the held spans' time and their own values' integral, taken off
-    gone, gone_int = np.zeros(np.shape(a)), np.zeros(np.shape(a))
+    # the held spans' time and their own values' integral, taken off; a span held throughout ran
+    # at the value it resumed at (at a hold to the run's end, the value before it)
+    gone, gone_int, resumed = np.zeros(np.shape(a)), np.zeros(np.shape(a)), np.array(at, float)
     for h0, h1 in held:
         lo, hi = np.maximum(a, h0), np.minimum(b, h1)
         gone += np.maximum(hi - lo, 0.0)
         gone_int += np.where(hi > lo, integral(np.maximum(hi, lo)) - integral(lo), 0.0)
+        k = int(np.searchsorted(t, h1, side="left"))
+        after = v[k] if k < len(t) else v[max(int(np.searchsorted(t, h0, side="right")) - 2, 0)]
+        resumed = np.where((a >= h0) & (b <= h1), after, resumed)
     span = b - a - gone
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (integral(b) - integral(a) - gone_int) / span
-    # (a span held throughout ran at the value it resumed at; at a hold to the run's end, the
-    # value before it)
-    resumed = np.array(at, float)
-    for h0, h1 in held:
-        inside = (a >= h0) & (b <= h1)
-        k = int(np.searchsorted(t, h1, side="left"))
-        resumed = np.where(inside, v[k] if k < len(t) else v[max(int(np.searchsorted(t, h0, side="right")) - 2, 0)],
-                           resumed)
     return np.where(span > 1e-9, mean, np.where(gone > 0, resumed, at))
 
 
@@ -405,9 +401,9 @@ def logged_against_programmed(program, meas, trace, kind_of: dict | None = None,
         suspect = _off(med, len(idx), spread)
         # the straight moves alone (blocks.KINDS' "feed": lines, and arcs of 2 mm or more, that
         # reach F): where the machine's path limits and the twin's differ least (an arc limit the
-        # twin does not have spreads the pooled ratio, and hides an override)
-        # (its spread, where the twin's ramps and the machine's differ in length, may pass the
-        # pooled bound: the ratio is told where 1 lies well outside its samples' middle half)
+        # twin does not have spreads the pooled ratio, and hides an override).  Their spread, where
+        # the twin's ramps and the machine's differ in length, may pass the pooled bound: the
+        # ratio is told where 1 lies well outside its samples' middle half
         on = next((k for k in STRAIGHT if k in by_kind and _off(by_kind[k]["ratio"], by_kind[k]["samples"],
                                                                 by_kind[k]["spread"], STRAIGHT_SPREAD)
                    and abs(by_kind[k]["ratio"] - 1.0) > by_kind[k]["spread"]), "")

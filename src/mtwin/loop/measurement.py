@@ -190,11 +190,9 @@ def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None
     mapping = parse_maps(maps)
     name = str(path)
     if not name.endswith(".parquet") and name != "-":
-        from .mtconnect import is_mtconnect, read_mtconnect
+        from .mtconnect import Outline, is_mtconnect, read_mtconnect
 
         if is_mtconnect(name):  # an MTConnect log (SHDR or agent XML): read directly
-            from .mtconnect import Outline
-
             return read_mtconnect(name, run=run, ignore_items=ignore_items,
                                   outline=Outline.of(program) if program is not None else None)
     if run is not None:

@@ -98,7 +98,6 @@ _UNUSED = re.compile(
 
 def is_mtconnect(path: str) -> bool:
     """A file that looks like an SHDR log or an MTConnectStreams document."""
-    import os
     import stat as _stat
 
     try:
@@ -688,7 +687,7 @@ def n_to_lines(program_data: bytes) -> dict:
 def to_measurement(path: str, events: list, run: int | None = None, block_is: str = "line",
                    program_data: bytes | None = None, outline: Outline | None = None) -> Measurement:
     """The chosen run of a log as a measurement (a sample at every logged change); ``outline``:
-    the program it is read against (:func:`runs`; block numbers as lines only)."""
+    the program it is read against (:func:`runs`; in N words where the block numbers are)."""
     if outline is not None and block_is == "n":
         outline = outline.in_n_words(program_data) if program_data is not None else None
     all_runs = runs(events, outline)
