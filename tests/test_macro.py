@@ -87,6 +87,16 @@ def test_fanuc_m98_with_parameters_in_the_subprogram():
     assert set(prog.records["line"].tolist()) == {8}
 
 
+def test_an_m99_main_program_loops_with_or_without_macros():
+    # M99 in the main program: a Fanuc control runs it again until reset — the program says so,
+    # and warns it as the plain interpreter does (the log reader takes each pass for a run)
+    plain, macro = run("G21 G90\nG1 X10 F500\nM99\n"), run("G21 G90\n#1 = 10\nG1 X#1 F500\nM99\n")
+    for prog, line in ((plain, 3), (macro, 4)):
+        assert prog.loops and any("M99 in the main program" in w.message and w.location.line == line
+                                  for w in prog.warnings)
+    assert not run("O1\nG21 G90\nM98 P2\nM30\nO2\nG1 X1 F100\nM99\n").loops
+
+
 def test_macro_program_round_trip_and_rewrite():
     text = ("G21 G90 F600\n#1 = 3\no1 repeat [2]\n  G1 X#1\n  G1 Y5 F300\n  #1 = [#1 * 2]\no1 endrepeat\n"
             "G1 X1 Y2 F500\nG1 X2 F[250*2]\nM2\n")

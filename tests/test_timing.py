@@ -221,7 +221,7 @@ GOOD = ("2020-01-01T00:00:00.0Z|Program_Name_Running|PART.NC\n2020-01-01T00:00:0
 
 @pytest.mark.parametrize("log,where,what", [
     (GOOD.replace("|Block_Number|5", "|Blok_Numbr|5"), ":4:24:", "unknown data item 'Blok_Numbr'"),
-    (GOOD.replace("00:00:01.0Z", "00:00:00.0Z"), ":4:1:", "before the previous record"),
+    (GOOD.replace("2020-01-01T00:00:01.0Z", "2019-12-31T23:59:00.0Z"), ":4:1:", "records are out of order"),
     (GOOD.replace("|Block_Number|5", "|Block_Number|500"), ":4:1:", "beyond the end of PART.NC"),
     (GOOD.replace("|PART.NC", "|OTHER.NC"), "", "the log ran OTHER.NC, not PART.NC"),
 ])

@@ -53,8 +53,9 @@ def measured_program(program, measurement, reading: Reading, messages: Messages)
     """(the program as the measurement says it ran — a control's logged overrides applied, cut
     at the last line reached with ``partial`` — and the measurement as read)."""
     meas = read_measurement(measurement, reading.maps, reading.ignore_items, reading.run, program)
-    if meas.meta.get("cut_last") and meas.meta.get("source", "").startswith("MTConnect"):
-        messages.note(f"{measurement}: {meas.meta['cut_last']}")
+    for key in ("cut_last", "reordered"):
+        if meas.meta.get(key) and meas.meta.get("source", "").startswith("MTConnect"):
+            messages.note(f"{measurement}: {meas.meta[key]}")
     if meas.runs and len(meas.runs) > 1:  # (a log of several runs: which one this is, and the others)
         for k, r in enumerate(meas.runs, 1):
             chosen = str(k) == meas.meta.get("run")

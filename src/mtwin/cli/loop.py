@@ -50,8 +50,9 @@ def import_mtconnect(
     check_outputs(output)
     m = import_log(log, run=run, block_is=block_is, program=program, ignore_items=ignore_item or ())
     m.write(output)
-    if "cut_last" in m.meta:
-        say(f"note: {m.meta['cut_last']}")
+    for key in ("cut_last", "reordered"):
+        if key in m.meta:
+            say(f"note: {m.meta[key]}")
     for k, r in enumerate(m.runs, 1):
         say(f"run {k}: {r.describe()}")
     say(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s, lines "

@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import GCodeError, SourceLocation
 from . import _interpkernel as K
 from .lexer import ControlByteError, Lexed, lex
+from .macro import M99_MAIN_NOTE
 from .records import FL_SUB, MOVE_DTYPE
 
 DIALECTS = ("auto", "fanuc", "linuxcnc")
@@ -88,6 +89,9 @@ class Program:
     # the records are the rest of a run already under way (a log that starts in the middle of the
     # program, mtwin.loop.asrun): the first record's tool is in the spindle, at its speed
     running: bool = False
+    # the main program ends in M99: a Fanuc control runs it again from its start until reset (the
+    # records are one pass)
+    loops: bool = False
 
     @property
     def path(self) -> str:
@@ -243,7 +247,7 @@ def _load_macro(data: bytes, name: str, settings: InterpreterSettings) -> Progra
     if 1 <= end_change <= len(ex.line_map):
         end_change = int(ex.line_map[end_change - 1])
     return dc_replace(prog, warnings=warnings, source=data, expanded=ex, unknown_calls=tuple(ex.unknown_calls),
-                      end_tool_change=end_change)
+                      end_tool_change=end_change, loops=prog.loops or ex.loops)
 
 
 def _resolve_dialect(settings: InterpreterSettings, path: str) -> str:
@@ -351,7 +355,7 @@ def interpret(lexed: Lexed, settings: InterpreterSettings) -> Program:
     if last_change[1] >= 0 and last_change[2] >= n and (n == 0 or records["tool"][-1] != last_change[0]):
         end_change = int(last_change[1]) + 1
     return Program(lexed, records, settings, dialect, warnings, end_tool_change=end_change,
-                   tools_by_selection=selected)
+                   tools_by_selection=selected, loops=bool(np.any(warn_code[:nw] == K.W_M99_IN_MAIN)))
 
 
 def _tool_without_m6(lexed: Lexed, records, warnings: list):
@@ -419,7 +423,7 @@ def _warning(lexed: Lexed, code: int, k: int) -> GCodeWarning:
         msg = ("arc end point is off the circle by more than the control's tolerance: taken as a spiral "
                "from the start radius to the end radius (--lenient)")
     elif code == K.W_M99_IN_MAIN:
-        msg = "M99 in the main program ends it here (a Fanuc control would loop to the start)"
+        msg = M99_MAIN_NOTE
     else:
         msg = f"warning {code}"
     return GCodeWarning(loc, msg)

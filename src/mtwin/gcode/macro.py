@@ -34,6 +34,7 @@ MAX_EXECUTED_LINES = 2_000_000  # lines executed in all
 MAX_IDLE_LINES = 200_000  # lines executed in a row with nothing to run (no move, no code word)
 MAX_REPEATS = 9999  # an M98/G65 L repeat count: Fanuc's own range (L1-L9999)
 MAX_CALL_DEPTH = 16  # nested subprogram and macro calls (as the plain interpreter, MAX_SUB_DEPTH)
+M99_MAIN_NOTE = "M99 in the main program ends it here (a Fanuc control would loop to the start)"
 
 # G65 argument letters -> local parameter numbers (Fanuc argument specification I)
 _G65_ARGS = {"A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F": 9, "H": 11, "M": 13,
@@ -78,6 +79,7 @@ class Expanded:
     notes: list = field(default_factory=list)  # (source line, column, message): --lenient warnings
     unknown_calls: list = field(default_factory=list)  # source lines calling a program not at hand
     turning: list = field(default_factory=list)  # source lines of lathe profile cycles (G70-G72)
+    loops: bool = False  # the main program ends in M99: a Fanuc control runs it again from its start
 
 
 class _Err(Exception):
@@ -313,6 +315,7 @@ class _Executor:
         self.notes: list = []
         self.unknown_calls: list = []
         self.turning: list = []
+        self.loops = False
         self.loaded: set = set()
         self.dialect = dialect
         self.skip_bd = skip_block_delete
@@ -756,7 +759,11 @@ class _Executor:
                         if len(self.frames) < depth:
                             return
                         continue
-                    break  # M99 in the main program: end (no endless rerun here)
+                    # M99 in the main program: end (no endless rerun here), said as the plain
+                    # interpreter says it
+                    self.loops = True
+                    self.notes.append((ln.no, 1, M99_MAIN_NOTE))
+                    break
                 if 30.0 in ms or 2.0 in ms:
                     self.emit(words, ln.no)
                     break
@@ -1177,7 +1184,7 @@ def expand(data: bytes, path: str, dialect: str, skip_block_delete: bool, offset
         raise GCodeError("expression nested too deeply", SourceLocation(path, 1, 1)) from None
     text = "\n".join(ex.out) + "\n"
     return Expanded(text.encode("ascii"), np.array(ex.out_line, np.int64), np.array(ex.out_sub, bool),
-                    ex.notes, ex.unknown_calls, ex.turning)
+                    ex.notes, ex.unknown_calls, ex.turning, ex.loops)
 
 
 _STATEMENT = re.compile(r"^(N\d+)?(O(<[^>]*>|\d+)(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|WHILE|ENDWHILE|DO|REPEAT|"

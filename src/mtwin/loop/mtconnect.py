@@ -136,13 +136,14 @@ class Run:
     until: float = 0.0  # s since the epoch the run ended at, where later than its last event (an M99 pass)
     gaps: list = field(default_factory=list)  # (t0, t1) s since the run's start the control's data was UNAVAILABLE
     other_name: str = ""  # where the run logs no running name: the other name it may have had
+    label: str = "line"  # what its block numbers are, for a person ("line", or "N" for N words)
 
     def describe(self) -> str:
         """One line for a person: the program, complete or how it ended, its pauses."""
         what = "complete" if self.complete else f"incomplete ({self.ended or 'the log ends in it'})"
         out = f"{self.program or '(unnamed)'}, {what}"
         if self.reached >= 0 and not self.complete:
-            out += f", reached line {self.reached}"
+            out += f", reached {_word(self.label, self.reached)}"
         if self.holds:
             out += f", {len(self.holds)} feed hold(s)"
         if self.stops:
@@ -153,8 +154,9 @@ class Run:
             out += (f" (its running program is not logged: {self.program} or {self.other_name}, by the names "
                     f"logged before it)")
         for t, a, b in self.restarts:
-            out += f"; restarted at {t:.0f} s from line {a} back to line {b} (its first pass through lines {b}–{a} " \
-                   f"is taken out: no time is counted twice)"
+            span = f"lines {b}–{a}" if self.label == "line" else f"N{b}–N{a}"
+            out += (f"; restarted at {t:.0f} s from {_word(self.label, a)} back to {_word(self.label, b)} (its first "
+                    f"pass through {span} is taken out: no time is counted twice)")
         return out
 
 
@@ -180,6 +182,7 @@ class Outline:
     window: int = JUMP_LINES  # how far either side of a jump the log may have seen it (in block numbers)
     label: str = "line"  # what the block numbers are, for a person ("line", or "N" for N words)
     last_line: int = 0  # the line of the program's last move: a pass that reached it ran to the end
+    loops: bool = False  # the program ends in M99: it runs again until reset, and never ends by itself
 
     @classmethod
     def of(cls, program) -> "Outline":
@@ -198,7 +201,7 @@ class Outline:
         k = np.flatnonzero(lines[1:] < lines[:-1])
         return cls(os.path.basename(program.path or ""), int(ahead[min(EDGE_LINES, len(ahead)) - 1]),
                    int(behind[min(EDGE_LINES, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1),
-                   last_line=int(moves[-1]))
+                   last_line=int(moves[-1]), loops=bool(getattr(program, "loops", False)))
 
     def in_n_words(self, program_data: bytes) -> "Outline | None":
         """The outline with N numbers for lines (a log whose block numbers are N words): each
@@ -219,7 +222,7 @@ class Outline:
         step = max(int(np.median(np.diff(num) / np.maximum(np.diff(at), 1))), 1) if len(num) > 1 else 1
         return Outline(self.name, int(n_of(self.start_line)), int(n_of(self.end_line)),
                        n_of(self.back).reshape(-1, 2) if len(self.back) else self.back, JUMP_LINES * step, "N",
-                       int(n_of(self.last_line)))
+                       int(n_of(self.last_line)), self.loops)
 
     def goes_back(self, was: int, now: int) -> bool:
         """Whether the program itself jumps back from about ``was`` to about ``now`` (the log
@@ -303,7 +306,34 @@ def read_shdr(path: str, ignore=()) -> list:
         _record(ln, out, path, i, ignore)
     if not out:
         raise MeasurementError("the log holds no records", SourceLocation(path, 1, 1))
-    return out
+    return _in_time_order(out, path)
+
+
+# s a record may lie before one written above it: an agent's buffers flushed out of turn, read in
+# time order; further back the log's clock was set back, or two logs were joined
+DISORDER = 1.0
+
+
+def _in_time_order(out: list, path: str) -> list:
+    """The events in time order, where records lie at most DISORDER s before one above them (said
+    in ``reordered``); further back is an error at the first such record."""
+    top, late, back, first = -math.inf, 0, 0.0, None
+    for e in out:
+        if e.t < top - 1e-6:
+            if top - e.t > DISORDER:
+                above = next(x for x in out if x.t == top)
+                raise MeasurementError(f"the record's timestamp is {top - e.t:.3f} s before that of line {above.line} "
+                                       f"above it: the log's records are out of order (its clock set back, or two "
+                                       f"logs joined)", SourceLocation(path, e.line, 1))
+            late, back, first = late + 1, max(back, top - e.t), first or e.line
+        top = max(top, e.t)
+    if not late:
+        return out
+    res = Events(sorted(out, key=lambda e: e.t))  # (stable: records of one moment keep their order)
+    res.cut_last = getattr(out, "cut_last", "")
+    res.reordered = (f"{late} record(s) lie up to {back:.3f} s before one written above them (the first at line "
+                     f"{first}): read in time order")
+    return res
 
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
@@ -313,6 +343,7 @@ class Events(list):
     """A log's events, with what reading them left out (``cut_last``: a last record cut short)."""
 
     cut_last: str = ""
+    reordered: str = ""  # records read in time order, not the file's
 
 
 def _record(ln: str, out: list, path: str, i: int, ignore: set) -> None:
@@ -327,9 +358,6 @@ def _record(ln: str, out: list, path: str, i: int, ignore: set) -> None:
     if not _TS.match(parts[0]):
         raise MeasurementError(f"not an SHDR timestamp: {parts[0][:40]!r}", SourceLocation(path, i, 1))
     t = _seconds(parts[0], path, i)
-    if out and t < out[-1].t - 1e-6:
-        raise MeasurementError(f"the timestamp {parts[0]} is before the previous record's (line "
-                               f"{out[-1].line}): the log's records are out of order", SourceLocation(path, i, 1))
     pairs = parts[1:]
     if len(pairs) % 2:
         pairs.append("")
@@ -387,12 +415,14 @@ def read_streams(path: str) -> list:
     return out
 
 
-def runs(events: list, outline: Outline | None = None) -> list:
+def runs(events: list, outline: Outline | None = None, label: str | None = None) -> list:
     """The program runs in a log: ACTIVE to the next end state.  A feed hold (FEED_HOLD) or a
     program stop (STOPPED, OPTIONAL_STOP, PROGRAM_STOPPED, INTERRUPTED) followed by ACTIVE is an
     interval of the run; a stop followed by READY ends it, incomplete (aborted).  ``outline``:
     the program the log is read against — a run is complete only where it ran the program from
-    its start to its end, and a jump back it does not make itself is a restart."""
+    its start to its end, and a jump back it does not make itself is a restart.  ``label``: what
+    the block numbers are, for a person ("line", "N"; the outline's by default)."""
+    label = label or (outline.label if outline is not None else "line")
     out = []
     name = ""
     start = None
@@ -428,7 +458,7 @@ def runs(events: list, outline: Outline | None = None) -> list:
                 paused = None
                 continue
             if start is not None:  # ACTIVE again without an end: the earlier run was cut
-                out.append(_cut_run(events, name, start, k, holds, stops))
+                out.append(_cut_run(events, name, start, k, holds, stops, label))
                 out[-1].gaps = gaps
             start, holds, stops, gaps = k, [], [], []
         elif start is not None and (v == "FEED_HOLD" or v in _STOP):
@@ -439,7 +469,7 @@ def runs(events: list, outline: Outline | None = None) -> list:
             ended = ""
             if aborted:
                 last = _blocks(events, start, k)
-                ended = (f"stopped ({paused[1]}) at line {last[-1][1] if last else '?'} at "
+                ended = (f"stopped ({paused[1]}) at {_word(label, last[-1][1]) if last else 'an unlogged line'} at "
                          f"{paused[0] - events[start].t:.0f} s and reset ({v})")
             out.append(Run(name, start, k + 1, not aborted, holds, stops, end_state=v, ended=ended, gaps=gaps))
             start, holds, stops, paused, gaps = None, [], [], None, []
@@ -451,6 +481,7 @@ def runs(events: list, outline: Outline | None = None) -> list:
     # name for a second program)
     for r in out:
         r.program, r.other_name = _run_name(events, r, outline)
+    out = _joined(events, out, outline)
     # (the outline is the program's: a run of another program in the same log is read on its own
     # terms — where the log names the program at all: a renamed file, --any-program, names none)
     ours = outline is not None and any(outline.names(r.program) or outline.names(r.other_name) for r in out)
@@ -459,11 +490,50 @@ def runs(events: list, outline: Outline | None = None) -> list:
     for r in out:
         mine = outline if outline is not None and (not ours or not r.program or outline.names(r.program)
                                                    or outline.names(r.other_name)) else None
-        for x in _restarts(events, r, mine):
+        for x in _restarts(events, r, mine, label):
             _against(events, x, mine, _lead(events, prev_end, x.start))
+            x.label = label
             split.append(x)
             prev_end = x.end
     return split
+
+
+def _joined(events: list, out: list, outline: Outline | None) -> list:
+    """``out`` with each run reset and started again in the middle made one with the run that
+    goes on from there (a control's program restart: the operator resets, searches the block
+    to go on from — at or before where the run stopped — and starts the cycle there).  The part
+    was cut by the two: the one run is read as a restart in the middle (:func:`_restarts`: the
+    first pass through the repeated lines and the time between are taken out); kept apart, neither
+    would be a whole cycle."""
+    res: list = []
+    for r in out:
+        a = res[-1] if res else None
+        done = [b for _, b in _blocks(events, a.start, a.end) if b > 0] if a is not None else []
+        # (a READY is also what some controls log at a program's end: with the program at hand,
+        # the lines tell a reset from a finish; without it, only a logged stop before it does)
+        finished = a is not None and (a.end_state == "PROGRAM_COMPLETED" or (
+            max(done, default=0) >= outline.end_line if outline is not None and outline.end_line else a.complete))
+        if finished or a is None or not done or not (not a.program or not r.program
+                                                     or same_program(a.program, r.program)):
+            res.append(r)
+            continue
+        first = _lead(events, a.end, r.start) or next((b for _, b in _blocks(events, r.start, r.end) if b > 0), 0)
+        if not first or first > done[-1]:
+            res.append(r)  # (it went on past where the other stopped: lines never cut)
+            continue
+        start = outline.start_line if outline is not None and outline.start_line else done[0] + RESTART_SLACK
+        if first <= start or first <= RESTART_SHARE * done[-1]:
+            res.append(r)  # (from the program's start: a new run, the other aborted)
+            continue
+        t0 = events[a.start].t
+        dt = events[r.start].t - t0
+        res[-1] = Run(a.program or r.program, a.start, r.end, r.complete,
+                      a.holds + [(h0 + dt, h1 + dt) for h0, h1 in r.holds],
+                      a.stops + [(events[a.end - 1].t - t0, dt, "RESET")]
+                      + [(x0 + dt, x1 + dt, st) for x0, x1, st in r.stops],
+                      ended=r.ended, end_state=r.end_state, gaps=a.gaps + [(g0 + dt, g1 + dt) for g0, g1 in r.gaps],
+                      other_name=a.other_name or r.other_name)
+    return res
 
 
 def _blocks(events: list, k0: int, k1: int) -> list:
@@ -509,7 +579,7 @@ def _back_over_names(events: list, end: int, floor: int) -> int:
     return end
 
 
-def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: list) -> Run:
+def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: list, label: str = "line") -> Run:
     """The run from ``start`` that the control started again at ``k`` (ACTIVE) with no end state
     logged between.  What the log reported for the new run before its ACTIVE — the block number
     back at the program's start, the program loaded — belongs to the new run, not to how far the
@@ -527,7 +597,7 @@ def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: li
     t0 = events[start].t
     last = [b for j, b in blocks if j < end]
     if end < k:
-        ended = (f"stopped at line {last[-1]} at {events[end - 1].t - t0:.0f} s and started again from the program's "
+        ended = (f"stopped at {_word(label, last[-1])} at {events[end - 1].t - t0:.0f} s and started again from the program's "
                  f"start {events[k].t - events[end - 1].t:.0f} s later; no stop or end state logged")
     else:
         ended = f"cut at {events[k - 1].t - t0:.0f} s: the control started a run again with no end state logged"
@@ -551,7 +621,7 @@ def _block(e: Event) -> int | None:
     return int(v) if math.isfinite(v) and v >= 0 and v == int(v) else None
 
 
-def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
+def _restarts(events: list, r: Run, outline: Outline | None = None, label: str = "line") -> list:
     """A run as the control ran it.  Where execution resumes — after a logged program stop, or
     where the block number goes back with no state logged — with the block number back near the
     run's first block, a new run began from the start (the one before was aborted: a restart,
@@ -573,12 +643,13 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
     def at_start(now: int, was: int) -> bool:
         return now <= first + RESTART_SLACK or now <= RESTART_SHARE * was
 
-    # where execution resumed: (t before, t after, the event it resumed at or None, logged)
+    # where execution resumed: (t before, t after, the event it resumed at or None, the state
+    # logged: None where none was)
     resumed = []
-    for t0, t1, _state in r.stops:
+    for t0, t1, state in r.stops:
         k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= t_start + t1 - 1e-9
                       and events[k].value.upper() == "ACTIVE"), None)
-        resumed.append((t_start + t0, t_start + t1, k_res, True))
+        resumed.append((t_start + t0, t_start + t1, k_res, state))
     spans = [(t_start + a, t_start + b) for a, b, _ in r.stops] + [(t_start + a, t_start + b) for a, b in r.holds]
     for (k0, was), (k1, now) in zip(blocks, blocks[1:]):
         if now >= was - RESTART_SLACK:
@@ -593,16 +664,17 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
             k1 = next((k for k, v in blocks if k > k1 and v > 0), k1)
         while k1 > k0 + 1 and events[k1 - 1].t == events[k1].t:
             k1 -= 1
-        resumed.append((t0, t1, k1, False))
+        resumed.append((t0, t1, k1, None))
     resumed.sort(key=lambda x: x[0])
-    for ta, tb, k_res, logged in resumed:
+    for ta, tb, k_res, state in resumed:
+        logged = state is not None
         before = [x for x in blocks if events[x[0]].t <= ta]
         after = [x for x in blocks if events[x[0]].t >= tb]
         if not before or not after:
             continue
         was, now = before[-1][1], after[0][1]
-        if now >= was - 1:
-            continue  # it went on where it stopped (an M00/M01 wait)
+        if now > was or now == was and state != "RESET":
+            continue  # it went on where it stopped (an M00/M01 wait; after a reset, it ran the line again)
         if k_res is None:
             k_res = after[0][0]
         stop_at, go_at = ta - t_start, tb - t_start  # s since the run's start
@@ -615,7 +687,7 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
             # an M99 program running again)
             finished = outline is not None and not logged and was >= outline.last_line
             how = "" if logged else "; no stop or end state logged"
-            ended = "" if finished else (f"stopped at line {was} at {stop_at:.0f} s and started again from the "
+            ended = "" if finished else (f"stopped at {_word(label, was)} at {stop_at:.0f} s and started again from the "
                                          f"program's start {go_at - stop_at:.0f} s later{how}")
             done = Run(r.program, r.start, end, finished, [h for h in r.holds if h[1] <= stop_at],
                        [x for x in r.stops if x[1] <= stop_at], reached=was, ended=ended,
@@ -625,7 +697,7 @@ def _restarts(events: list, r: Run, outline: Outline | None = None) -> list:
             rest = Run(r.program, k_res, r.end, r.complete, [(h0 - dt, h1 - dt) for h0, h1 in r.holds if h0 >= go_at],
                        [(x0 - dt, x1 - dt, st) for x0, x1, st in r.stops if x0 >= go_at], ended=r.ended,
                        end_state=r.end_state)
-            return [done] + _restarts(events, rest, outline)
+            return [done] + _restarts(events, rest, outline, label)
         # in the middle: the repeated pass began where the run last entered the line it resumed
         # at (in a loop, or after an earlier call of a subprogram, not where it first did)
         i = len(before) - 1
@@ -668,10 +740,22 @@ def _against(events: list, r: Run, outline: Outline | None, lead: int = 0) -> No
         r.complete = False
         r.ended = (f"ended at {_at(outline, r.reached)} ({r.end_state or 'its end state'}) before the program's last "
                    f"moves ({_at(outline, outline.end_line)} on): reset, not finished")
+    elif r.complete and outline.loops and not r.until and r.end_state != "PROGRAM_COMPLETED":
+        # (a pass that ran on into the next one ended there; the last one was reset at a moment
+        # the log does not place: within its last move, or after it)
+        r.complete = False
+        r.ended = (f"reset ({r.end_state or 'its end state'}) at {_at(outline, r.reached)}: the program runs again "
+                   f"(M99) until reset, so where its last pass stopped is not logged — a pass that ran on into the "
+                   f"next is complete")
 
 
 def _at(outline: Outline, block: int) -> str:
-    return f"line {block}" if outline.label == "line" else f"N{block}"
+    return _word(outline.label, block)
+
+
+def _word(label: str, block) -> str:
+    """A block number for a person: "line 12", or "N120" where the log's block numbers are N words."""
+    return f"line {block}" if label == "line" else f"N{block}"
 
 
 def n_to_lines(program_data: bytes) -> dict:
@@ -690,7 +774,7 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     the program it is read against (:func:`runs`; in N words where the block numbers are)."""
     if outline is not None and block_is == "n":
         outline = outline.in_n_words(program_data) if program_data is not None else None
-    all_runs = runs(events, outline)
+    all_runs = runs(events, outline, "N" if block_is == "n" else "line")
     if not all_runs:
         raise MeasurementError("no program run in the log (no Program_Status / Execution ACTIVE)",
                                SourceLocation(path, events[0].line, 1))
@@ -765,12 +849,15 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     if missing:
         meta["overrides"] = f"{', '.join(missing)} not logged: 100 % assumed"
     if chosen.restarts:
-        meta["restarts"] = "; ".join(f"at {t:.3f} s from line {a} back to line {b}" for t, a, b in chosen.restarts)
+        meta["restarts"] = "; ".join(f"at {t:.3f} s from {_word(chosen.label, a)} back to {_word(chosen.label, b)}"
+                                     for t, a, b in chosen.restarts)
     others = [f"run {k}: {r.describe()}" for k, r in enumerate(all_runs, 1) if r is not chosen and not r.complete]
     if others:
         meta["other_runs"] = "; ".join(others)
     if getattr(events, "cut_last", ""):
         meta["cut_last"] = events.cut_last
+    if getattr(events, "reordered", ""):
+        meta["reordered"] = events.reordered
     if chosen.holds:
         meta["feed_holds_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.holds)
     if chosen.stops:
