@@ -956,6 +956,10 @@ def test_each_pass_of_a_program_that_runs_again_is_a_complete_run(tmp_path):
                                                                                    "Program_Status|READY")]))
     m = read_measurement(str(tmp_path / "early.txt"), program=prog)
     assert m.meta["run"] == "1" and m.end_time == pytest.approx(cyc, abs=1e-3)
+    # one pass, reset: refused, and said why
+    (tmp_path / "one.txt").write_text(_text([x for x in ev if x[0] < cyc] + [(cyc, "Program_Status|READY")]))
+    r = _cli("compare", str(tmp_path / "PART.NC"), str(tmp_path / "one.txt"))
+    assert r.returncode == 2 and "runs again (M99) until reset" in r.stderr, r.stderr
 
 
 def test_a_reset_is_told_where_the_block_numbers_are_n_words(setup, tmp_path):
@@ -1081,6 +1085,51 @@ def test_a_reset_and_a_restart_in_the_middle_are_one_run(setup, tmp_path):
     (tmp_path / "again.txt").write_text(_text(again))
     assert [r.complete for r in read_measurement(str(tmp_path / "again.txt"), program=prog).runs] == [False, True]
     assert stopped.runs[0].complete
+    # the program rewound (block 0) at the reset, at its moment or just before it: the same run
+    for dt in (0.0, -0.01):
+        zero = head + [(t_reset + dt, "Block_Number|0")] + log[len(head):]
+        (tmp_path / "zero.txt").write_text(_text(sorted(zero, key=lambda x: x[0])))
+        c0 = _json_cycle(_cli("compare", str(d / "PART.NC"), str(tmp_path / "zero.txt"), "--json"))
+        assert c0["measured"] == pytest.approx(c["measured"], abs=0.05), (dt, c0)
+    # the log went blind between (UNAVAILABLE): what ran then is not known — two runs
+    blind = head + [(t_reset, "Program_Status|READY"), (t_reset + 1.0, "Program_Status|UNAVAILABLE")] + log[len(head) + 1:]
+    (tmp_path / "blind.txt").write_text(_text(blind))
+    assert len(read_measurement(str(tmp_path / "blind.txt"), program=prog).runs) == 2
+
+
+SUB_CALLED = PROGRAM.replace("M01\n", "M98 P2000\n").replace("M30\n%\n", "M30\nO2000\nG1 X200 F300\nG1 X100\nG0 Z5\nM99\n%\n")
+
+
+def test_a_restart_after_a_subprogram_it_stopped_in_is_not_joined(tmp_path):
+    # reset in a subprogram (line 22, called from line 14) and started again at main line 16:
+    # lower in lines, later in the program's own order — lines 15 and 23 never ran; two runs
+    (tmp_path / "SUB.NC").write_text(SUB_CALLED)
+    tw = mtwin.Twin()
+    prog = tw.load(str(tmp_path / "SUB.NC"))
+    tr = tw.simulate(prog, cutting=False)
+    t, line = np.asarray(tr.t), np.asarray(tr.line)
+    ev = [(float(t[k]), f"Block_Number|{int(line[k])}") for k in np.flatnonzero(np.r_[True, line[1:] != line[:-1]])
+          if line[k] > 0]
+    t22 = next(x for x, r in ev if r == "Block_Number|22")
+    k16 = next(i for i, (x, r) in enumerate(ev) if r == "Block_Number|16")
+    shift = t22 + 65.0 - ev[k16][0]
+    log = ([(-1.0, "Program_Name_Running|SUB.NC"), (0.0, "Program_Status|ACTIVE")] + [x for x in ev if x[0] <= t22]
+           + [(t22 + 5.0, "Program_Status|READY"), (t22 + 64.99, "Program_Status|ACTIVE")]
+           + [(x + shift, r) for x, r in ev[k16:]] + [(ev[-1][0] + shift + 0.1, "Program_Status|PROGRAM_COMPLETED")])
+    (tmp_path / "skip.txt").write_text(_text(log))
+    m = read_measurement(str(tmp_path / "skip.txt"), run=1, program=prog)
+    assert [r.complete for r in m.runs] == [False, False] and not m.runs[0].restarts
+
+
+def test_a_clock_glitch_is_told_at_its_record(setup, tmp_path):
+    # one record an hour ahead of those either side of it: the error is at that record
+    d, tw, prog = setup
+    lines = _log(tw, prog).splitlines()
+    k = len(lines) // 2
+    lines[k] = lines[k].replace(lines[k][11:13], f"{int(lines[k][11:13]) + 1:02d}", 1)
+    (tmp_path / "glitch.txt").write_text("\n".join(lines) + "\n")
+    r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "glitch.txt"))
+    assert r.returncode == 2 and f"glitch.txt:{k + 1}:1:" in r.stderr and "clock glitch" in r.stderr, r.stderr
 
 
 def test_records_a_little_out_of_order_are_read_in_time_order(setup, tmp_path):

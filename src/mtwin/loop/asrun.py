@@ -91,8 +91,11 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
                                    f"that ran with --partial", SourceLocation(meas.path, 0, 0))
         others = " (or another of the log's runs with --run K)" if len(meas.runs or ()) > 1 else ""
         if not partial:
+            k = int(meas.meta.get("run", 0) or 0)
+            why = (meas.runs[k - 1].ended if meas.runs and 1 <= k <= len(meas.runs) else "") \
+                or "a logger that stopped, or the run was aborted"
             raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
-                                   f"{program.path or 'the program'} (a logger that stopped, or the run was aborted) — "
+                                   f"{program.path or 'the program'} ({why}) — "
                                    f"compare the part that ran with --partial{others}", SourceLocation(meas.path, 0, 0))
         if not has_lines:
             raise MeasurementError("the run in the log is incomplete and the log names no program line, so where it "

@@ -318,10 +318,16 @@ def _in_time_order(out: list, path: str) -> list:
     """The events in time order, where records lie at most DISORDER s before one above them (said
     in ``reordered``); further back is an error at the first such record."""
     top, late, back, first = -math.inf, 0, 0.0, None
-    for e in out:
+    for i, e in enumerate(out):
         if e.t < top - 1e-6:
             if top - e.t > DISORDER:
-                above = next(x for x in out if x.t == top)
+                j = next(j for j in range(i) if out[j].t == top)
+                above = out[j]
+                if max((x.t for x in out[:j] if x.line != above.line), default=-math.inf) <= e.t + DISORDER:
+                    # (the records before it and after it agree: it is the one out of line)
+                    raise MeasurementError(f"the record's timestamp is {top - e.t:.3f} s after that of the next "
+                                           f"record (line {e.line}) and of those before it: a clock glitch, or a "
+                                           f"record written wrong", SourceLocation(path, above.line, 1))
                 raise MeasurementError(f"the record's timestamp is {top - e.t:.3f} s before that of line {above.line} "
                                        f"above it: the log's records are out of order (its clock set back, or two "
                                        f"logs joined)", SourceLocation(path, e.line, 1))
@@ -505,31 +511,33 @@ def _joined(events: list, out: list, outline: Outline | None) -> list:
     was cut by the two: the one run is read as a restart in the middle (:func:`_restarts`: the
     first pass through the repeated lines and the time between are taken out); kept apart, neither
     would be a whole cycle."""
+    if outline is None or not outline.start_line:
+        return out  # (without the program, a reset is not told from a finish: READY ends both)
     res: list = []
     for r in out:
         a = res[-1] if res else None
-        done = [b for _, b in _blocks(events, a.start, a.end) if b > 0] if a is not None else []
-        # (a READY is also what some controls log at a program's end: with the program at hand,
-        # the lines tell a reset from a finish; without it, only a logged stop before it does)
-        finished = a is not None and (a.end_state == "PROGRAM_COMPLETED" or (
-            max(done, default=0) >= outline.end_line if outline is not None and outline.end_line else a.complete))
-        if finished or a is None or not done or not (not a.program or not r.program
-                                                     or same_program(a.program, r.program)):
+        done = [(k, b) for k, b in _blocks(events, a.start, a.end) if b > 0] if a is not None else []
+        if a is None or not done or a.end_state == "PROGRAM_COMPLETED" or done[-1][1] >= outline.end_line or not (
+                not a.program or not r.program or same_program(a.program, r.program)) or any(
+                e.item == "status" and e.value.upper() == "UNAVAILABLE" for e in events[a.end:r.start]):
+            # (finished; another program; or the log went blind between: what ran then is not known)
             res.append(r)
             continue
-        first = _lead(events, a.end, r.start) or next((b for _, b in _blocks(events, r.start, r.end) if b > 0), 0)
-        if not first or first > done[-1]:
-            res.append(r)  # (it went on past where the other stopped: lines never cut)
-            continue
-        start = outline.start_line if outline is not None and outline.start_line else done[0] + RESTART_SLACK
-        if first <= start or first <= RESTART_SHARE * done[-1]:
-            res.append(r)  # (from the program's start: a new run, the other aborted)
+        was = done[-1][1]
+        first = next((b for _, b in _blocks(events, r.start, r.end) if b > 0), 0) or _lead(events, a.end, r.start)
+        if not first or first > was or first <= outline.start_line or outline.goes_back(was, first):
+            # (it went on past where the other stopped, or from there in the program's own order —
+            # a subprogram's return — so lines were never cut; or from the start: a new run)
+            res.append(r)
             continue
         t0 = events[a.start].t
         dt = events[r.start].t - t0
+        # (the reset began at the first block number logged after the last line run: a 0, the
+        # program rewound)
+        stop = min((events[k].t for k, b in _blocks(events, done[-1][0] + 1, a.end)), default=events[a.end - 1].t)
         res[-1] = Run(a.program or r.program, a.start, r.end, r.complete,
                       a.holds + [(h0 + dt, h1 + dt) for h0, h1 in r.holds],
-                      a.stops + [(events[a.end - 1].t - t0, dt, "RESET")]
+                      a.stops + [(min(stop, events[a.end - 1].t) - t0, dt, "RESET")]
                       + [(x0 + dt, x1 + dt, st) for x0, x1, st in r.stops],
                       ended=r.ended, end_state=r.end_state, gaps=a.gaps + [(g0 + dt, g1 + dt) for g0, g1 in r.gaps],
                       other_name=a.other_name or r.other_name)
@@ -541,11 +549,16 @@ def _blocks(events: list, k0: int, k1: int) -> list:
     return [(k, b) for k in range(k0, k1) if events[k].item == "block" and (b := _block(events[k])) is not None]
 
 
+# s before a run's ACTIVE the control may report the run's first line; one logged earlier is
+# what it showed while it stood (the program rewound at a reset, before a search to another block)
+LEAD_S = 2.0
+
+
 def _lead(events: list, k0: int, k1: int) -> int:
-    """The block number logged last in events[k0:k1] (a run's first line, which the control may
-    report just before its ACTIVE), 0 where none."""
+    """The block number logged last in events[k0:k1] within LEAD_S of events[k1] (a run's first
+    line, which the control may report just before its ACTIVE), 0 where none."""
     b = _blocks(events, k0, k1)
-    return b[-1][1] if b else 0
+    return b[-1][1] if b and (k1 >= len(events) or events[k1].t - events[b[-1][0]].t <= LEAD_S) else 0
 
 
 def _run_name(events: list, r: Run, outline: Outline | None) -> tuple[str, str]:
@@ -668,7 +681,7 @@ def _restarts(events: list, r: Run, outline: Outline | None = None, label: str =
     resumed.sort(key=lambda x: x[0])
     for ta, tb, k_res, state in resumed:
         logged = state is not None
-        before = [x for x in blocks if events[x[0]].t <= ta]
+        before = [x for x in blocks if events[x[0]].t <= ta and x[1] > 0]  # (a 0: the program rewound)
         after = [x for x in blocks if events[x[0]].t >= tb]
         if not before or not after:
             continue
