@@ -928,20 +928,26 @@ def test_an_override_at_zero_inside_a_logged_stop_is_not_taken_out_twice(setup, 
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
 
 
+def _line_reports(path, text: str) -> tuple:
+    """(the program written to ``path``, a report of every line the default twin enters, as
+    (s, "Block_Number|N"), its cycle time s)."""
+    path.write_text(text)
+    tw = mtwin.Twin()
+    prog = tw.load(str(path))
+    tr = tw.simulate(prog, cutting=False)
+    t, line = np.asarray(tr.t), np.asarray(tr.line)
+    reports = [(float(t[k]), f"Block_Number|{int(line[k])}")
+               for k in np.flatnonzero(np.r_[True, line[1:] != line[:-1]]) if line[k] > 0]
+    return prog, reports, tr.summary.cycle_time
+
+
 M99_MAIN = "".join(PROGRAM.splitlines(True)[:8]) + "G1 Y40\nG0 Z50\nM99\n%\n"  # (PROGRAM's start, run again)
 
 
 def test_each_pass_of_a_program_that_runs_again_is_a_complete_run(tmp_path):
     # an M99 main program runs again from its start: a pass that reached the program's end is a
     # finished run (not an aborted one), and it lasts until the next pass begins
-    (tmp_path / "PART.NC").write_text(M99_MAIN)
-    tw = mtwin.Twin()
-    prog = tw.load(str(tmp_path / "PART.NC"))
-    tr = tw.simulate(prog, cutting=False)
-    t, line = np.asarray(tr.t), np.asarray(tr.line)
-    cyc = tr.summary.cycle_time
-    one = [(float(t[k]), f"Block_Number|{int(line[k])}") for k in np.flatnonzero(np.r_[True, line[1:] != line[:-1]])
-           if line[k] > 0]
+    prog, one, cyc = _line_reports(tmp_path / "PART.NC", M99_MAIN)
     ev = [(-1.0, "Program_Name_Running|PART.NC"), (0.0, "Program_Status|ACTIVE")] + one + \
          [(x + cyc, r) for x, r in one] + [(2 * cyc, "Program_Status|READY")]
     (tmp_path / "m99.txt").write_text(_text(ev))
@@ -1103,13 +1109,7 @@ SUB_CALLED = PROGRAM.replace("M01\n", "M98 P2000\n").replace("M30\n%\n", "M30\nO
 def test_a_restart_after_a_subprogram_it_stopped_in_is_not_joined(tmp_path):
     # reset in a subprogram (line 22, called from line 14) and started again at main line 16:
     # lower in lines, later in the program's own order — lines 15 and 23 never ran; two runs
-    (tmp_path / "SUB.NC").write_text(SUB_CALLED)
-    tw = mtwin.Twin()
-    prog = tw.load(str(tmp_path / "SUB.NC"))
-    tr = tw.simulate(prog, cutting=False)
-    t, line = np.asarray(tr.t), np.asarray(tr.line)
-    ev = [(float(t[k]), f"Block_Number|{int(line[k])}") for k in np.flatnonzero(np.r_[True, line[1:] != line[:-1]])
-          if line[k] > 0]
+    prog, ev, _ = _line_reports(tmp_path / "SUB.NC", SUB_CALLED)
     t22 = next(x for x, r in ev if r == "Block_Number|22")
     k16 = next(i for i, (x, r) in enumerate(ev) if r == "Block_Number|16")
     shift = t22 + 65.0 - ev[k16][0]
