@@ -537,7 +537,7 @@ def _joined(events: list, out: list, outline: Outline | None) -> list:
         stop = min((events[k].t for k, b in _blocks(events, done[-1][0] + 1, a.end)), default=events[a.end - 1].t)
         res[-1] = Run(a.program or r.program, a.start, r.end, r.complete,
                       a.holds + [(h0 + dt, h1 + dt) for h0, h1 in r.holds],
-                      a.stops + [(min(stop, events[a.end - 1].t) - t0, dt, "RESET")]
+                      a.stops + [(stop - t0, dt, "RESET")]
                       + [(x0 + dt, x1 + dt, st) for x0, x1, st in r.stops],
                       ended=r.ended, end_state=r.end_state, gaps=a.gaps + [(g0 + dt, g1 + dt) for g0, g1 in r.gaps],
                       other_name=a.other_name or r.other_name)
@@ -610,8 +610,8 @@ def _cut_run(events: list, name: str, start: int, k: int, holds: list, stops: li
     t0 = events[start].t
     last = [b for j, b in blocks if j < end]
     if end < k:
-        ended = (f"stopped at {_word(label, last[-1])} at {events[end - 1].t - t0:.0f} s and started again from the program's "
-                 f"start {events[k].t - events[end - 1].t:.0f} s later; no stop or end state logged")
+        ended = (f"stopped at {_word(label, last[-1])} at {events[end - 1].t - t0:.0f} s and started again from the "
+                 f"program's start {events[k].t - events[end - 1].t:.0f} s later; no stop or end state logged")
     else:
         ended = f"cut at {events[k - 1].t - t0:.0f} s: the control started a run again with no end state logged"
     return Run(name, start, end, False, holds, stops, reached=last[-1] if last else -1, ended=ended)
