@@ -1153,3 +1153,12 @@ def test_records_a_little_out_of_order_are_read_in_time_order(setup, tmp_path):
     (tmp_path / "back.txt").write_text("\n".join(back) + "\n")
     r = _cli("compare", str(d / "PART.NC"), str(tmp_path / "back.txt"))
     assert r.returncode == 2 and f"back.txt:{k + 1}:1:" in r.stderr and "out of order" in r.stderr, r.stderr
+
+
+def test_a_runs_stops_are_counted_by_state():
+    # single-block mode stops at every line: the run's one line counts them, not lists them
+    from mtwin.loop.mtconnect import Run
+
+    r = Run("PART.NC", 0, 10, True, stops=[(float(k), k + 0.5, "STOPPED") for k in range(1000)]
+            + [(2000.0, 2001.0, "RESTART")])
+    assert r.describe() == "PART.NC, complete, 1001 program stop(s) (1000 STOPPED, 1 RESTART)"

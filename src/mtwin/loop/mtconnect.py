@@ -147,7 +147,8 @@ class Run:
         if self.holds:
             out += f", {len(self.holds)} feed hold(s)"
         if self.stops:
-            out += f", {len(self.stops)} program stop(s) ({', '.join(st for _, _, st in self.stops)})"
+            states = [st for _, _, st in self.stops]  # (counted: single-block mode stops at every line)
+            out += f", {len(states)} program stop(s) ({', '.join(f'{states.count(x)} {x}' for x in dict.fromkeys(states))})"
         for a, b in self.gaps:
             out += f", no data {a:.0f}–{b:.0f} s (the control UNAVAILABLE: an adapter's reconnect; the run went on)"
         if self.other_name:
