@@ -546,7 +546,7 @@ def test_a_run_cut_by_a_restart_with_no_stop_logged_ends_where_the_block_number_
     # the loop commands list the runs and take --run
     r = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--json")
     assert r.returncode == 0, r.stderr
-    assert "run 1: PART.NC, incomplete (stopped at line" in r.stderr and "the run compared" in r.stderr
+    assert "run 1: PART.NC, incomplete (stopped at line" in r.stderr and "the run chosen" in r.stderr
     r1 = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "1")
     assert r1.returncode == 2 and "incomplete" in r1.stderr and "--partial" in r1.stderr
     r1 = _cli("compare", str(d / "PART.NC"), str(d / "cut.txt"), "--run", "1", "--partial", "--json")
@@ -1162,3 +1162,39 @@ def test_a_runs_stops_are_counted_by_state():
     r = Run("PART.NC", 0, 10, True, stops=[(float(k), k + 0.5, "STOPPED") for k in range(1000)]
             + [(2000.0, 2001.0, "RESTART")])
     assert r.describe() == "PART.NC, complete, 1001 program stop(s) (1000 STOPPED, 1 RESTART)"
+
+
+def test_a_reset_among_the_last_moves_then_a_restart_is_one_run(setup, tmp_path):
+    # reset in line 17 (one of the program's last moves, which a log may miss) and started
+    # again from line 16: the restart says the run did not finish — one run, no time twice
+    d, tw, prog = setup
+    ev = _events(_log(tw, prog))
+    t17 = next(t for t, r in ev if r.startswith("Block_Number|17"))
+    head = [(t, r) for t, r in ev if t <= t17]
+    k = next(i for i, (t, r) in enumerate(ev) if r.startswith("Block_Number|16"))
+    shift = t17 + 60.0 - ev[k][0]
+    log = head + [(t17 + 0.3, "Program_Status|READY"), (t17 + 60.0, "Program_Status|ACTIVE")] + \
+        [(t + shift, r) for t, r in ev[k:]]
+    (tmp_path / "late.txt").write_text(_text(log))
+    m = read_measurement(str(tmp_path / "late.txt"), program=prog)
+    assert len(m.runs) == 1 and m.runs[0].complete and m.runs[0].restarts
+    c = _json_cycle(_cli("compare", str(d / "PART.NC"), str(tmp_path / "late.txt"), "--json"))
+    assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+
+
+def test_passes_split_where_the_return_and_the_next_pass_share_a_moment(tmp_path):
+    # the M99's report and the next pass's first lines logged at one timestamp: still two passes
+    prog, one, cyc = _line_reports(tmp_path / "PART.NC", M99_MAIN)
+    ev = [(-1.0, "Program_Name_Running|PART.NC"), (0.0, "Program_Status|ACTIVE")] + one + \
+        [(cyc, f"Block_Number|{M99_MAIN.count(chr(10)) - 1}")] + [(max(x, 0.0) + cyc, r) for x, r in one] + \
+        [(2 * cyc - 0.5, "Program_Status|READY")]
+    (tmp_path / "same.txt").write_text(_text(sorted(ev, key=lambda e: e[0])))
+    m = read_measurement(str(tmp_path / "same.txt"), program=prog)
+    assert [r.complete for r in m.runs] == [True, False] and m.meta["run"] == "1"
+    assert m.end_time == pytest.approx(cyc, abs=1e-3)
+    # through a measurement file, a refusal still says why the run is incomplete
+    r = _cli("import", "mtconnect", str(tmp_path / "same.txt"), "--run", "2", "--program", str(tmp_path / "PART.NC"),
+             "-o", str(tmp_path / "two.csv"))
+    assert r.returncode == 0, r.stderr
+    r = _cli("compare", str(tmp_path / "PART.NC"), str(tmp_path / "two.csv"))
+    assert r.returncode == 2 and "runs again (M99) until reset" in r.stderr, r.stderr

@@ -60,12 +60,12 @@ def measured_program(program, measurement, reading: Reading, messages: Messages)
         for k, r in enumerate(meas.runs, 1):
             chosen = str(k) == meas.meta.get("run")
             messages.note(f"{measurement}: run {k}: {r.describe()}"
-                          + (" — the run compared" if chosen else ""))
+                          + (" — the run chosen" if chosen else ""))
     if meas.meta.get("data_gaps_s"):
         messages.note(f"{measurement}: no data {meas.meta['data_gaps_s']} s (the control UNAVAILABLE: an adapter's "
                       f"reconnect; the run went on, and the lines it ran meanwhile are timed as one group)")
     if meas.meta.get("restarts"):
-        messages.note(f"{measurement}: restarted in the middle {meas.meta['restarts']} (its first pass through the "
+        messages.note(f"{measurement}: restarted in the middle: {meas.meta['restarts']} (its first pass through the "
                       f"lines it ran again is taken out)")
     check_against_program(meas, program, reading.any_program)
     run = as_run(program, meas, reading.partial)

@@ -92,7 +92,7 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
         others = " (or another of the log's runs with --run K)" if len(meas.runs or ()) > 1 else ""
         if not partial:
             k = int(meas.meta.get("run", 0) or 0)
-            why = (meas.runs[k - 1].ended if meas.runs and 1 <= k <= len(meas.runs) else "") \
+            why = (meas.runs[k - 1].ended if meas.runs and 1 <= k <= len(meas.runs) else meas.meta.get("ended", "")) \
                 or "a logger that stopped, or the run was aborted"
             raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
                                    f"{program.path or 'the program'} ({why}) — "

@@ -178,7 +178,8 @@ def check_against_program(meas: Measurement, program, any_program: bool = False)
         where = SourceLocation(meas.path, int(src[i]) if src is not None else 0, 0 if src is None else 1)
         raise MeasurementError(f"line {int(meas.line[i])} is beyond the end of {os.path.basename(program.path or '')} "
                                f"({n} lines): the measurement is of another program"
-                               + (" (or its block numbers are N words: --block-is n)" if src is not None else ""),
+                               + (" (or its block numbers are N words: read it with `mtwin import mtconnect --block-is n "
+                                  "--program PROGRAM` and compare the file that writes)" if src is not None else ""),
                                where)
 
 

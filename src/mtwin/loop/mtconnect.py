@@ -156,8 +156,8 @@ class Run:
                     f"logged before it)")
         for t, a, b in self.restarts:
             span = f"lines {b}–{a}" if self.label == "line" else f"N{b}–N{a}"
-            out += (f"; restarted at {t:.0f} s from {_word(self.label, a)} back to {_word(self.label, b)} (its first "
-                    f"pass through {span} is taken out: no time is counted twice)")
+            out += (f"; stopped at {t:.0f} s at {_word(self.label, a)} and started again from {_word(self.label, b)} "
+                    f"(its first pass through {span} is taken out: no time is counted twice)")
         return out
 
 
@@ -165,6 +165,7 @@ class Run:
 # in the middle (or its logger late); one whose last lies before the lines of its last few did
 # not finish (a reset to READY looks like an end): the lines a log may miss at either end
 EDGE_LINES = 5
+EDGE_LEAST = 2  # (and at least these, however short the program)
 # lines a program's own jump back (a loop, a subprogram's return) may lie from where the log saw
 # it go back: the lines the log did not report either side of it
 JUMP_LINES = 50
@@ -184,6 +185,18 @@ class Outline:
     label: str = "line"  # what the block numbers are, for a person ("line", or "N" for N words)
     last_line: int = 0  # the line of the program's last move: a pass that reached it ran to the end
     loops: bool = False  # the program ends in M99: it runs again until reset, and never ends by itself
+    tail: tuple = ()  # the lines of its last few moves (distinct, in the order last run): a run that reports none
+    # of them, nor a line of the main program after its last move, did not reach the end
+    main_end: int = 0  # the first subprogram line after the last move (0: none): the main program's lines end there
+
+    def finished(self, block: int) -> bool:
+        """Whether a run that reported ``block`` reached the program's last move (its line, or a
+        line of the main program after it: M30) — not a subprogram's line further down the file."""
+        return block >= self.last_line and (not self.main_end or block < self.main_end)
+
+    def at_end(self, block: int) -> bool:
+        """Whether ``block`` is one of the program's last few moves' lines, or after them."""
+        return block in self.tail or self.finished(block)
 
     @classmethod
     def of(cls, program) -> "Outline":
@@ -200,9 +213,15 @@ class Outline:
         _, last = np.unique(moves[::-1], return_index=True)
         behind = moves[::-1][np.sort(last)]  # distinct lines, the last run first
         k = np.flatnonzero(lines[1:] < lines[:-1])
-        return cls(os.path.basename(program.path or ""), int(ahead[min(EDGE_LINES, len(ahead)) - 1]),
-                   int(behind[min(EDGE_LINES, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1),
-                   last_line=int(moves[-1]), loops=bool(getattr(program, "loops", False)))
+        # (on a short program, a tenth of its lines: five of twenty would take a reset a quarter
+        # from its end for a finish)
+        edge = min(EDGE_LINES, max(EDGE_LEAST, len(ahead) // 10))
+        sub = np.asarray(rec["line"][ok & ((rec["flags"] & R.FL_SUB) != 0)], np.int64)
+        below = sub[sub > moves[-1]]
+        return cls(os.path.basename(program.path or ""), int(ahead[min(edge, len(ahead)) - 1]),
+                   int(behind[min(edge, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1),
+                   last_line=int(moves[-1]), loops=bool(getattr(program, "loops", False)),
+                   tail=tuple(int(x) for x in behind[:edge]), main_end=int(below.min()) if below.size else 0)
 
     def in_n_words(self, program_data: bytes) -> "Outline | None":
         """The outline with N numbers for lines (a log whose block numbers are N words): each
@@ -223,7 +242,8 @@ class Outline:
         step = max(int(np.median(np.diff(num) / np.maximum(np.diff(at), 1))), 1) if len(num) > 1 else 1
         return Outline(self.name, int(n_of(self.start_line)), int(n_of(self.end_line)),
                        n_of(self.back).reshape(-1, 2) if len(self.back) else self.back, JUMP_LINES * step, "N",
-                       int(n_of(self.last_line)), self.loops)
+                       int(n_of(self.last_line)), self.loops, tuple(int(n_of(x)) for x in self.tail),
+                       int(n_of(self.main_end)) if self.main_end else 0)
 
     def goes_back(self, was: int, now: int) -> bool:
         """Whether the program itself jumps back from about ``was`` to about ``now`` (the log
@@ -324,11 +344,13 @@ def _in_time_order(out: list, path: str) -> list:
             if top - e.t > DISORDER:
                 j = next(j for j in range(i) if out[j].t == top)
                 above = out[j]
-                if max((x.t for x in out[:j] if x.line != above.line), default=-math.inf) <= e.t + DISORDER:
-                    # (the records before it and after it agree: it is the one out of line)
-                    raise MeasurementError(f"the record's timestamp is {top - e.t:.3f} s after that of the next "
-                                           f"record (line {e.line}) and of those before it: a clock glitch, or a "
-                                           f"record written wrong", SourceLocation(path, above.line, 1))
+                prev = max((x.t for x in out[:j] if x.line != above.line), default=-math.inf)
+                on = out[i + 1].t if i + 1 < len(out) else -math.inf
+                if prev <= e.t + DISORDER and on < top - DISORDER:
+                    # (the records before it and the two after it agree: it is the one out of line)
+                    raise MeasurementError(f"the record's timestamp is {top - e.t:.3f} s after the next record's "
+                                           f"(line {e.line}) and {top - prev:.3f} s after the one before it: a clock "
+                                           f"glitch, or a record written wrong", SourceLocation(path, above.line, 1))
                 raise MeasurementError(f"the record's timestamp is {top - e.t:.3f} s before that of line {above.line} "
                                        f"above it: the log's records are out of order (its clock set back, or two "
                                        f"logs joined)", SourceLocation(path, e.line, 1))
@@ -518,7 +540,9 @@ def _joined(events: list, out: list, outline: Outline | None) -> list:
     for r in out:
         a = res[-1] if res else None
         done = [(k, b) for k, b in _blocks(events, a.start, a.end) if b > 0] if a is not None else []
-        if a is None or not done or a.end_state == "PROGRAM_COMPLETED" or done[-1][1] >= outline.end_line or not (
+        # (a run that stopped within the lines a log may miss at the end, then went on from the
+        # middle, was reset, not finished: what it cut is timed whole either way)
+        if a is None or not done or a.end_state == "PROGRAM_COMPLETED" or outline.finished(done[-1][1]) or not (
                 not a.program or not r.program or same_program(a.program, r.program)) or any(
                 e.item == "status" and e.value.upper() == "UNAVAILABLE" for e in events[a.end:r.start]):
             # (finished; another program; or the log went blind between: what ran then is not known)
@@ -658,12 +682,12 @@ def _restarts(events: list, r: Run, outline: Outline | None = None, label: str =
         return now <= first + RESTART_SLACK or now <= RESTART_SHARE * was
 
     # where execution resumed: (t before, t after, the event it resumed at or None, the state
-    # logged: None where none was)
+    # logged: None where none was, and then the block events either side of the jump)
     resumed = []
     for t0, t1, state in r.stops:
         k_res = next((k for k in range(r.start, r.end) if events[k].item == "status" and events[k].t >= t_start + t1 - 1e-9
                       and events[k].value.upper() == "ACTIVE"), None)
-        resumed.append((t_start + t0, t_start + t1, k_res, state))
+        resumed.append((t_start + t0, t_start + t1, k_res, state, None))
     spans = [(t_start + a, t_start + b) for a, b, _ in r.stops] + [(t_start + a, t_start + b) for a, b in r.holds]
     for (k0, was), (k1, now) in zip(blocks, blocks[1:]):
         if now >= was - RESTART_SLACK:
@@ -676,14 +700,19 @@ def _restarts(events: list, r: Run, outline: Outline | None = None, label: str =
             continue  # the program's own jump (or, with no program to tell, perhaps one: a subprogram's return)
         if now == 0:  # (block 0: the program reset; the new run starts at its first line)
             k1 = next((k for k, v in blocks if k > k1 and v > 0), k1)
-        while k1 > k0 + 1 and events[k1 - 1].t == events[k1].t:
-            k1 -= 1
-        resumed.append((t0, t1, k1, None))
+        k_res = k1
+        while k_res > k0 + 1 and events[k_res - 1].t == events[k_res].t:
+            k_res -= 1
+        resumed.append((t0, t1, k_res, None, (k0, k1)))
     resumed.sort(key=lambda x: x[0])
-    for ta, tb, k_res, state in resumed:
+    for ta, tb, k_res, state, pair in resumed:
         logged = state is not None
-        before = [x for x in blocks if events[x[0]].t <= ta and x[1] > 0]  # (a 0: the program rewound)
-        after = [x for x in blocks if events[x[0]].t >= tb]
+        if pair is None:  # (a 0: the program rewound)
+            before = [x for x in blocks if events[x[0]].t <= ta and x[1] > 0]
+            after = [x for x in blocks if events[x[0]].t >= tb]
+        else:  # (by the events themselves: the lines either side of a jump may share a timestamp)
+            before = [x for x in blocks if x[0] <= pair[0] and x[1] > 0]
+            after = [x for x in blocks if x[0] >= pair[1]]
         if not before or not after:
             continue
         was, now = before[-1][1], after[0][1]
@@ -699,7 +728,7 @@ def _restarts(events: list, r: Run, outline: Outline | None = None, label: str =
             end = _back_over_names(events, end, before[-1][0] + 1)
             # (a pass that ran to the program's last move and went on from its start with no stop:
             # an M99 program running again)
-            finished = outline is not None and not logged and was >= outline.last_line
+            finished = outline is not None and not logged and outline.finished(was)
             how = "" if logged else "; no stop or end state logged"
             ended = "" if finished else (f"stopped at {_word(label, was)} at {stop_at:.0f} s and started again from the "
                                          f"program's start {go_at - stop_at:.0f} s later{how}")
@@ -750,7 +779,7 @@ def _against(events: list, r: Run, outline: Outline | None, lead: int = 0) -> No
             r.complete = False
             r.ended = (f"started at {_at(outline, blocks[0])}, not at the program's start (its first moves run to "
                        f"{_at(outline, outline.start_line)}): restarted in the middle, or logged from there")
-    if r.complete and r.end_state != "PROGRAM_COMPLETED" and max(blocks) < outline.end_line:
+    if r.complete and r.end_state != "PROGRAM_COMPLETED" and not any(outline.at_end(b) for b in blocks):
         r.complete = False
         r.ended = (f"ended at {_at(outline, r.reached)} ({r.end_state or 'its end state'}) before the program's last "
                    f"moves ({_at(outline, outline.end_line)} on): reset, not finished")
@@ -857,14 +886,16 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
             "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
     if chosen.late:
         meta["started_at"] = str(chosen.late)
+    if not chosen.complete and chosen.ended:
+        meta["ended"] = chosen.ended  # (why it is incomplete: a measurement file of it says so too)
     if chosen.gaps:
         meta["data_gaps_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.gaps)
     missing = [col.split("_")[0] for col in OVERRIDES.values() if col not in extra]
     if missing:
         meta["overrides"] = f"{', '.join(missing)} not logged: 100 % assumed"
     if chosen.restarts:
-        meta["restarts"] = "; ".join(f"at {t:.3f} s from {_word(chosen.label, a)} back to {_word(chosen.label, b)}"
-                                     for t, a, b in chosen.restarts)
+        meta["restarts"] = "; ".join(f"stopped at {t:.3f} s at {_word(chosen.label, a)}, started again from "
+                                     f"{_word(chosen.label, b)}" for t, a, b in chosen.restarts)
     others = [f"run {k}: {r.describe()}" for k, r in enumerate(all_runs, 1) if r is not chosen and not r.complete]
     if others:
         meta["other_runs"] = "; ".join(others)
