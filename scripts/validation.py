@@ -70,6 +70,7 @@ def main(realdata: Path) -> None:
                 row["helices"] = _helices(prog, seen, tw.machine.controller.spiral_min)
                 row["rapids"] = _rapid_sequences(prog, seen, sim)
                 row["sequences_by_tool"] = _sequences_by_tool(prog, seen, sim)
+                row["sequence_parts"] = _sequence_parts(prog, seen, sim)
                 row["corners"] = _corner_feed(prog, meas, tr, tw.planned_machine.controller.arc_acceleration)
                 row["sequence_times"] = _sequence_times(prog, seen)
                 row["stands"] = _spindle_stands(prog, seen, sim)
@@ -264,6 +265,19 @@ def _sequence_errors(prog, seen: dict, sim: dict) -> dict:
     """First line -> simulated − logged s of each retract-reposition-approach, from the first
     report of its first rapid to that of the feed line after them."""
     return {a: (sim[a + 3] - sim[a]) - (seen[a + 3] - seen[a]) for a in _sequence_starts(prog, seen, sim)}
+
+
+def _sequence_parts(prog, seen: dict, sim: dict) -> list:
+    """[(sequences, logged mean s, twin mean s)] of each of the retract-reposition-approach's
+    three lines — the retract from its first report to the reposition's, the reposition to the
+    approach's, the approach to the feed line's first report — over the sequences whose log
+    reports both ends of that line."""
+    out = []
+    for k in range(3):
+        pairs = [(seen[a + k + 1] - seen[a + k], sim[a + k + 1] - sim[a + k]) for a in _sequence_starts(prog, seen, sim)
+                 if all(x in d for x in (a + k, a + k + 1) for d in (seen, sim))]
+        out.append((len(pairs), float(np.mean([m for m, _ in pairs])), float(np.mean([t for _, t in pairs]))))
+    return out
 
 
 def _sequences_by_tool(prog, seen: dict, sim: dict, least: int = 20) -> dict:
@@ -668,8 +682,21 @@ def _markdown(rows, kinds, elapsed) -> str:
                                                   f" ({r['sequences_by_tool'][t][0]})"
                                                   for r in rows if t in r["sequences_by_tool"])
                         for t in sorted(set.intersection(*(set(r["sequences_by_tool"]) for r in rows))))
-            + ": within a tool the machine's sequences are the longer where the plate's feed is the lower, which "
-            "the twin, timing them alike, does not model — most of plate 12's rapid error.  (A rapid run into its collinear plunge at the plunge's feed, in place of "
+            + ".  Split at its three lines' reports (the approach timed to the feed line's first report; logged / "
+            "twin, mean s over the sequences whose log reports both ends of the line): "
+            + "; ".join(f"plate {r['plate']}: " + ", ".join(f"{name} {m:.3f} / {t:.3f} ({n})" for name, (n, m, t) in
+                                                          zip(("retract", "reposition", "approach"), r["sequence_parts"]))
+                        for r in rows)
+            + f".  The twin's approach — a 3.8-mm Z rapid that the plunge follows — is "
+            f"{min(1000 * (m - t) for r in rows for n, m, t in r['sequence_parts'][2:]):.0f}–"
+            f"{max(1000 * (m - t) for r in rows for n, m, t in r['sequence_parts'][2:]):.0f} ms short on every plate: "
+            "the machine stands where a rapid ends and a cutting move follows, as it does where a feed move ends and "
+            "a rapid follows (below); the twin waits only at the latter.  It stands longest on plate 12, the one plate "
+            "whose programs run the spindle at S12000 (plates 13 and 14 at S9000), while plates 13 and 14, at "
+            "different feeds, take alike — tool 23's above at F1016 and F762: the plate's feed does not order the "
+            "sequences; its spindle speed, or the day it ran, may, and with one speed a plate the logs cannot tell "
+            "which — most of plate 12's rapid error.  (A rapid run into its collinear plunge at the plunge's feed, "
+            "in place of "
             "a stop, would shorten plate 13's most, its plunges being the fastest; tried, it makes every plate's "
             "plunges 5–9 s short of the log, which shows them starting from rest: not kept.)",
             "- Where the cycle-time error sits, timed report to report over whole cutting passes (consecutive "
