@@ -71,6 +71,13 @@ def main(realdata: Path) -> None:
                 row["rapids"] = _rapid_sequences(prog, seen, sim)
                 row["sequences_by_tool"] = _sequences_by_tool(prog, seen, sim)
                 row["sequence_parts"] = _sequence_parts(prog, seen, sim)
+                # the same without the profile's wait before cutting
+                nowait = tw.replace(effects=[e.with_values(rapid_feed=0.0) if e.name == "feed-rapid-wait" else e
+                                             for e in tw.effects])
+                tn = nowait.simulate(prog, cutting=False)
+                row["sequence_parts_bare"] = _sequence_parts(prog, seen, line_starts(np.asarray(tn.t),
+                                                                                     np.asarray(tn.line)))
+                row["rapid_feed_wait"] = tw.planned_machine.controller.rapid_feed_wait
                 row["corners"] = _corner_feed(prog, meas, tr, tw.planned_machine.controller.arc_acceleration)
                 row["sequence_times"] = _sequence_times(prog, seen)
                 row["stands"] = _spindle_stands(prog, seen, sim)
@@ -79,7 +86,8 @@ def main(realdata: Path) -> None:
                 # feed lines' ends, timed against logs of the twin's own run, with its wait before a
                 # rapid (the profile's feed-rapid-wait) and without it
                 row["feed_ends"] = feed_line_ends(prog, meas, tr)
-                bare = tw.replace(effects=[e for e in tw.effects if e.name != "feed-rapid-wait"])
+                bare = tw.replace(effects=[e.with_values(time=0.0) if e.name == "feed-rapid-wait" else e
+                                           for e in tw.effects])
                 row["feed_ends_bare"] = feed_line_ends(prog, meas, bare.simulate(prog, cutting=False))
                 row["reversals"] = _reversals(prog, seen, sim)
                 # the retract at the program's end (the last G28 line): the twin's time against the log's
@@ -598,7 +606,8 @@ def _markdown(rows, kinds, elapsed) -> str:
             "- The rapid rate of Z is not in the logs (no long Z rapid) and is set equal to X's and Y's.",
             "- No override or feed-hold item appears in these logs: 100 % overrides are assumed.",
             f"- The fitted X and Y accelerations (≈ {acc_xy / 1000:.2f} and {m.axes[1].max_acceleration / 1000:.2f} "
-            "m/s²; Y's the less certain: the fleet's folds, docs/fleet.md, put it at 0.25–0.57) are the control's effective path "
+            "m/s²; fitted without a wait before cutting — the `rapid_feed` below — Y came out at about twice X, 0.48 "
+            "against 0.25, taking up the approaches' missing time) are the control's effective path "
             "acceleration on these programs' short feed moves, not a drive's capability; rapids run on their own "
             f"(`rapid-acceleration`, ≈ {acc_rapid / 1000:.1f} m/s²), as a Fanuc-style control sets rapid and cutting "
             "acc/dec apart.  Before it was separate, "
@@ -687,11 +696,13 @@ def _markdown(rows, kinds, elapsed) -> str:
             + "; ".join(f"plate {r['plate']}: " + ", ".join(f"{name} {m:.3f} / {t:.3f} ({n})" for name, (n, m, t) in
                                                           zip(("retract", "reposition", "approach"), r["sequence_parts"]))
                         for r in rows)
-            + f".  The twin's approach — a 3.8-mm Z rapid that the plunge follows — is "
-            f"{min(1000 * (m - t) for r in rows for n, m, t in r['sequence_parts'][2:]):.0f}–"
-            f"{max(1000 * (m - t) for r in rows for n, m, t in r['sequence_parts'][2:]):.0f} ms short on every plate: "
-            "the machine stands where a rapid ends and a cutting move follows, as it does where a feed move ends and "
-            "a rapid follows (below); the twin waits only at the latter.  It stands longest on plate 12, the one plate "
+            + f".  Without a wait there the twin's approach — a 3.8-mm Z rapid that the plunge follows — is "
+            f"{min(1000 * (m - t) for r in rows for n, m, t in r['sequence_parts_bare'][2:]):.0f}–"
+            f"{max(1000 * (m - t) for r in rows for n, m, t in r['sequence_parts_bare'][2:]):.0f} ms short on every "
+            "plate: the machine stands where a rapid ends and a cutting move follows "
+            "(its in-position check before it cuts), as it does where a feed move ends and a rapid follows (below).  "
+            f"The profile stands there {rows[0]['rapid_feed_wait'] * 1000:.0f} ms (`feed-rapid-wait`'s `rapid_feed`, "
+            "fitted with the rest, the figures above with it).  It stands longest on plate 12, the one plate "
             "whose programs run the spindle at S12000 (plates 13 and 14 at S9000), while plates 13 and 14, at "
             "different feeds, take alike — tool 23's above at F1016 and F762: the plate's feed does not order the "
             "sequences; its spindle speed, or the day it ran, may, and with one speed a plate the logs cannot tell "

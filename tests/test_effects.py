@@ -522,6 +522,29 @@ def test_feed_rapid_wait_stands_at_a_feed_move_a_rapid_follows_and_nowhere_else(
     assert standing.hold[on][-1] >= wait
 
 
+def test_the_wait_before_cutting_stands_at_a_rapid_a_feed_move_follows_and_nowhere_else():
+    # rapid_feed: exactly its time on the rapid a feed move follows (also over a dwell between
+    # them: lines 2 and 7, and 11 before the dwell and G1) — none on a rapid another follows
+    tw = mtwin.Twin()
+    text = (b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F600\nG1 X20\nG1 Y20\nG0 Z5\nG0 X40\nG1 Z0\nG1 X60\nG0 Z5\n"
+            b"G0 Z2\nG4 P0.5\nG1 Z0\nM30\n")
+    prog = tw.load(text, path="w.nc")
+    wait = 0.05
+    base, slow = tw.plan(prog), tw.with_effects(f"feed-rapid-wait:rapid_feed={wait}").plan(prog)
+    per_line = lambda plan: {ln: float(plan.dur[plan.seg["line"] == ln].sum()) for ln in range(2, 14)}
+    b, s = per_line(base), per_line(slow)
+    for ln in range(2, 14):
+        assert s[ln] == pytest.approx(b[ln] + (wait if ln in (2, 7, 11) else 0.0), abs=1e-9), ln
+    same = tw.with_params({"controller.rapid_feed_wait": wait}).plan(prog)
+    np.testing.assert_array_equal(same.dur, slow.dur)
+    # (the servo simulation stands that long too, where the in-position check after a rapid does
+    # not outlast it: a narrow width, the default's, settles the rapid's lag meanwhile)
+    wide = tw.with_params({"controller.in_position": 0.2})
+    cycle = lambda twin: twin.simulate(prog, cutting=False).summary.cycle_time
+    assert cycle(wide.with_params({"controller.rapid_feed_wait": wait})) - cycle(wide) == pytest.approx(3 * wait,
+                                                                                                        abs=2e-3)
+
+
 def test_rapid_acceleration_times_a_rapid_by_the_closed_form_and_leaves_feed_moves():
     # a long rapid without jerk: t = L/v + v/a (accelerate and brake at a, cruise between);
     # the feed move after it keeps the axes' acceleration

@@ -166,10 +166,14 @@ class FeedRapidWait(Effect):
     stage = "plan"
     params = (Param("time", "s", 0.0, 0.0, 0.5,
                     "how long it stands there (a fixed time: the axes settle meanwhile, the twin's in-position "
-                    "check follows), 0 = the twin file's (controller.feed_rapid_wait)"),)
+                    "check follows), 0 = the twin file's (controller.feed_rapid_wait)"),
+              Param("rapid_feed", "s", 0.0, 0.0, 0.5,
+                    "how long it stands where a rapid ends and a cutting-feed block follows (its in-position check "
+                    "before cutting), 0 = the twin file's (controller.rapid_feed_wait)"))
     signals = ("feed",)
 
     def machine(self, m, p):
+        m = _controller_set(m, "rapid_feed_wait", p.get("rapid_feed", 0.0))
         return _controller_set(m, "feed_rapid_wait", p["time"])
 
 

@@ -522,7 +522,8 @@ def _plan_starts(twin, effects) -> dict:
            "spiral-acceleration.normal_time": jerk_of(m.controller.spiral_jerk),  # (its own inverse)
            "rapid-acceleration.acceleration": (m.controller.rapid_acceleration
                                                or min(a.max_acceleration for a in m.axes)),
-           "feed-rapid-wait.time": m.controller.feed_rapid_wait}
+           "feed-rapid-wait.time": m.controller.feed_rapid_wait,
+           "feed-rapid-wait.rapid_feed": m.controller.rapid_feed_wait}
     out = {}
     for e in effects:
         for d in e.params:

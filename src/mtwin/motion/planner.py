@@ -524,14 +524,15 @@ def _naive_cam(seg: np.ndarray, rec: np.ndarray, apart: np.ndarray | None = None
     return seg[keep]
 
 
-def _feed_before_rapid(seg, is_pause) -> np.ndarray:
+def _feed_before_rapid(seg, is_pause, after: bool = False) -> np.ndarray:
     """(n,) bool: a cutting-feed segment the next motion after which (pauses between skipped) is a
-    rapid — where a control checks in-position for cutting feed before it starts the rapid."""
+    rapid — where a control checks in-position for cutting feed before it starts the rapid; with
+    ``after``, a rapid the next motion after which is a cutting-feed segment."""
     moving = np.flatnonzero(~is_pause)
     out = np.zeros(len(seg), bool)
     if len(moving) > 1:
         rapid = seg["rapid"][moving] == 1
-        out[moving[:-1]] = ~rapid[:-1] & rapid[1:]
+        out[moving[:-1]] = (rapid[:-1] & ~rapid[1:]) if after else (~rapid[:-1] & rapid[1:])
     return out
 
 
@@ -721,18 +722,22 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
     tb = c.bell_time if c.before_shape == "bell" else 0.0
     acc_seg = np.where(is_pause, 1.0, seg["amax"])
     length = np.where(is_pause, 0.0, seg["length"])
+    wait = np.zeros(len(seg), bool)
     if c.feed_rapid_wait > 0:
         # (a control that stands there stops there: Grbl, which blends into a rapid, too)
         wait = _feed_before_rapid(seg, is_pause)
         vj = np.where(wait, 0.0, vj)
+    rapid_wait = np.zeros(len(seg), bool)
+    if c.rapid_feed_wait > 0:
+        rapid_wait = _feed_before_rapid(seg, is_pause, after=True)
+        vj = np.where(rapid_wait, 0.0, vj)
     ve = K.lookahead.auto(len(seg), vj, length, acc_seg, tb, c.lookahead)
     if style != K.STYLE_LINUXCNC:
         ve = _arcs_at_their_speed(seg, budget, vj, length, is_pause, tb, c.lookahead, ve)
         acc_seg = np.where(is_pause, 1.0, seg["amax"])
     stop = (vj <= 0.0) & ~is_pause
     hold = np.where(stop, drain, 0.0)
-    if c.feed_rapid_wait > 0:
-        hold += np.where(wait, c.feed_rapid_wait, 0.0)
+    hold += np.where(wait, c.feed_rapid_wait, 0.0) + np.where(rapid_wait, c.rapid_feed_wait, 0.0)
     prof, dur = K.segment_timing.auto(len(seg), length, np.where(is_pause, 0.0, seg["vmax"]), acc_seg, tb, ve, hold,
                                  seg["duration"])
     _overlap_spindle(seg, rec, dur)

@@ -65,8 +65,15 @@ class Controller:
     feed_rapid_wait: float = P(0.0, "s", "the control stops at the end of a cutting-feed block that a rapid follows "
                                "(pauses between them skipped; a drilling cycle's hole bottom too) and stands this "
                                "long before the rapid starts: its in-position check for cutting feed, as a fixed "
-                               "time, 0 = none [E: 37 ms fitted on a Hurco VMX24, docs/validation.md]", "nonneg",
+                               "time, 0 = none [E: 42 ms fitted on a Hurco VMX24, docs/validation.md]", "nonneg",
                                hi=1.0)
+    # and where a rapid ends and a cutting move follows (the approach before a plunge): the NIST
+    # Hurco's approaches run 40-55 ms longer than the twin's without it, on every plate, where its
+    # rapids that another rapid follows show no wait (docs/validation.md)
+    rapid_feed_wait: float = P(0.0, "s", "the control stands this long at the end of a rapid that a cutting-feed "
+                               "block follows (pauses between them skipped) before the feed move starts: its "
+                               "in-position check before cutting, as a fixed time, 0 = none [E: 46 ms fitted on a "
+                               "Hurco VMX24, docs/validation.md]", "nonneg", hi=1.0)
     # Fanuc sets the acc/dec of rapids apart from that of cutting feed (the rapid and the cutting
     # time constants are separate parameters, 1620 and 1622 on a 0i/30i): a control accelerates its
     # rapids harder than it lets its feed moves (which carry the contour's accuracy)
