@@ -495,23 +495,30 @@ def test_spiral_normal_time_adds_v2_over_r_over_the_jerk_to_every_spiral_block()
     assert (direct < tw.plan(prog).seg["vmax"] - 0.1).any()
 
 
+def _stands_exactly(text: bytes, param: str, controller_key: str, wait: float, lines: tuple):
+    """(the default twin, the program): ``feed-rapid-wait``'s ``param`` at ``wait`` adds exactly
+    that to the planned time of each of ``lines`` and nothing to any other line, and the twin
+    file's ``controller_key`` plans the same."""
+    tw = mtwin.Twin()
+    prog = tw.load(text, path="w.nc")
+    base, slow = tw.plan(prog), tw.with_effects(f"feed-rapid-wait:{param}={wait}").plan(prog)
+    n = text.count(b"\n")
+    per_line = lambda plan: {ln: float(plan.dur[plan.seg["line"] == ln].sum()) for ln in range(2, n)}
+    b, s = per_line(base), per_line(slow)
+    for ln in range(2, n):
+        assert s[ln] == pytest.approx(b[ln] + (wait if ln in lines else 0.0), abs=1e-9), ln
+    np.testing.assert_array_equal(tw.with_params({f"controller.{controller_key}": wait}).plan(prog).dur, slow.dur)
+    return tw, prog
+
+
 def test_feed_rapid_wait_stands_at_a_feed_move_a_rapid_follows_and_nowhere_else():
     # the wait adds exactly its time to the feed line a rapid follows (also over a dwell between
     # them) — and to no feed line a feed move follows, no rapid, no feed line after a rapid;
     # the servo simulation stands still there for that long (the trace's cycle grows by it too)
-    tw = mtwin.Twin()
     text = (b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F600\nG1 X20\nG1 Y20\nG0 Z5\nG0 X40\nG1 Z0\nG1 X60\nG4 P0.5\n"
             b"G0 Z5\nM30\n")
-    prog = tw.load(text, path="w.nc")
     wait = 0.05
-    base, slow = tw.plan(prog), tw.with_effects(f"feed-rapid-wait:time={wait}").plan(prog)
-    per_line = lambda plan: {ln: float(plan.dur[plan.seg["line"] == ln].sum()) for ln in range(2, 12)}
-    b, s = per_line(base), per_line(slow)
-    for ln in range(2, 12):
-        expected = b[ln] + (wait if ln in (5, 9) else 0.0)  # Y20 before G0 Z5; X60 before the dwell and G0
-        assert s[ln] == pytest.approx(expected, abs=1e-9), ln
-    same = tw.with_params({"controller.feed_rapid_wait": wait}).plan(prog)
-    np.testing.assert_array_equal(same.dur, slow.dur)
+    tw, prog = _stands_exactly(text, "time", "feed_rapid_wait", wait, (5, 9))  # Y20 before G0 Z5; X60 before the dwell
     cycle = lambda twin: twin.simulate(prog, cutting=False).summary.cycle_time
     assert cycle(tw.with_effects(f"feed-rapid-wait:time={wait}")) - cycle(tw) == pytest.approx(2 * wait, abs=2e-3)
     # Grbl blends a feed move into the rapid after it; a control that stands there stops there
@@ -525,18 +532,10 @@ def test_feed_rapid_wait_stands_at_a_feed_move_a_rapid_follows_and_nowhere_else(
 def test_the_wait_before_cutting_stands_at_a_rapid_a_feed_move_follows_and_nowhere_else():
     # rapid_feed: exactly its time on the rapid a feed move follows (also over a dwell between
     # them: lines 2 and 7, and 11 before the dwell and G1) — none on a rapid another follows
-    tw = mtwin.Twin()
     text = (b"G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F600\nG1 X20\nG1 Y20\nG0 Z5\nG0 X40\nG1 Z0\nG1 X60\nG0 Z5\n"
             b"G0 Z2\nG4 P0.5\nG1 Z0\nM30\n")
-    prog = tw.load(text, path="w.nc")
     wait = 0.05
-    base, slow = tw.plan(prog), tw.with_effects(f"feed-rapid-wait:rapid_feed={wait}").plan(prog)
-    per_line = lambda plan: {ln: float(plan.dur[plan.seg["line"] == ln].sum()) for ln in range(2, 14)}
-    b, s = per_line(base), per_line(slow)
-    for ln in range(2, 14):
-        assert s[ln] == pytest.approx(b[ln] + (wait if ln in (2, 7, 11) else 0.0), abs=1e-9), ln
-    same = tw.with_params({"controller.rapid_feed_wait": wait}).plan(prog)
-    np.testing.assert_array_equal(same.dur, slow.dur)
+    tw, prog = _stands_exactly(text, "rapid_feed", "rapid_feed_wait", wait, (2, 7, 11))
     # (the servo simulation stands that long too, where the in-position check after a rapid does
     # not outlast it: a narrow width, the default's, settles the rapid's lag meanwhile)
     wide = tw.with_params({"controller.in_position": 0.2})
