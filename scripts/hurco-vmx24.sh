@@ -64,8 +64,10 @@ cat > "$work/0.toml" <<'TOML'
 #   on the plates' tessellated small circles of 0.3-0.5-mm lines), 7 feed-rapid-wait (where a
 #   straight feed line ends and a rapid follows, the machine stands 50-75 ms longer than the twin
 #   on every plate, where a feed line follows it does not: an in-position check for cutting
-#   feed, docs/validation.md), 8 the axes: rapid rates (read off the logged rapids), feed
-#   accelerations, jerk (controller.bell_time).
+#   feed; and, its rapid_feed, where a rapid ends and a cutting move follows: the approach before
+#   every plunge ran 41-55 ms longer on the machine, an in-position check before cutting --
+#   without it Y's acceleration came out at twice X's; docs/validation.md), 8 the axes: rapid
+#   rates (read off the logged rapids), feed accelerations, jerk (controller.bell_time).
 # The servos keep the default machine's velocity feed-forward: fitted without it (0), the
 # in-position waits after every rapid take ~70 ms the log does not show, and the fit buys them
 # back with unphysical values (Y accelerating 4x X, no arc limit at all).
