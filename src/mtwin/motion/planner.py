@@ -729,6 +729,7 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
         vj = np.where(wait, 0.0, vj)
     rapid_wait = np.zeros(len(seg), bool)
     if c.rapid_feed_wait > 0:
+        # (the in-position check before cutting: the rapid a feed move follows ends at rest)
         rapid_wait = _feed_before_rapid(seg, is_pause, after=True)
         vj = np.where(rapid_wait, 0.0, vj)
     ve = K.lookahead.auto(len(seg), vj, length, acc_seg, tb, c.lookahead)
