@@ -91,9 +91,7 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
                                    f"that ran with --partial", SourceLocation(meas.path, 0, 0))
         others = " (or another of the log's runs with --run K)" if len(meas.runs or ()) > 1 else ""
         if not partial:
-            k = int(meas.meta.get("run", 0) or 0)
-            why = (meas.runs[k - 1].ended if meas.runs and 1 <= k <= len(meas.runs) else meas.meta.get("ended", "")) \
-                or "a logger that stopped, or the run was aborted"
+            why = meas.meta.get("ended") or "a logger that stopped, or the run was aborted"
             raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
                                    f"{program.path or 'the program'} ({why}) — "
                                    f"compare the part that ran with --partial{others}", SourceLocation(meas.path, 0, 0))
@@ -104,7 +102,7 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
         # a run that started in the middle is compared from its first reported line (the
         # records before it never ran); one that reached the program's end is not cut there
         head = int(np.argmax(group >= 0)) if late and (group >= 0).any() else 0
-        reached_end = late and last >= Outline.of(program).end_line
+        reached_end = late and Outline.of(program).at_end(last)
         # both sides up to the moment the last line was entered (its last entry, in execution
         # order): how long the control ran it before the log stops is not known; the records
         # kept are all in the groups before it, whose ends (g_t0 of the next) are unchanged

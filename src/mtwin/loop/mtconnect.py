@@ -179,7 +179,6 @@ class Outline:
 
     name: str
     start_line: int  # a run that first reports a line past this one did not start at the start
-    end_line: int  # a run that last reports a line before this one did not reach the end
     back: np.ndarray  # (jumps, 2): (from line, to line) of each jump back of the execution order
     window: int = JUMP_LINES  # how far either side of a jump the log may have seen it (in block numbers)
     label: str = "line"  # what the block numbers are, for a person ("line", or "N" for N words)
@@ -188,6 +187,11 @@ class Outline:
     tail: tuple = ()  # the lines of its last few moves (distinct, in the order last run): a run that reports none
     # of them, nor a line of the main program after its last move, did not reach the end
     main_end: int = 0  # the first subprogram line after the last move (0: none): the main program's lines end there
+
+    @property
+    def end_line(self) -> int:
+        """The first of the lines of its last few moves (0: none), for a person."""
+        return self.tail[-1] if self.tail else 0
 
     def finished(self, block: int) -> bool:
         """Whether a run that reported ``block`` reached the program's last move (its line, or a
@@ -207,7 +211,7 @@ class Outline:
         lines = np.asarray(rec["line"][ok], np.int64)  # (dwells too: a G4 may end a loop's body)
         moves = np.asarray(rec["line"][ok & (rec["kind"] != R.DWELL)], np.int64)
         if not len(moves):
-            return cls(os.path.basename(program.path or ""), 0, 0, np.zeros((0, 2), np.int64))
+            return cls(os.path.basename(program.path or ""), 0, np.zeros((0, 2), np.int64))
         _, first = np.unique(moves, return_index=True)
         ahead = moves[np.sort(first)]  # distinct lines in the order first run
         _, last = np.unique(moves[::-1], return_index=True)
@@ -219,7 +223,7 @@ class Outline:
         sub = np.asarray(rec["line"][ok & ((rec["flags"] & R.FL_SUB) != 0)], np.int64)
         below = sub[sub > moves[-1]]
         return cls(os.path.basename(program.path or ""), int(ahead[min(edge, len(ahead)) - 1]),
-                   int(behind[min(edge, len(behind)) - 1]), np.stack([lines[k], lines[k + 1]], axis=1),
+                   np.stack([lines[k], lines[k + 1]], axis=1),
                    last_line=int(moves[-1]), loops=bool(getattr(program, "loops", False)),
                    tail=tuple(int(x) for x in behind[:edge]), main_end=int(below.min()) if below.size else 0)
 
@@ -240,7 +244,7 @@ class Outline:
             return np.where(k >= 0, num[np.maximum(k, 0)], 0)
 
         step = max(int(np.median(np.diff(num) / np.maximum(np.diff(at), 1))), 1) if len(num) > 1 else 1
-        return Outline(self.name, int(n_of(self.start_line)), int(n_of(self.end_line)),
+        return Outline(self.name, int(n_of(self.start_line)),
                        n_of(self.back).reshape(-1, 2) if len(self.back) else self.back, JUMP_LINES * step, "N",
                        int(n_of(self.last_line)), self.loops, tuple(int(n_of(x)) for x in self.tail),
                        int(n_of(self.main_end)) if self.main_end else 0)
@@ -777,23 +781,19 @@ def _against(events: list, r: Run, outline: Outline | None, lead: int = 0) -> No
         r.late = blocks[0]
         if r.complete:
             r.complete = False
-            r.ended = (f"started at {_at(outline, blocks[0])}, not at the program's start (its first moves run to "
-                       f"{_at(outline, outline.start_line)}): restarted in the middle, or logged from there")
+            r.ended = (f"started at {_word(outline.label, blocks[0])}, not at the program's start (its first moves run "
+                       f"to {_word(outline.label, outline.start_line)}): restarted in the middle, or logged from there")
     if r.complete and r.end_state != "PROGRAM_COMPLETED" and not any(outline.at_end(b) for b in blocks):
         r.complete = False
-        r.ended = (f"ended at {_at(outline, r.reached)} ({r.end_state or 'its end state'}) before the program's last "
-                   f"moves ({_at(outline, outline.end_line)} on): reset, not finished")
+        r.ended = (f"ended at {_word(outline.label, r.reached)} ({r.end_state or 'its end state'}) before the "
+                   f"program's last moves ({_word(outline.label, outline.end_line)} on): reset, not finished")
     elif r.complete and outline.loops and not r.until and r.end_state != "PROGRAM_COMPLETED":
         # (a pass that ran on into the next one ended there; the last one was reset at a moment
         # the log does not place: within its last move, or after it)
         r.complete = False
-        r.ended = (f"reset ({r.end_state or 'its end state'}) at {_at(outline, r.reached)}: the program runs again "
+        r.ended = (f"reset ({r.end_state or 'its end state'}) at {_word(outline.label, r.reached)}: the program runs again "
                    f"(M99) until reset, so where its last pass stopped is not logged — a pass that ran on into the "
                    f"next is complete")
-
-
-def _at(outline: Outline, block: int) -> str:
-    return _word(outline.label, block)
 
 
 def _word(label: str, block) -> str:

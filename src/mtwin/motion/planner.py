@@ -524,15 +524,15 @@ def _naive_cam(seg: np.ndarray, rec: np.ndarray, apart: np.ndarray | None = None
     return seg[keep]
 
 
-def _feed_before_rapid(seg, is_pause, after: bool = False) -> np.ndarray:
+def _before_switch(seg, is_pause, to_rapid: bool) -> np.ndarray:
     """(n,) bool: a cutting-feed segment the next motion after which (pauses between skipped) is a
-    rapid — where a control checks in-position for cutting feed before it starts the rapid; with
-    ``after``, a rapid the next motion after which is a cutting-feed segment."""
+    rapid (``to_rapid``) — where a control checks in-position for cutting feed before it starts the
+    rapid — or a rapid the next motion after which is a cutting-feed segment."""
     moving = np.flatnonzero(~is_pause)
     out = np.zeros(len(seg), bool)
     if len(moving) > 1:
         rapid = seg["rapid"][moving] == 1
-        out[moving[:-1]] = (rapid[:-1] & ~rapid[1:]) if after else (~rapid[:-1] & rapid[1:])
+        out[moving[:-1]] = (~rapid[:-1] & rapid[1:]) if to_rapid else (rapid[:-1] & ~rapid[1:])
     return out
 
 
@@ -725,12 +725,12 @@ def _plan_motion(rec, shift, seg, feed_box, warnings, machine, geometry, rapid_s
     wait = np.zeros(len(seg), bool)
     if c.feed_rapid_wait > 0:
         # (a control that stands there stops there: Grbl, which blends into a rapid, too)
-        wait = _feed_before_rapid(seg, is_pause)
+        wait = _before_switch(seg, is_pause, to_rapid=True)
         vj = np.where(wait, 0.0, vj)
     rapid_wait = np.zeros(len(seg), bool)
     if c.rapid_feed_wait > 0:
         # (the in-position check before cutting: the rapid a feed move follows ends at rest)
-        rapid_wait = _feed_before_rapid(seg, is_pause, after=True)
+        rapid_wait = _before_switch(seg, is_pause, to_rapid=False)
         vj = np.where(rapid_wait, 0.0, vj)
     ve = K.lookahead.auto(len(seg), vj, length, acc_seg, tb, c.lookahead)
     if style != K.STYLE_LINUXCNC:
