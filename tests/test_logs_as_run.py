@@ -519,6 +519,18 @@ def test_a_restart_in_the_middle_counts_no_time_twice(setup, tmp_path):
     assert r.returncode == 0, r.stderr
     c = json.loads(r.stdout)["cycle_time"]
     assert abs(c["measured"] - c["simulated"]) / c["simulated"] < 0.01, c
+    # imported: the header's cycle time is the run's without the 400-s stop and the first pass
+    # it repeated (compare also takes out the M01's wait, which the control logged as ACTIVE);
+    # its span is end_time_s, and a file that has only cycle_time_s (written before) is read
+    # with that as its span
+    csv = tmp_path / "middle.csv"
+    r = _cli("import", "mtconnect", str(d / "middle.txt"), "-o", str(csv), "--program", str(d / "PART.NC"))
+    assert r.returncode == 0, r.stderr
+    back = read_measurement(str(csv))
+    assert back.end_time == pytest.approx(m.end_time, abs=1e-3) and m.end_time > 400.0
+    cyc = float(back.meta["cycle_time_s"])
+    assert cyc < m.end_time - 400.0 and "without" in r.stderr
+    assert cyc == pytest.approx(c["measured"] + WAIT, abs=0.01)  # (the M01 wait was logged ACTIVE)
 
 
 def test_a_run_cut_by_a_restart_with_no_stop_logged_ends_where_the_block_number_went_back(setup, tmp_path):

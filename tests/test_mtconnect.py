@@ -54,6 +54,18 @@ def test_shdr_log_with_its_quirks(tmp_path):
         read_mtconnect(str(p), run=3)
     # the measurement reader takes the log as it is
     assert list(read_measurement(str(p)).line) == [3, 4, 4, 6]
+    # written out: the span is end_time_s, the cycle time without the 2-s feed hold cycle_time_s
+    assert m.meta["end_time_s"] == "5.8750" and m.meta["cycle_time_s"] == "3.8750"
+    out = tmp_path / "run.csv"
+    m.write(str(out))
+    assert read_measurement(str(out)).end_time == pytest.approx(5.875)
+    # a file written before end_time_s: its cycle_time_s was the span
+    old = out.read_text().replace("# end_time_s: 5.8750\n", "").replace("cycle_time_s: 3.8750", "cycle_time_s: 5.8750")
+    (tmp_path / "old.csv").write_text(old)
+    assert read_measurement(str(tmp_path / "old.csv")).end_time == pytest.approx(5.875)
+    (tmp_path / "bad.csv").write_text(out.read_text().replace("end_time_s: 5.8750", "end_time_s: soon"))
+    with pytest.raises(MeasurementError, match="end_time_s: 'soon' is not a time"):
+        read_measurement(str(tmp_path / "bad.csv"))
 
 
 def test_n_words_map_to_lines_in_program_order(tmp_path):

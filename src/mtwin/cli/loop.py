@@ -55,7 +55,10 @@ def import_mtconnect(
             say(f"note: {m.meta[key]}")
     for k, r in enumerate(m.runs, 1):
         say(f"run {k}: {r.describe()}")
-    say(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s, lines "
+    held = m.end_time - float(m.meta["cycle_time_s"])
+    say(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s"
+        + (f" ({float(m.meta['cycle_time_s']):.2f} s without {held:.2f} s of feed holds and program stops)"
+           if held > 0.0005 else "") + ", lines "
         f"{int(m.line[m.line > 0].min()) if (m.line > 0).any() else '-'}–{int(m.line.max())}"
         + (f"; overrides {m.meta['overrides']}" if "overrides" in m.meta else ""))
 

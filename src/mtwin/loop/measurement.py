@@ -275,14 +275,21 @@ def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None
 
 def log_fields(meta: dict, path: str = "") -> dict:
     """The run's end, feed holds, program stops and completeness a control's log had, from the
-    metadata `mtwin import mtconnect` writes (``cycle_time_s``, ``feed_holds_s``,
+    metadata `mtwin import mtconnect` writes (``end_time_s``, ``feed_holds_s``,
     ``program_stops_s``, ``complete``)."""
     out: dict = {}
-    if meta.get("cycle_time_s"):
+    # the run's span: ``end_time_s``; files written before it had the span as ``cycle_time_s``
+    # (which now is the span less the holds and stops)
+    key = "end_time_s" if "end_time_s" in meta else "cycle_time_s"
+    if meta.get(key):
         try:
-            out["end_time"] = float(meta["cycle_time_s"])
+            out["end_time"] = float(meta[key])
         except ValueError:
-            pass
+            raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s",
+                                   SourceLocation(path, 0, 0)) from None
+        if not math.isfinite(out["end_time"]) or out["end_time"] < 0:
+            raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s",
+                                   SourceLocation(path, 0, 0))
     holds, stops = [], []
     for key, into in (("feed_holds_s", holds), ("program_stops_s", stops)):
         for part in filter(None, (x.strip() for x in meta.get(key, "").split(";"))):

@@ -883,7 +883,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     end_t = max(ev[-1].t, chosen.until) - t0
     meta = {"source": f"MTConnect log {path}", "program": chosen.program, "run": str(all_runs.index(chosen) + 1),
             "runs": str(len(all_runs)), "complete": "yes" if chosen.complete else "no",
-            "cycle_time_s": f"{end_t:.4f}", "block_is": block_is}
+            "end_time_s": f"{end_t:.4f}", "cycle_time_s": f"{end_t - _covered(chosen.holds, chosen.stops, end_t):.4f}",
+            "block_is": block_is}
     if chosen.late:
         meta["started_at"] = str(chosen.late)
     if not chosen.complete and chosen.ended:
@@ -910,6 +911,18 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     return Measurement(path, t, signals, line, meta, [], extra=extra, end_time=end_t, holds=list(chosen.holds),
                        stops=list(chosen.stops), complete=chosen.complete, runs=all_runs,
                        source_line=np.array(src, np.int64))
+
+
+def _covered(holds, stops, end: float) -> float:
+    """s of [0, end] inside a feed hold or a logged program stop (a restart's repeated first
+    pass is one of the stops): what the header's ``cycle_time_s`` takes out of the run's span."""
+    spans = sorted((max(a, 0.0), min(b, end)) for a, b, *_ in (*holds, *stops) if b > a)
+    total, reach = 0.0, 0.0
+    for a, b in spans:
+        if b > reach:
+            total += b - max(a, reach)
+            reach = b
+    return total
 
 
 def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
