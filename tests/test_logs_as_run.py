@@ -977,7 +977,7 @@ def test_each_pass_of_a_program_that_runs_again_is_a_complete_run(tmp_path):
     # one pass, reset: refused, and said why
     (tmp_path / "one.txt").write_text(_text([x for x in ev if x[0] < cyc] + [(cyc, "Program_Status|READY")]))
     r = _cli("compare", str(tmp_path / "PART.NC"), str(tmp_path / "one.txt"))
-    assert r.returncode == 2 and "runs again (M99) until reset" in r.stderr, r.stderr
+    assert r.returncode == 2 and "runs again by M99 until reset" in r.stderr, r.stderr
 
 
 def test_a_reset_is_told_where_the_block_numbers_are_n_words(setup, tmp_path):
@@ -1209,4 +1209,4 @@ def test_passes_split_where_the_return_and_the_next_pass_share_a_moment(tmp_path
              "-o", str(tmp_path / "two.csv"))
     assert r.returncode == 0, r.stderr
     r = _cli("compare", str(tmp_path / "PART.NC"), str(tmp_path / "two.csv"))
-    assert r.returncode == 2 and "runs again (M99) until reset" in r.stderr, r.stderr
+    assert r.returncode == 2 and "runs again by M99 until reset" in r.stderr, r.stderr

@@ -502,8 +502,8 @@ def runs(events: list, outline: Outline | None = None, label: str | None = None)
             ended = ""
             if aborted:
                 last = _blocks(events, start, k)
-                ended = (f"stopped ({paused[1]}) at {_word(label, last[-1][1]) if last else 'an unlogged line'} at "
-                         f"{paused[0] - events[start].t:.0f} s and reset ({v})")
+                ended = (f"{paused[1]} at {_word(label, last[-1][1]) if last else 'an unlogged line'} at "
+                         f"{paused[0] - events[start].t:.0f} s, then reset to {v}")
             out.append(Run(name, start, k + 1, not aborted, holds, stops, end_state=v, ended=ended, gaps=gaps))
             start, holds, stops, paused, gaps = None, [], [], None, []
     if start is not None:
@@ -781,18 +781,18 @@ def _against(events: list, r: Run, outline: Outline | None, lead: int = 0) -> No
         r.late = blocks[0]
         if r.complete:
             r.complete = False
-            r.ended = (f"started at {_word(outline.label, blocks[0])}, not at the program's start (its first moves run "
-                       f"to {_word(outline.label, outline.start_line)}): restarted in the middle, or logged from there")
+            r.ended = (f"started at {_word(outline.label, blocks[0])}, past the program's first moves, which run "
+                       f"to {_word(outline.label, outline.start_line)}: restarted in the middle, or logged from there")
     if r.complete and r.end_state != "PROGRAM_COMPLETED" and not any(outline.at_end(b) for b in blocks):
         r.complete = False
-        r.ended = (f"ended at {_word(outline.label, r.reached)} ({r.end_state or 'its end state'}) before the "
-                   f"program's last moves ({_word(outline.label, outline.end_line)} on): reset, not finished")
+        r.ended = (f"ended at {_word(outline.label, r.reached)} with {r.end_state or 'its end state'}, before the "
+                   f"program's last moves from {_word(outline.label, outline.end_line)}: reset, not finished")
     elif r.complete and outline.loops and not r.until and r.end_state != "PROGRAM_COMPLETED":
         # (a pass that ran on into the next one ended there; the last one was reset at a moment
         # the log does not place: within its last move, or after it)
         r.complete = False
-        r.ended = (f"reset ({r.end_state or 'its end state'}) at {_word(outline.label, r.reached)}: the program runs again "
-                   f"(M99) until reset, so where its last pass stopped is not logged — a pass that ran on into the "
+        r.ended = (f"reset to {r.end_state or 'its end state'} at {_word(outline.label, r.reached)}: the program runs "
+                   f"again by M99 until reset, so where its last pass stopped is not logged — a pass that ran on into the "
                    f"next is complete")
 
 
