@@ -240,9 +240,11 @@ def test_malformed_logs_are_clear_errors(tmp_path, log, where, what):
 
 
 def test_overrides_and_holds(tmp_path):
-    # a feed hold is taken out of its group's time; a group during which the feed override
-    # stood at 0 % (the operator held the machine) is left out and listed (any other override
-    # the twin replays: tests/test_logs_as_run.py)
+    # a feed hold is taken out of its group's time; so is the time the feed override stood at
+    # 0 % with the machine standing (the replay makes it a hold: one judge of "held"), and
+    # that group is kept; a group that ran at 0 % while the machine moved is left out and listed
+    # (any other override the twin replays: tests/test_logs_as_run.py)
+    from mtwin.loop.asrun import as_run
     from mtwin.loop.blocks import measurement_groups
     from mtwin.loop.mtconnect import read_mtconnect
 
@@ -253,12 +255,23 @@ def test_overrides_and_holds(tmp_path):
         "2020-01-01T00:00:04.0Z|Execution|ACTIVE\n2020-01-01T00:00:04.5Z|Block_Number|4\n"
         "2020-01-01T00:00:05.5Z|Block_Number|5|Feed_Override|0\n2020-01-01T00:00:07.0Z|Feed_Override|100\n"
         "2020-01-01T00:00:07.5Z|Block_Number|6\n2020-01-01T00:00:08.5Z|Program_Status|PROGRAM_COMPLETED\n")
-    m = read_mtconnect(str(tmp_path / "log.txt"))
-    g = measurement_groups(mtwin.Twin().load(str(tmp_path / "PART.NC")), m)
-    assert g.hold_time == pytest.approx(3.0)
-    assert list(g.first_line) == [3, 4, 6]
+    prog = mtwin.Twin().load(str(tmp_path / "PART.NC"))
+    m = as_run(prog, read_mtconnect(str(tmp_path / "log.txt"))).measurement
+    g = measurement_groups(prog, m)
+    assert g.hold_time == pytest.approx(3.0 + 1.5)
+    assert list(g.first_line) == [3, 4, 5, 6] and not g.excluded
     assert g.measured[0] == pytest.approx(4.3 - 3.0)
-    assert [x["first_line"] for x in g.excluded] == [5] and "0 % (the machine held)" in g.excluded[0]["reason"]
+    assert g.measured[2] == pytest.approx(2.0 - 1.5)
+    # the same log with the feed logged at 0.5 s and 6.5 s: the machine moved at 0 %
+    moved = (tmp_path / "log.txt").read_text().replace(
+        "|Feed_Override|0\n", "|Feed_Override|0|Feed_Rate|10\n").replace(
+        "2020-01-01T00:00:07.0Z|", "2020-01-01T00:00:06.5Z|Feed_Rate|12\n2020-01-01T00:00:07.0Z|")
+    (tmp_path / "moved.txt").write_text(moved)
+    m = as_run(prog, read_mtconnect(str(tmp_path / "moved.txt"))).measurement
+    g = measurement_groups(prog, m)
+    assert g.hold_time == pytest.approx(3.0) and list(g.first_line) == [3, 4, 6]
+    assert [x["first_line"] for x in g.excluded] == [5]
+    assert g.excluded[0]["reason"] == "the feed override at 0 % for 1.5 s while the machine moved"
 
 
 # ------------------------------------------------------------------ the NIST Hurco VMX24

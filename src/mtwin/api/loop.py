@@ -237,7 +237,7 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
             msgs.note(f"lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} at "
                       f"{x['t0']:.1f}–{x['t1']:.1f} s")
         if len(blocks.excluded) > TOLD:
-            msgs.note(f"{len(blocks.excluded) - TOLD} more block groups left out (the machine held)")
+            msgs.note(f"{len(blocks.excluded) - TOLD} more block groups left out alike")
         # a group far longer than the twin's, with nothing logged to say why: the machine stood
         # (a hold or stop the control did not log) — no model error, and said so
         long = np.flatnonzero(blocks.measured - blocks.simulated > STOOD)

@@ -46,7 +46,7 @@ class BlockTiming:
     measured: np.ndarray  # (groups,) s
     simulated: np.ndarray  # (groups,) s
     kind: list  # (groups,) KINDS
-    excluded: list = field(default_factory=list)  # groups left out (the machine held at 0 % override)
+    excluded: list = field(default_factory=list)  # groups left out (run at a feed override of 0 %, not held)
     hold_time: float = 0.0  # s of feed hold taken out of the measured durations
     stops: list = field(default_factory=list)  # dicts: program stops (M00/M01 waits, logged stop states)
     feed_ratio: dict = field(default_factory=dict)  # kind -> the log's own feed over the programmed F (asrun)
@@ -173,7 +173,7 @@ class Groups:
     last_line: np.ndarray  # (groups,)
     measured: np.ndarray  # (groups,) s, feed-hold and logged stop time taken out
     kind: list
-    excluded: list  # dicts: groups left out (the machine held at 0 % override), with the reason
+    excluded: list  # dicts: groups left out (run at a feed override of 0 %, not held), with the reason
     hold_time: float  # s of feed hold inside the run (taken out of the measured durations)
     # dicts: program stops the control logged (t0, t1, state), taken out of the durations
     logged_stops: list = field(default_factory=list)
@@ -346,8 +346,9 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     with its measured duration.  ``holds``: (t0, t1) feed-hold intervals and ``stops``: (t0,
     t1, state) program stops the control logged, taken out of the durations they fall in;
     ``overrides``: signal -> % per sample (feed, rapid, spindle override), which the twin
-    applies (:mod:`mtwin.loop.asrun`): a group during which one stood at 0 % (the operator held
-    the machine) is left out and listed.  A group at an M00 or M01 has its ``code``: against a
+    applies (:mod:`mtwin.loop.asrun`, which also makes the time the machine stood at a feed
+    override of 0 % a hold): a group that ran at 0 % for longer than its holds is left out and
+    listed.  A group at an M00 or M01 has its ``code``: against a
     simulation, :func:`set_apart_stops` sets those that waited for the operator apart.
     ``kinds_seen``: (first, last, is_last) -> kind of groups already classified (kept across
     calls on one program: the logs of :func:`logging_bias` share most of their groups)."""
@@ -365,7 +366,7 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
             continue  # out of order (a loop or a re-report): left out
         t0, t1 = ms[ln], (ms[nxt] if nxt is not None else end)
         last = (nxt - 1) if nxt is not None else n_lines
-        why = _overridden(meas_t, overrides, t0, t1)
+        why = _overridden(meas_t, overrides, t0, t1, holds)
         if why:
             excluded.append({"first_line": ln, "last_line": last, "t0": t0, "t1": t1, "reason": why})
             continue
@@ -402,19 +403,24 @@ def _stop_code(text: list) -> tuple[str, int]:
     return "", 0
 
 
-def _overridden(t: np.ndarray, overrides, t0: float, t1: float) -> str:
-    """Why a group's time is not the program's: an override at 0 % while it ran (the
-    operator held the machine; any other value the twin applies)."""
-    for name, v in (overrides or {}).items():
-        if name != "feed_override":
-            continue  # (a rapid override at 0 is the slowest rapid, F0; the twin replays it)
-        # the value in force at t0 and every value logged before t1
-        i0 = max(int(np.searchsorted(t, t0, "right")) - 1, 0)
-        i1 = max(int(np.searchsorted(t, t1, "left")), i0 + 1)
-        w = v[i0:i1]
-        w = w[~np.isnan(w)]
-        if len(w) and (w < HELD).any():
-            return f"{name} {w.min():g} % (the machine held)"
+def _overridden(t: np.ndarray, overrides, t0: float, t1: float, holds=()) -> str:
+    """Why a group's time is not the program's: the feed override below HELD % for a time the
+    holds do not take out.  Where the machine stood at it, the replay (:mod:`.asrun`, the one
+    judge of that) made the time a hold, and the group is kept, as a feed hold's is; what is left
+    ran at 0 % while the machine moved (a Fanuc-style control runs rapids on at 0 %), which the
+    twin cannot replay on the group's feed moves.  Any other value the twin applies; a rapid
+    override at 0 is the slowest rapid, F0, which the twin replays."""
+    v = (overrides or {}).get("feed_override")
+    if v is None:
+        return ""
+    i0 = max(int(np.searchsorted(t, t0, "right")) - 1, 0)  # the value in force at t0
+    i1 = max(int(np.searchsorted(t, t1, "left")), i0 + 1)  # and every value logged before t1
+    edges = np.clip(np.r_[t0, t[i0 + 1:i1], t1], t0, t1)
+    low = np.nan_to_num(v[i0:i1], nan=100.0) < HELD
+    spans = [(a, b) for a, b, lo in zip(edges[:-1], edges[1:], low) if lo and b > a]
+    left = sum(b - a - _overlap(a, b, holds) for a, b in spans)
+    if left > 1e-6:
+        return f"the feed override at {np.nanmin(v[i0:i1]):g} % for {left:.1f} s while the machine moved"
     return ""
 
 

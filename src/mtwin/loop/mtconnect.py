@@ -544,19 +544,7 @@ def _joined(events: list, out: list, outline: Outline | None) -> list:
     for r in out:
         a = res[-1] if res else None
         done = [(k, b) for k, b in _blocks(events, a.start, a.end) if b > 0] if a is not None else []
-        # (a run that stopped within the lines a log may miss at the end, then went on from the
-        # middle, was reset, not finished: what it cut is timed whole either way)
-        if a is None or not done or a.end_state == "PROGRAM_COMPLETED" or outline.finished(done[-1][1]) or not (
-                not a.program or not r.program or same_program(a.program, r.program)) or any(
-                e.item == "status" and e.value.upper() == "UNAVAILABLE" for e in events[a.end:r.start]):
-            # (finished; another program; or the log went blind between: what ran then is not known)
-            res.append(r)
-            continue
-        was = done[-1][1]
-        first = next((b for _, b in _blocks(events, r.start, r.end) if b > 0), 0) or _lead(events, a.end, r.start)
-        if not first or first > was or first <= outline.start_line or outline.goes_back(was, first):
-            # (it went on past where the other stopped, or from there in the program's own order —
-            # a subprogram's return — so lines were never cut; or from the start: a new run)
+        if a is None or not done or not _goes_on(events, a, r, done[-1][1], outline):
             res.append(r)
             continue
         t0 = events[a.start].t
@@ -571,6 +559,24 @@ def _joined(events: list, out: list, outline: Outline | None) -> list:
                       ended=r.ended, end_state=r.end_state, gaps=a.gaps + [(g0 + dt, g1 + dt) for g0, g1 in r.gaps],
                       other_name=a.other_name or r.other_name)
     return res
+
+
+def _goes_on(events: list, a: Run, r: Run, was: int, outline: Outline) -> bool:
+    """Whether run ``r`` goes on from where run ``a`` stopped, at line ``was``: a program
+    restart.  Not where ``a`` finished — its end state logged, or it reached the program's last
+    moves (a run stopped among the lines a log may miss at the end and then gone on from the
+    middle was reset, not finished: what it cut is timed whole either way); nor where ``r`` runs
+    another program, or the log went blind between them (what ran then is not known); nor where
+    ``r`` starts past where ``a`` stopped (lines never cut), at the program's start (a new run),
+    or from there in the program's own order (a subprogram's return)."""
+    if a.end_state == "PROGRAM_COMPLETED" or outline.finished(was):
+        return False
+    if a.program and r.program and not same_program(a.program, r.program):
+        return False
+    if any(e.item == "status" and e.value.upper() == "UNAVAILABLE" for e in events[a.end:r.start]):
+        return False
+    first = next((b for _, b in _blocks(events, r.start, r.end) if b > 0), 0) or _lead(events, a.end, r.start)
+    return bool(first) and outline.start_line < first <= was and not outline.goes_back(was, first)
 
 
 def _blocks(events: list, k0: int, k1: int) -> list:
