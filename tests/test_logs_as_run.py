@@ -1173,7 +1173,7 @@ def test_a_runs_stops_are_counted_by_state():
 
     r = Run("PART.NC", 0, 10, True, stops=[(float(k), k + 0.5, "STOPPED") for k in range(1000)]
             + [(2000.0, 2001.0, "RESTART")])
-    assert r.describe() == "PART.NC, complete, 1001 program stop(s) (1000 STOPPED, 1 RESTART)"
+    assert r.describe() == "PART.NC, complete, 1001 program stops (1000 STOPPED, 1 RESTART)"
 
 
 def test_a_reset_among_the_last_moves_then_a_restart_is_one_run(setup, tmp_path):

@@ -63,9 +63,16 @@ def test_shdr_log_with_its_quirks(tmp_path):
     old = out.read_text().replace("# end_time_s: 5.8750\n", "").replace("cycle_time_s: 3.8750", "cycle_time_s: 5.8750")
     (tmp_path / "old.csv").write_text(old)
     assert read_measurement(str(tmp_path / "old.csv")).end_time == pytest.approx(5.875)
-    (tmp_path / "bad.csv").write_text(out.read_text().replace("end_time_s: 5.8750", "end_time_s: soon"))
-    with pytest.raises(MeasurementError, match="end_time_s: 'soon' is not a time"):
-        read_measurement(str(tmp_path / "bad.csv"))
+    for key, value, why in (("end_time_s", "soon", "is not a time"), ("end_time_s", "", "is not a time"),
+                            ("end_time_s", "1_0", "is not a time"), ("end_time_s", "0", "is not a time"),
+                            ("end_time_s", "nan", "is not a time"), ("cycle_time_s", "-1", "is not a time"),
+                            ("cycle_time_s", "6", "is longer than the run's span"),
+                            ("end_time_s", "4.5", "before its last sample at 4.875 s")):
+        text = out.read_text()
+        now = next(ln for ln in text.splitlines() if ln.startswith(f"# {key}:"))
+        (tmp_path / "bad.csv").write_text(text.replace(now, f"# {key}: {value}"))
+        with pytest.raises(MeasurementError, match=f"{key}: .*{why}"):
+            read_measurement(str(tmp_path / "bad.csv"))
 
 
 def test_n_words_map_to_lines_in_program_order(tmp_path):

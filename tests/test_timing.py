@@ -271,7 +271,64 @@ def test_overrides_and_holds(tmp_path):
     g = measurement_groups(prog, m)
     assert g.hold_time == pytest.approx(3.0) and list(g.first_line) == [3, 4, 6]
     assert [x["first_line"] for x in g.excluded] == [5]
-    assert g.excluded[0]["reason"] == "the feed override at 0 % for 1.5 s while the machine moved"
+    assert g.excluded[0]["reason"] == "it ran at a feed override of 0 % for 1.5 s while the machine moved"
+
+
+STOPPED_AT_0 = (
+    "2020-01-01T00:00:00.0Z|Program_Name_Running|PART.NC|Program_Status|ACTIVE|Feed_Override|100|Feed_Rate|10\n"
+    "2020-01-01T00:00:00.2Z|Block_Number|3\n2020-01-01T00:00:01.2Z|Block_Number|4\n"
+    "2020-01-01T00:00:02.2Z|Block_Number|5\n2020-01-01T00:00:02.5Z|Feed_Override|0|Feed_Rate|0\n"
+    "2020-01-01T00:00:03.0Z|Execution|STOPPED\n2020-01-01T00:00:20.0Z|Execution|ACTIVE\n"
+    "2020-01-01T00:00:20.5Z|Feed_Override|100|Feed_Rate|10\n2020-01-01T00:00:21.2Z|Block_Number|6\n"
+    "2020-01-01T00:00:22.2Z|Program_Status|PROGRAM_COMPLETED\n")
+
+
+def test_an_override_at_0_through_a_logged_stop_is_time_the_machine_stood(tmp_path):
+    # the operator turns the feed override to 0 and then stops the program: 0.5 s held before
+    # the stop, 17 s stopped, 0.5 s held after — the machine stood 18 s, counted once, in the
+    # header's cycle time, the groups and compare's measured cycle alike; the group is kept (it
+    # did not move at 0 %), and the override it ran at is 100 %, not a mean with the stop's 0
+    import json
+
+    from mtwin.loop.asrun import as_run
+    from mtwin.loop.blocks import measurement_groups
+    from mtwin.loop.mtconnect import read_mtconnect
+
+    (tmp_path / "PART.NC").write_text("G21 G90\nG0 X0 Y0 Z5\nG1 X10 F600\nG1 Y10\nG1 X0\nG1 Y0\nM30\n")
+    (tmp_path / "log.txt").write_text(STOPPED_AT_0)
+    prog = mtwin.Twin().load(str(tmp_path / "PART.NC"))
+    m = read_mtconnect(str(tmp_path / "log.txt"))
+    assert float(m.meta["cycle_time_s"]) == pytest.approx(22.2 - 18.0) and m.end_time == pytest.approx(22.2)
+    run = as_run(prog, m)
+    for meas in (m, run.measurement):  # (read as it is, or through the replay: the same)
+        g = measurement_groups(prog, meas)
+        assert list(g.first_line) == [3, 4, 5, 6] and not g.excluded
+        assert g.hold_time + g.stop_time == pytest.approx(18.0)
+        assert g.measured[2] == pytest.approx(21.2 - 2.2 - 18.0)
+    r = subprocess.run([sys.executable, "-m", "mtwin", "compare", str(tmp_path / "PART.NC"), str(tmp_path / "log.txt"),
+                        "--json"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["cycle_time"]["measured"] == pytest.approx(4.2)
+    assert "feed override 100 % applied" in r.stderr
+
+
+def test_time_the_machine_stood_is_counted_once_where_spans_overlap():
+    from mtwin.loop.blocks import _overridden
+    from mtwin.loop.measurement import covered, merged
+
+    assert merged([(1, 2), (0.5, 1.5, "STOPPED"), (3, 3), (2, 2.5)]) == [(0.5, 2.5)]
+    assert covered([(1, 2), (1, 2)], 0, 10) == pytest.approx(1.0)
+    assert covered([(0.5, 1.8), (1.2, 2.0)], 1.0, 1.5) == pytest.approx(0.5)
+    t = np.arange(6.0)
+    v = {"feed_override": np.array([100, 0, 100, 0, 50, 100.0])}  # at 0 % over 1–2 s and 3–4 s
+    assert _overridden(t, v, 0.5, 4.5, [(1, 2), (1, 2)]) == \
+        "it ran at a feed override of 0 % for 1.0 s while the machine moved"
+    assert "for 1.0 s" in _overridden(t, v, 0.5, 4.5, [(0.5, 1.8), (1.2, 2.0)])
+    assert _overridden(t, v, 0.5, 4.5, [(1, 2), (2.9, 4.1)]) == ""
+    # where the time at 0 % lies inside the holds, its value is not what is told
+    v2 = {"feed_override": np.array([100, 0, 0.5, 100, 100, 100.0])}
+    assert _overridden(t, v2, 0.5, 4.5, [(1, 2)]) == \
+        "it ran at a feed override of 0.5 % for 1.0 s while the machine moved"
 
 
 # ------------------------------------------------------------------ the NIST Hurco VMX24

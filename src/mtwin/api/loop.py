@@ -234,10 +234,11 @@ def compare(twin=None, program=None, measurement=None, *, align: str = "auto", x
             msgs.note(f"{len(rest)} more program stops ({sum(x['wait'] for x in rest):.1f} s in all; single block?), "
                       f"taken out alike")
         for x in blocks.excluded[:TOLD]:
-            msgs.note(f"lines {x['first_line']}–{x['last_line']} left out of the block timing: {x['reason']} at "
-                      f"{x['t0']:.1f}–{x['t1']:.1f} s")
+            lines = (f"line {x['first_line']}" if x["first_line"] == x["last_line"] else
+                     f"lines {x['first_line']}–{x['last_line']}")
+            msgs.note(f"{lines}, at {x['t0']:.1f}–{x['t1']:.1f} s, left out of the block timing: {x['reason']}")
         if len(blocks.excluded) > TOLD:
-            msgs.note(f"{len(blocks.excluded) - TOLD} more block groups left out alike")
+            msgs.note(f"{len(blocks.excluded) - TOLD} more block groups left out for the same reason")
         # a group far longer than the twin's, with nothing logged to say why: the machine stood
         # (a hold or stop the control did not log) — no model error, and said so
         long = np.flatnonzero(blocks.measured - blocks.simulated > STOOD)

@@ -128,8 +128,8 @@ def _print_simulation(path: str, s, output, inch: bool = False) -> None:
                              f"{c.spindle_stopped_line}: no M3/M4 or S0)")
     elif c is not None and c.engaged_time <= 0:
         b = c.stock
-        t.add_row("cutting", f"none: no feed move meets the stock (X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  "
-                             f"Z {b[2]:g}…{b[5]:g} mm, {c.stock_source})")
+        t.add_row("cutting", f"none: no feed move meets the stock, X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  "
+                             f"Z {b[2]:g}…{b[5]:g} mm, {c.stock_source}")
     elif c is not None:
         if c.peak_load_line:
             t.add_row("cutting load (XY)", f"peak {c.peak_load:,.1f} N (line {c.peak_load_line}), mean while "
@@ -143,7 +143,7 @@ def _print_simulation(path: str, s, output, inch: bool = False) -> None:
         t.add_row("material removal", f"peak {c.peak_mrr:,.0f} mm³/s; tool in the material {c.engaged_time:,.2f} s")
         b = c.stock
         t.add_row("stock", f"X {b[0]:g}…{b[3]:g}  Y {b[1]:g}…{b[4]:g}  Z {b[2]:g}…{b[5]:g} mm, "
-                           f"{c.resolution:g} mm cells ({c.stock_source}); {c.material}")
+                           f"{c.resolution:g} mm cells, {c.stock_source}; {c.material}")
         from rich.markup import escape
 
         for d in c.defaults:

@@ -24,8 +24,7 @@ import numpy as np
 
 from ..errors import MtwinError, SourceLocation
 from ..gcode import records as R
-from .blocks import HELD
-from .measurement import MeasurementError
+from .measurement import HELD, MeasurementError, held_spans, merged
 from .mtconnect import Outline
 
 #: override column -> what it scales
@@ -92,9 +91,9 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
         others = " (or another of the log's runs with --run K)" if len(meas.runs or ()) > 1 else ""
         if not partial:
             why = meas.meta.get("ended") or "a logger that stopped, or the run was aborted"
-            raise MeasurementError(f"the run in the log is incomplete: it stops at line {last} of "
-                                   f"{program.path or 'the program'} ({why}) — "
-                                   f"compare the part that ran with --partial{others}", SourceLocation(meas.path, 0, 0))
+            where = "" if f"line {last}" in why else f"; it ran to line {last}"
+            raise MeasurementError(f"the run in the log of {program.path or 'the program'} is incomplete: {why}{where} "
+                                   f"— compare the part that ran with --partial{others}", SourceLocation(meas.path, 0, 0))
         if not has_lines:
             raise MeasurementError("the run in the log is incomplete and the log names no program line, so where it "
                                    "stopped is not known: --partial cannot cut the program there",
@@ -128,11 +127,14 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
         out.not_logged = [k for k in SCALES if k not in logged or np.isnan(logged[k]).all()]
     # an override at 0 % held the machine (the operator's time, as a feed hold is): taken out of
     # the measured times, and out of the overrides' means over the blocks it fell in
-    held = _held(meas, logged.get("feed_override"))
+    held = held_spans(meas)
     if held:
         meas = replace(meas, holds=sorted(list(meas.holds or []) + held))
         out.measurement = meas
         out.held = held
+    # (the overrides' values while the machine stood — held, a feed hold, a program stop — are
+    # not what it ran at)
+    stood = merged([*meas.holds, *(meas.stops or [])])
     active = {k: v for k, v in logged.items() if not np.isnan(v).all() and (np.abs(v[~np.isnan(v)] - 100.0) > 1e-9).any()}
     if not active:
         out.program = program
@@ -150,7 +152,7 @@ def as_run(program, meas, partial: bool = False) -> AsRun:
     moving = rec["kind"] != R.DWELL
     new = rec.copy()
     for k, v in active.items():
-        f = np.clip(_time_mean(meas.t, v, t0, t1, held), HELD, None) / 100.0
+        f = np.clip(_time_mean(meas.t, v, t0, t1, stood), HELD, None) / 100.0
         if k == "feed_override":
             m = moving & (rec["kind"] != R.RAPID) & ((rec["flags"] & R.FL_SYNC) == 0)
             new["feed"] = np.where(m, rec["feed"] * f, rec["feed"])
@@ -227,51 +229,11 @@ def _cut(lines: np.ndarray, group: np.ndarray, last_group: int, last_line: int) 
     return len(lines)
 
 
-def _held(meas, v: np.ndarray | None) -> list:
-    """(t0, t1) spans where the feed override stood below HELD % and the machine stood (its
-    logged feed 0, where it logs one: on a Fanuc-style control rapids run on at a feed override
-    of 0), less what the log's own holds and stops already take out (never counted twice).  A
-    rapid override at 0 is the control's slowest rapid (F0), not a hold."""
-    if v is None:
-        return []
-    t = np.asarray(meas.t, float)
-    end = float(meas.end_time) if meas.end_time is not None else float(t[-1])
-    low = np.nan_to_num(v, nan=100.0) < HELD
-    feed = meas.signals.get("feed")
-    out: list = []
-    edges = np.flatnonzero(np.diff(np.r_[False, low, False].astype(np.int8)))
-    for i, j in zip(edges[::2], edges[1::2]):
-        if feed is not None:
-            f = np.nan_to_num(np.asarray(feed, float)[i:j], nan=0.0)
-            still = np.flatnonzero(f <= MOVING)  # (the feed logged at the turn of the knob is the last one's)
-            if not len(still) or (f[still[0]:] > MOVING).any():
-                continue  # (it moved: not held)
-        out.append((float(t[i]), float(t[j]) if j < len(t) else end))
-    cover = sorted([(a, b) for a, b in (meas.holds or [])] + [(a, b) for a, b, *_ in (meas.stops or [])])
-    return [x for a, b in out for x in _minus(a, b, cover) if x[1] > x[0]]
-
-
-MOVING = 1.0  # mm/min: a logged path feed above this is motion
-
-
-def _minus(a: float, b: float, cover: list) -> list:
-    """[a, b) less the spans of ``cover`` (sorted)."""
-    out, at = [], a
-    for c0, c1 in cover:
-        if c1 <= at or c0 >= b:
-            continue
-        if c0 > at:
-            out.append((at, c0))
-        at = max(at, c1)
-    if at < b:
-        out.append((at, b))
-    return out
-
-
 def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=()) -> np.ndarray:
     """Mean over [a, b) of the step function that holds v[i] from t[i] (NaN: 100 %) — its value
     at a where b <= a; before the first sample, the first value.  ``held``: (t0, t1) spans left
-    out (where the machine stood held: their values, near 0, are not the override it ran at)."""
+    out, disjoint (where the machine stood: their values, near 0 when it was held, are not the
+    override it ran at)."""
     v = np.where(np.isnan(v), 100.0, v)
     # the integral at the sample times, then linear between them (a step's integral is linear)
     cum = np.concatenate([[0.0], np.cumsum(v[:-1] * np.diff(t))])

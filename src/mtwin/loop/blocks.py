@@ -24,6 +24,7 @@ import re
 import numpy as np
 
 from ..gcode import records as R
+from .measurement import HELD, covered, held_spans
 
 _TOOL_CHANGE = re.compile(rb"M0*6(?!\d)")
 _PROGRAM_STOP = re.compile(rb"M0*[01](?![\d.])")  # M00 / M01 (M0, M1): the control may wait for the operator
@@ -32,7 +33,6 @@ _END = re.compile(rb"M(?:0*30|0*2)(?!\d)")
 KINDS = ("tool change", "program end", "drilling cycle", "plunge", "small arc", "short line", "rapid", "feed",
          "other")
 NOISE_FLOOR = 0.15  # s per logged group, the same code run twice (NIST Hurco logs)
-HELD = 1.0  # %: an override below this holds the machine (its time is the operator's)
 # s: a block group at an M00/M01 that took this long waited for the operator.  Shorter ones
 # are the machine's own time (an M01 with optional stop off still takes 2-5 s on the NIST
 # Hurco plates: the spindle and coolant stopping) and stay in the block timing.
@@ -336,10 +336,6 @@ def set_apart_stops(g: Groups, simulated: np.ndarray) -> Groups:
     return out
 
 
-def _overlap(a0: float, a1: float, spans) -> float:
-    return float(sum(max(0.0, min(a1, b1) - max(a0, b0)) for b0, b1 in spans))
-
-
 def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end: float | None = None,
                     holds=(), overrides: dict | None = None, stops=(), kinds_seen: dict | None = None) -> Groups:
     """Block groups of a measurement: each reported line and the unreported ones after it,
@@ -360,17 +356,18 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     text_lines = program.data.split(b"\n")
     firsts, nexts, lasts, meas, kinds, excluded, codes, at_lines, starts = [], [], [], [], [], [], [], [], []
     stop_spans = [(a, b) for a, b, _ in stops]
+    stood = [*holds, *stop_spans]  # (a hold inside a logged stop is the stop's: counted once)
     for k, ln in enumerate(reported):
         nxt = reported[k + 1] if k + 1 < len(reported) else None
         if nxt is not None and nxt <= ln:
             continue  # out of order (a loop or a re-report): left out
         t0, t1 = ms[ln], (ms[nxt] if nxt is not None else end)
         last = (nxt - 1) if nxt is not None else n_lines
-        why = _overridden(meas_t, overrides, t0, t1, holds)
+        why = _overridden(meas_t, overrides, t0, t1, stood)
         if why:
             excluded.append({"first_line": ln, "last_line": last, "t0": t0, "t1": t1, "reason": why})
             continue
-        d = t1 - t0 - _overlap(t0, t1, holds) - _overlap(t0, t1, stop_spans)
+        d = t1 - t0 - covered(stood, t0, t1)
         code, at = _stop_code(text_lines[ln - 1:last])
         codes.append(code)
         at_lines.append(ln + at)
@@ -389,7 +386,8 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     logged = [{"t0": a, "t1": min(b, end), "state": st} for a, b, st in stops if a < end]
     period = report_period(meas_t, meas_line)
     return Groups(np.array(firsts, np.int64), np.array(nexts, np.int64), np.array(lasts, np.int64),
-                  np.array(meas, np.float64), kinds, excluded, _overlap(0.0, end, holds), logged, codes, at_lines,
+                  np.array(meas, np.float64), kinds, excluded,
+                  covered(stood, 0.0, end) - covered(stop_spans, 0.0, end), logged, codes, at_lines,
                   np.array(starts, np.float64), period=period, jitter=report_jitter(meas_t, meas_line, period))
 
 
@@ -403,24 +401,26 @@ def _stop_code(text: list) -> tuple[str, int]:
     return "", 0
 
 
-def _overridden(t: np.ndarray, overrides, t0: float, t1: float, holds=()) -> str:
+def _overridden(t: np.ndarray, overrides, t0: float, t1: float, stood=()) -> str:
     """Why a group's time is not the program's: the feed override below HELD % for a time the
-    holds do not take out.  Where the machine stood at it, the replay (:mod:`.asrun`, the one
-    judge of that) made the time a hold, and the group is kept, as a feed hold's is; what is left
-    ran at 0 % while the machine moved (a Fanuc-style control runs rapids on at 0 %), which the
-    twin cannot replay on the group's feed moves.  Any other value the twin applies; a rapid
-    override at 0 is the slowest rapid, F0, which the twin replays."""
+    spans where the machine stood (holds, logged stops) do not take out.  Where it stood at 0 %,
+    the time is a hold (:func:`.measurement.held_spans`, the one judge of that) and the group is
+    kept, as a feed hold's is; what is left ran at 0 % while the machine moved (a Fanuc-style
+    control runs rapids on at 0 %), which the twin cannot replay on the group's feed moves.  Any
+    other value the twin applies; a rapid override at 0 is the slowest rapid, F0, which the twin
+    replays."""
     v = (overrides or {}).get("feed_override")
     if v is None:
         return ""
     i0 = max(int(np.searchsorted(t, t0, "right")) - 1, 0)  # the value in force at t0
     i1 = max(int(np.searchsorted(t, t1, "left")), i0 + 1)  # and every value logged before t1
     edges = np.clip(np.r_[t0, t[i0 + 1:i1], t1], t0, t1)
-    low = np.nan_to_num(v[i0:i1], nan=100.0) < HELD
-    spans = [(a, b) for a, b, lo in zip(edges[:-1], edges[1:], low) if lo and b > a]
-    left = sum(b - a - _overlap(a, b, holds) for a, b in spans)
-    if left > 1e-6:
-        return f"the feed override at {np.nanmin(v[i0:i1]):g} % for {left:.1f} s while the machine moved"
+    vals = np.nan_to_num(v[i0:i1], nan=100.0)
+    left = [(b - a - covered(stood, a, b), x) for a, b, x in zip(edges[:-1], edges[1:], vals) if x < HELD and b > a]
+    moved = sum(d for d, _ in left if d > 1e-9)
+    if moved > 1e-6:
+        return (f"it ran at a feed override of {min(x for d, x in left if d > 1e-9):g} % for {moved:.1f} s while "
+                f"the machine moved")
     return ""
 
 
@@ -477,7 +477,10 @@ def measurement_groups(program, meas) -> Groups:
     """:func:`measured_groups` of a read measurement: its end time, feed holds, logged program
     stops and override columns where it has them (a control's log)."""
     overrides = {k: np.asarray(v, np.float64) for k, v in meas.extra.items() if k.endswith("_override")}
-    return measured_groups(program, meas.t, meas.line, meas.end_time, meas.holds, overrides, meas.stops)
+    # (the time the machine stood at a feed override of 0 %: none new where the replay, which
+    # finds the same, has made it holds already)
+    holds = [*meas.holds, *held_spans(meas)]
+    return measured_groups(program, meas.t, meas.line, meas.end_time, holds, overrides, meas.stops)
 
 
 def measurement_block_timing(program, meas, trace) -> BlockTiming:

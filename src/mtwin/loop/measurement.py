@@ -270,7 +270,12 @@ def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None
         elif c in _KNOWN:
             signals[c] = data[:, j] * scale
     extra = {c: data[:, j] for j, (c, _) in enumerate(cols) if c in LOG_COLUMNS}
-    return Measurement(name, t, signals, line, meta, ignored, extra=extra, **log_fields(meta, name))
+    fields = log_fields(meta, name)
+    if fields.get("end_time") is not None and len(t) and fields["end_time"] < float(t[-1]) - 1e-6:
+        key = "end_time_s" if "end_time_s" in meta else "cycle_time_s"
+        raise MeasurementError(f"metadata {key}: the run ends at {fields['end_time']:g} s, before its last "
+                               f"sample at {float(t[-1]):g} s", SourceLocation(name, 0, 0))
+    return Measurement(name, t, signals, line, meta, ignored, extra=extra, **fields)
 
 
 def log_fields(meta: dict, path: str = "") -> dict:
@@ -279,17 +284,13 @@ def log_fields(meta: dict, path: str = "") -> dict:
     ``program_stops_s``, ``complete``)."""
     out: dict = {}
     # the run's span: ``end_time_s``; files written before it had the span as ``cycle_time_s``
-    # (which now is the span less the holds and stops)
-    key = "end_time_s" if "end_time_s" in meta else "cycle_time_s"
-    if meta.get(key):
-        try:
-            out["end_time"] = float(meta[key])
-        except ValueError:
-            raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s",
-                                   SourceLocation(path, 0, 0)) from None
-        if not math.isfinite(out["end_time"]) or out["end_time"] < 0:
-            raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s",
-                                   SourceLocation(path, 0, 0))
+    # (which now is the span less the holds and stops): each is checked where it is given
+    times = {key: _seconds(meta, key, path) for key in ("end_time_s", "cycle_time_s") if key in meta}
+    if times:
+        out["end_time"] = times.get("end_time_s", times.get("cycle_time_s"))
+        if len(times) == 2 and times["cycle_time_s"] > times["end_time_s"] + 1e-6:
+            raise MeasurementError(f"metadata cycle_time_s: {meta['cycle_time_s']!r} is longer than the run's span, "
+                                   f"end_time_s {meta['end_time_s']!r}", SourceLocation(path, 0, 0))
     holds, stops = [], []
     for key, into in (("feed_holds_s", holds), ("program_stops_s", stops)):
         for part in filter(None, (x.strip() for x in meta.get(key, "").split(";"))):
@@ -304,6 +305,83 @@ def log_fields(meta: dict, path: str = "") -> dict:
     out["holds"], out["stops"] = holds, stops
     if meta.get("complete") in ("yes", "no"):
         out["complete"] = meta["complete"] == "yes"
+    return out
+
+
+_SECONDS = re.compile(r"[+]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def _seconds(meta: dict, key: str, path: str) -> float:
+    """A metadata time in s: a plain decimal number, finite and above 0."""
+    text = meta[key].strip()
+    v = float(text) if _SECONDS.fullmatch(text) else math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s (a number above 0)",
+                               SourceLocation(path, 0, 0))
+    return v
+
+
+# -- when the machine stood: one judge, for the reading, the replay and the block timing
+
+HELD = 1.0  # %: a feed override below this holds the machine (its time is the operator's)
+MOVING = 1.0  # mm/min: a logged path feed above this is motion
+
+
+def merged(spans) -> list:
+    """The (t0, t1) spans (further fields ignored) as a sorted list of disjoint ones."""
+    out: list = []
+    for a, b, *_ in sorted(spans):
+        if b <= a:
+            continue
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return out
+
+
+def covered(spans, a: float, b: float) -> float:
+    """s of [a, b) inside the spans (their union: a time in two of them counts once)."""
+    return float(sum(max(0.0, min(b, s1) - max(a, s0)) for s0, s1 in merged(spans)))
+
+
+def held_spans(meas: Measurement) -> list:
+    """(t0, t1) spans where the feed override stood below HELD % and the machine stood (its
+    logged feed 0, where it logs one: on a Fanuc-style control rapids run on at a feed override
+    of 0), less what the log's own holds and stops already take out (never counted twice).  A
+    rapid override at 0 is the control's slowest rapid (F0), not a hold."""
+    v = meas.extra.get("feed_override")
+    if v is None or meas.t is None or not len(meas.t):
+        return []
+    v = np.asarray(v, np.float64)
+    t = np.asarray(meas.t, float)
+    end = float(meas.end_time) if meas.end_time is not None else float(t[-1])
+    low = np.nan_to_num(v, nan=100.0) < HELD
+    feed = meas.signals.get("feed")
+    out: list = []
+    edges = np.flatnonzero(np.diff(np.r_[False, low, False].astype(np.int8)))
+    for i, j in zip(edges[::2], edges[1::2]):
+        if feed is not None:
+            f = np.nan_to_num(np.asarray(feed, float)[i:j], nan=0.0)
+            still = np.flatnonzero(f <= MOVING)  # (the feed logged at the turn of the knob is the last one's)
+            if not len(still) or (f[still[0]:] > MOVING).any():
+                continue  # (it moved: not held)
+        out.append((float(t[i]), float(t[j]) if j < len(t) else end))
+    cover = merged([*(meas.holds or []), *(meas.stops or [])])
+    return [x for a, b in out for x in _minus(a, b, cover) if x[1] > x[0]]
+
+
+def _minus(a: float, b: float, cover: list) -> list:
+    """[a, b) less the spans of ``cover`` (sorted, disjoint)."""
+    out, at = [], a
+    for c0, c1 in cover:
+        if c1 <= at or c0 >= b:
+            continue
+        if c0 > at:
+            out.append((at, c0))
+        at = max(at, c1)
+    if at < b:
+        out.append((at, b))
     return out
 
 

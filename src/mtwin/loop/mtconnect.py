@@ -47,7 +47,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from ..errors import SourceLocation
-from .measurement import Measurement, MeasurementError, max_override, same_program
+from .measurement import Measurement, MeasurementError, covered, held_spans, max_override, same_program
 
 _NAMES = ("Block_Number", "Feed_Rate", "Spindle_Speed", "Current_Tool", "Program_Status", "Execution",
           "Program_Name_Running", "Program", "Line", "PathFeedrate", "RotaryVelocity", "ToolNumber",
@@ -148,7 +148,9 @@ class Run:
             out += f", {len(self.holds)} feed hold(s)"
         if self.stops:
             states = [st for _, _, st in self.stops]  # (counted: single-block mode stops at every line)
-            out += f", {len(states)} program stop(s) ({', '.join(f'{states.count(x)} {x}' for x in dict.fromkeys(states))})"
+            kinds = dict.fromkeys(states)
+            out += (f", 1 program stop ({states[0]})" if len(states) == 1 else f", {len(states)} program stops ("
+                    + (next(iter(kinds)) if len(kinds) == 1 else ", ".join(f"{states.count(x)} {x}" for x in kinds)) + ")")
         for a, b in self.gaps:
             out += f", no data {a:.0f}–{b:.0f} s (the control UNAVAILABLE: an adapter's reconnect; the run went on)"
         if self.other_name:
@@ -889,7 +891,7 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
     end_t = max(ev[-1].t, chosen.until) - t0
     meta = {"source": f"MTConnect log {path}", "program": chosen.program, "run": str(all_runs.index(chosen) + 1),
             "runs": str(len(all_runs)), "complete": "yes" if chosen.complete else "no",
-            "end_time_s": f"{end_t:.4f}", "cycle_time_s": f"{end_t - _covered(chosen.holds, chosen.stops, end_t):.4f}",
+            "end_time_s": f"{end_t:.4f}", "cycle_time_s": "",
             "block_is": block_is}
     if chosen.late:
         meta["started_at"] = str(chosen.late)
@@ -914,21 +916,13 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
         meta["feed_holds_s"] = "; ".join(f"{a:.3f}-{b:.3f}" for a, b in chosen.holds)
     if chosen.stops:
         meta["program_stops_s"] = "; ".join(f"{a:.3f}-{b:.3f} {st}" for a, b, st in chosen.stops)
-    return Measurement(path, t, signals, line, meta, [], extra=extra, end_time=end_t, holds=list(chosen.holds),
-                       stops=list(chosen.stops), complete=chosen.complete, runs=all_runs,
-                       source_line=np.array(src, np.int64))
-
-
-def _covered(holds, stops, end: float) -> float:
-    """s of [0, end] inside a feed hold or a logged program stop (a restart's repeated first
-    pass is one of the stops): what the header's ``cycle_time_s`` takes out of the run's span."""
-    spans = sorted((max(a, 0.0), min(b, end)) for a, b, *_ in (*holds, *stops) if b > a)
-    total, reach = 0.0, 0.0
-    for a, b in spans:
-        if b > reach:
-            total += b - max(a, reach)
-            reach = b
-    return total
+    m = Measurement(path, t, signals, line, meta, [], extra=extra, end_time=end_t, holds=list(chosen.holds),
+                    stops=list(chosen.stops), complete=chosen.complete, runs=all_runs,
+                    source_line=np.array(src, np.int64))
+    # the cycle: the span less the time the machine stood — feed holds, logged program stops (a
+    # restart's repeated first pass among them), a feed override at 0 % with the machine still
+    meta["cycle_time_s"] = f"{end_t - covered([*chosen.holds, *chosen.stops, *held_spans(m)], 0.0, end_t):.4f}"
+    return m
 
 
 def _apply(state: dict, e: Event, path: str, n_map, pos) -> bool:
