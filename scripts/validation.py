@@ -49,7 +49,7 @@ def main(realdata: Path) -> None:
     t0 = time.time()
     for p in PLATES:
         nc, meas = program[p], logs[p]
-        row = {"plate": p}
+        row = {"plate": p, "began": _log_start(hurco / "Split" / f"Plate-Op1-Hurco04-{p}of20.txt")}
         for name, tw in (("default", default), ("profile", profile)):
             prog = tw.load(nc)
             tr = tw.simulate(prog)
@@ -439,6 +439,36 @@ def _reversals(prog, seen: dict, sim: dict, turn: float = 120.0) -> dict:
     return {f: (len(v), float(np.mean([a for a, _ in v])), float(np.mean([b for _, b in v]))) for f, v in out.items()}
 
 
+def _tool_pairs(rows) -> str:
+    """Per tool that every plate runs 20 sequences or more with, the measured difference of its
+    sequences between each two plates (the difference of the twin's errors, the twin timing the
+    same lines alike on every plate), ms a sequence."""
+    out = []
+    for t in sorted(set.intersection(*(set(r["sequences_by_tool"]) for r in rows))):
+        pairs = []
+        for i in range(len(rows)):
+            for j in range(i + 1, len(rows)):
+                a, b = rows[i]["sequences_by_tool"][t], rows[j]["sequences_by_tool"][t]
+                pairs.append(f"{rows[i]['plate']} − {rows[j]['plate']} {b[1] - a[1]:+.0f} ± {np.hypot(a[2], b[2]):.0f}")
+        out.append(f"tool {t}: " + ", ".join(pairs) + " ms")
+    return "; ".join(out)
+
+
+def _log_start(path: Path) -> tuple:
+    """The log's first timestamp: (its date, its time to the minute, UTC)."""
+    with open(path, encoding="utf-8", errors="replace") as f:
+        ts = f.readline().split("|", 1)[0]
+    return ts[:10], ts[11:16]
+
+
+def _starts(rows) -> str:
+    """When the logs began ("17:58, 18:26 and 19:03 UTC on 2017-02-02")."""
+    days = dict.fromkeys(d for d, _ in (r["began"] for r in rows))
+    times = [hm if len(days) == 1 else f"{d} {hm}" for d, hm in (r["began"] for r in rows)]
+    return (", ".join(times[:-1]) + " and " + times[-1] + " UTC"
+            + (f" on {next(iter(days))}" if len(days) == 1 else ""))
+
+
 def _paired_sequences(rows) -> str:
     """The logged times of the retract-reposition-approach sequences every plate reports,
     per plate and as paired differences with their standard errors."""
@@ -449,8 +479,9 @@ def _paired_sequences(rows) -> str:
     for i in range(len(rows)):
         for j in range(i + 1, len(rows)):
             d = t[i] - t[j]
+            se = d.std(ddof=1) / np.sqrt(len(d))
             pairs.append(f"plate {rows[i]['plate']} − plate {rows[j]['plate']} {d.mean() * 1000:+.0f} ± "
-                         f"{d.std(ddof=1) / np.sqrt(len(d)) * 1000:.0f} ms")
+                         f"{se * 1000:.0f} ms ({d.sum():+.1f} ± {se * len(d):.1f} s over the {len(d)})")
     return (f"the {len(common)} that every log reports took {mean} s on average (plates "
             + " / ".join(str(r["plate"]) for r in rows) + "); paired, sequence by sequence: " + ", ".join(pairs))
 
@@ -682,8 +713,9 @@ def _markdown(rows, kinds, elapsed) -> str:
             "which the twin times alike on all three; "
             + _paired_sequences(rows)
             + ": the machine ran plate 13's faster by about two of their standard errors, which nothing in the "
-            "sequences themselves says.  By tool (the tools that run 20 sequences or more; there the plates' "
-            "programs differ only in S and F), the error per sequence, mean ± its standard error, at the F of the "
+            "sequences themselves says.  The three logs begin at " + _starts(rows)
+            + ": the plates were cut one after another the same day.  By tool (the tools that run 20 sequences "
+            "or more; there the plates' programs differ only in S and F), the error per sequence, mean ± its standard error, at the F of the "
             "feed lines that end them: "
             + "; ".join(f"tool {t}: " + ", ".join(f"plate {r['plate']} F{r['sequences_by_tool'][t][3]} "
                                                   f"{r['sequences_by_tool'][t][1]:+.0f} ± "
@@ -702,11 +734,14 @@ def _markdown(rows, kinds, elapsed) -> str:
             "plate: the machine stands where a rapid ends and a cutting move follows "
             "(its in-position check before it cuts), as it does where a feed move ends and a rapid follows (below).  "
             f"The profile stands there {rows[0]['rapid_feed_wait'] * 1000:.0f} ms (`feed-rapid-wait`'s `rapid_feed`, "
-            "fitted with the rest, the figures above with it).  It stands longest on plate 12, the one plate "
-            "whose programs run the spindle at S12000 (plates 13 and 14 at S9000), while plates 13 and 14, at "
-            "different feeds, take alike — tool 23's above at F1016 and F762: the plate's feed does not order the "
-            "sequences; its spindle speed, or the day it ran, may, and with one speed a plate the logs cannot tell "
-            "which — most of plate 12's rapid error.  (A rapid run into its collinear plunge at the plunge's feed, "
+            "fitted with the rest, the figures above with it).  Neither the plate's spindle speed (plate 12 "
+            "S12000, the others S9000) nor its feed orders what is left; by tool, how much longer the machine "
+            "took a sequence on one plate than on another (the twin times them alike; mean ± standard error): "
+            + _tool_pairs(rows)
+            + ".  Sequences the programs time alike took up to 2 s longer in all on one run than on "
+            "another half an hour later (plates 12 and 13: the paired sums above): that is the rapid kind's run-to-run scatter on "
+            "this machine, which no setting the three runs share takes up, and which a leave-one-out "
+            "prediction of one plate's rapid kind carries whole.  (A rapid run into its collinear plunge at the plunge's feed, "
             "in place of "
             "a stop, would shorten plate 13's most, its plunges being the fastest; tried, it makes every plate's "
             "plunges 5–9 s short of the log, which shows them starting from rest: not kept.)",
