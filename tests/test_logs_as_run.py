@@ -392,6 +392,15 @@ def test_runs_a_stop_after_a_hold_aborts_and_another_program_starts_a_new_run(tm
     (tmp_path / "r.txt").write_text(log)
     rs = runs(read_shdr(str(tmp_path / "r.txt")))
     assert [(r.program, r.complete) for r in rs] == [("A.NC", False), ("B.NC", False), ("C.NC", True)]
+    # a reset from a feed hold aborts the run too (read without its program, where READY alone
+    # could be a finish); the program completed after a hold whose resume the log missed did not
+    for end, complete in (("READY", False), ("PROGRAM_COMPLETED", True)):
+        (tmp_path / "h.txt").write_text(f"{_ts(0)}|Program_Name_Running|A.NC\n{_ts(0)}|Execution|ACTIVE\n"
+                                        f"{_ts(1)}|Block_Number|5\n{_ts(2)}|Execution|FEED_HOLD\n"
+                                        f"{_ts(4)}|Execution|{end}\n")
+        r, = runs(read_shdr(str(tmp_path / "h.txt")))
+        assert r.complete is complete
+        assert complete or r.describe() == "A.NC, incomplete (FEED_HOLD at line 5 at 2 s, then reset to READY), reached line 5"
 
 
 def test_values_calibrated_from_a_log_without_overrides_are_labelled_effective(setup, tmp_path):

@@ -500,7 +500,9 @@ def runs(events: list, outline: Outline | None = None, label: str | None = None)
             # (the pause began at the first of them; a stop after a feed hold makes it a stop)
             paused = (e.t, v) if paused is None else (paused[0], v if v in _STOP else paused[1])
         elif start is not None and v in _END:
-            aborted = paused is not None and paused[1] != "FEED_HOLD"
+            # (a reset from a stop, or from a feed hold, aborts the run: a program does not end while
+            # it is held; PROGRAM_COMPLETED after a hold is an end whose resume the log missed)
+            aborted = paused is not None and (paused[1] != "FEED_HOLD" or v == "READY")
             ended = ""
             if aborted:
                 last = _blocks(events, start, k)
