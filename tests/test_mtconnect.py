@@ -63,6 +63,16 @@ def test_shdr_log_with_its_quirks(tmp_path):
     old = out.read_text().replace("# end_time_s: 5.8750\n", "").replace("cycle_time_s: 3.8750", "cycle_time_s: 5.8750")
     (tmp_path / "old.csv").write_text(old)
     assert read_measurement(str(tmp_path / "old.csv")).end_time == pytest.approx(5.875)
+    # a span written to 0.1 ms that rounds down onto its last sample (1/64-s steps) reads back;
+    # a cycle of 0 s (the machine stood its whole span) too
+    cut = SHDR.split("2017-02-02T18:26:53")[0] + "2017-02-02T18:26:52.5156250Z|Block_Number|6\n"
+    (tmp_path / "cut.txt").write_text(cut)
+    c = read_mtconnect(str(tmp_path / "cut.txt"))
+    assert c.meta["end_time_s"] == "4.3906" and c.end_time == pytest.approx(c.t[-1]) == pytest.approx(4.390625)
+    c.write(str(tmp_path / "cut.csv"))
+    assert read_measurement(str(tmp_path / "cut.csv")).end_time == pytest.approx(4.3906)
+    (tmp_path / "zero.csv").write_text(out.read_text().replace("cycle_time_s: 3.8750", "cycle_time_s: 0.0000"))
+    assert read_measurement(str(tmp_path / "zero.csv")).end_time == pytest.approx(5.875)
     for key, value, why in (("end_time_s", "soon", "is not a time"), ("end_time_s", "", "is not a time"),
                             ("end_time_s", "1_0", "is not a time"), ("end_time_s", "0", "is not a time"),
                             ("end_time_s", "nan", "is not a time"), ("cycle_time_s", "-1", "is not a time"),

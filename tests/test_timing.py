@@ -312,6 +312,22 @@ def test_an_override_at_0_through_a_logged_stop_is_time_the_machine_stood(tmp_pa
     assert "feed override 100 % applied" in r.stderr
 
 
+def test_overlapping_logged_stops_are_counted_once_and_a_stand_to_the_end_keeps_the_override_in_force(tmp_path):
+    from mtwin.loop.asrun import _time_mean
+    from mtwin.loop.blocks import measured_groups
+
+    (tmp_path / "PART.NC").write_text("G21 G90\nG0 X0 Y0 Z5\nG1 X10 F600\nG1 Y10\nG1 X0\nG1 Y0\nM30\n")
+    prog = mtwin.Twin().load(str(tmp_path / "PART.NC"))
+    g = measured_groups(prog, np.array([0.0, 1.0, 9.0]), np.array([3, 4, 5]), 10.0,
+                        stops=[(2.0, 6.0, "STOPPED"), (5.0, 8.0, "RESTART"), (6.5, 7.0, "STOPPED")])
+    assert g.stop_time == pytest.approx(6.0) and g.measured[1] == pytest.approx(8.0 - 6.0)
+    # a group wholly inside a stand that runs to the log's end ran at the value in force before it
+    t, v = np.array([0.0, 1.0, 2.0, 3.0]), np.array([50.0, 80.0, 90.0, 90.0])
+    assert _time_mean(t, v, np.array([4.0]), np.array([5.0]), [(2.5, 10.0)])[0] == pytest.approx(90.0)
+    t, v = np.array([0.0, 1.0, 2.0, 3.0]), np.array([50.0, 80.0, 0.0, 0.0])  # (held from the sample at 2)
+    assert _time_mean(t, v, np.array([4.0]), np.array([5.0]), [(2.0, 10.0)])[0] == pytest.approx(80.0)
+
+
 def test_time_the_machine_stood_is_counted_once_where_spans_overlap():
     from mtwin.loop.blocks import _overridden
     from mtwin.loop.measurement import covered, merged

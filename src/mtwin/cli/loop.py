@@ -57,7 +57,8 @@ def import_mtconnect(
         say(f"run {k}: {r.describe()}")
     held = m.end_time - float(m.meta["cycle_time_s"])
     say(f"run {m.meta['run']}: {len(m.t):,} samples over {m.end_time:.2f} s"
-        + (f" ({float(m.meta['cycle_time_s']):.2f} s without {held:.2f} s of feed holds and program stops)"
+        + (f" ({float(m.meta['cycle_time_s']):.2f} s without the {held:.2f} s it stood: feed holds, program "
+           f"stops, a feed override at 0 %)"
            if held > 0.0005 else "") + ", lines "
         f"{int(m.line[m.line > 0].min()) if (m.line > 0).any() else '-'}–{int(m.line.max())}"
         + (f"; overrides {m.meta['overrides']}" if "overrides" in m.meta else ""))

@@ -251,7 +251,8 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=
         gone += np.maximum(hi - lo, 0.0)
         gone_int += np.where(hi > lo, integral(np.maximum(hi, lo)) - integral(lo), 0.0)
         k = int(np.searchsorted(t, h1, side="left"))
-        after = v[k] if k < len(t) else v[max(int(np.searchsorted(t, h0, side="right")) - 2, 0)]
+        # (the value in force just before h0: a held span begins at the sample that set 0 %)
+        after = v[k] if k < len(t) else v[max(int(np.searchsorted(t, h0, side="left")) - 1, 0)]
         resumed = np.where((a >= h0) & (b <= h1), after, resumed)
     span = b - a - gone
     with np.errstate(invalid="ignore", divide="ignore"):

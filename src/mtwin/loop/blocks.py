@@ -342,9 +342,9 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     with its measured duration.  ``holds``: (t0, t1) feed-hold intervals and ``stops``: (t0,
     t1, state) program stops the control logged, taken out of the durations they fall in;
     ``overrides``: signal -> % per sample (feed, rapid, spindle override), which the twin
-    applies (:mod:`mtwin.loop.asrun`, which also makes the time the machine stood at a feed
-    override of 0 % a hold): a group that ran at 0 % for longer than its holds is left out and
-    listed.  A group at an M00 or M01 has its ``code``: against a
+    applies (:mod:`mtwin.loop.asrun`); the time the machine stood at a feed override of 0 % is a
+    hold (:func:`.measurement.held_spans`, which :func:`measurement_groups` and the replay add),
+    and a group that ran at 0 % for longer than its holds and stops cover is left out and listed.  A group at an M00 or M01 has its ``code``: against a
     simulation, :func:`set_apart_stops` sets those that waited for the operator apart.
     ``kinds_seen``: (first, last, is_last) -> kind of groups already classified (kept across
     calls on one program: the logs of :func:`logging_bias` share most of their groups)."""
@@ -383,7 +383,12 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
             if kinds_seen is not None:
                 kinds_seen[key] = kind
         kinds.append(kind)
-    logged = [{"t0": a, "t1": min(b, end), "state": st} for a, b, st in stops if a < end]
+    # (disjoint: a stop that overlaps the one before it keeps only its own time, counted once)
+    logged: list = []
+    for a, b, st in sorted(stops):
+        a = max(a, logged[-1]["t1"]) if logged else a
+        if a < min(b, end):
+            logged.append({"t0": a, "t1": min(b, end), "state": st})
     period = report_period(meas_t, meas_line)
     return Groups(np.array(firsts, np.int64), np.array(nexts, np.int64), np.array(lasts, np.int64),
                   np.array(meas, np.float64), kinds, excluded,

@@ -271,7 +271,9 @@ def read_measurement(path: str, maps=(), ignore_items=(), run: int | None = None
             signals[c] = data[:, j] * scale
     extra = {c: data[:, j] for j, (c, _) in enumerate(cols) if c in LOG_COLUMNS}
     fields = log_fields(meta, name)
-    if fields.get("end_time") is not None and len(t) and fields["end_time"] < float(t[-1]) - 1e-6:
+    # (the metadata's times are written to 0.1 ms, the samples' to 1 ns: a span rounded down to
+    # the sample it ends at is no error)
+    if fields.get("end_time") is not None and len(t) and fields["end_time"] < float(t[-1]) - 1e-4:
         key = "end_time_s" if "end_time_s" in meta else "cycle_time_s"
         raise MeasurementError(f"metadata {key}: the run ends at {fields['end_time']:g} s, before its last "
                                f"sample at {float(t[-1]):g} s", SourceLocation(name, 0, 0))
@@ -285,7 +287,8 @@ def log_fields(meta: dict, path: str = "") -> dict:
     out: dict = {}
     # the run's span: ``end_time_s``; files written before it had the span as ``cycle_time_s``
     # (which now is the span less the holds and stops): each is checked where it is given
-    times = {key: _seconds(meta, key, path) for key in ("end_time_s", "cycle_time_s") if key in meta}
+    times = {key: _seconds(meta, key, path, least) for key, least in (("end_time_s", False), ("cycle_time_s", True))
+             if key in meta}
     if times:
         out["end_time"] = times.get("end_time_s", times.get("cycle_time_s"))
         if len(times) == 2 and times["cycle_time_s"] > times["end_time_s"] + 1e-6:
@@ -311,13 +314,14 @@ def log_fields(meta: dict, path: str = "") -> dict:
 _SECONDS = re.compile(r"[+]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
 
-def _seconds(meta: dict, key: str, path: str) -> float:
-    """A metadata time in s: a plain decimal number, finite and above 0."""
+def _seconds(meta: dict, key: str, path: str, zero: bool = False) -> float:
+    """A metadata time in s: a plain decimal number, finite and above 0 (or 0 itself, ``zero``:
+    a cycle whose whole span the machine stood)."""
     text = meta[key].strip()
     v = float(text) if _SECONDS.fullmatch(text) else math.nan
-    if not (math.isfinite(v) and v > 0):
-        raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s (a number above 0)",
-                               SourceLocation(path, 0, 0))
+    if not (math.isfinite(v) and (v > 0 or (zero and v == 0))):
+        raise MeasurementError(f"metadata {key}: {meta[key]!r} is not a time in s (a number "
+                               f"{'of 0 or more' if zero else 'above 0'})", SourceLocation(path, 0, 0))
     return v
 
 

@@ -21,7 +21,7 @@ Quirks handled (seen in the NIST Hurco VMX24 logs, docs/validation.md):
   its ``Program_Status`` ACTIVE;
 * several programs (or repeats) in one log are separate runs, from ACTIVE to the next
   PROGRAM_COMPLETED or READY; ``run`` picks one (the last complete one by default); a run
-  the log ends in, or one reset to READY from a stop (aborted), is incomplete;
+  the log ends in, or one reset to READY from a stop or a feed hold (aborted), is incomplete;
 * a restart: after a stop, execution resumes with the block number back near the run's first
   — an aborted run followed by a new one (listed, with how far the aborted one got and
   when); resumed further back than it stopped but not at the start, lines ran twice — the
@@ -453,7 +453,7 @@ def read_streams(path: str) -> list:
 def runs(events: list, outline: Outline | None = None, label: str | None = None) -> list:
     """The program runs in a log: ACTIVE to the next end state.  A feed hold (FEED_HOLD) or a
     program stop (STOPPED, OPTIONAL_STOP, PROGRAM_STOPPED, INTERRUPTED) followed by ACTIVE is an
-    interval of the run; a stop followed by READY ends it, incomplete (aborted).  ``outline``:
+    interval of the run; a stop or a feed hold followed by READY ends it, incomplete (aborted).  ``outline``:
     the program the log is read against — a run is complete only where it ran the program from
     its start to its end, and a jump back it does not make itself is a restart.  ``label``: what
     the block numbers are, for a person ("line", "N"; the outline's by default)."""
@@ -923,7 +923,8 @@ def to_measurement(path: str, events: list, run: int | None = None, block_is: st
                     source_line=np.array(src, np.int64))
     # the cycle: the span less the time the machine stood — feed holds, logged program stops (a
     # restart's repeated first pass among them), a feed override at 0 % with the machine still
-    meta["cycle_time_s"] = f"{end_t - covered([*chosen.holds, *chosen.stops, *held_spans(m)], 0.0, end_t):.4f}"
+    stood = covered([*chosen.holds, *chosen.stops, *held_spans(m)], 0.0, end_t)
+    meta["cycle_time_s"] = f"{max(end_t - stood, 0.0):.4f}"  # (never "-0.0000")
     return m
 
 
