@@ -73,6 +73,10 @@ def test_shdr_log_with_its_quirks(tmp_path):
     assert read_measurement(str(tmp_path / "cut.csv")).end_time == pytest.approx(4.3906)
     (tmp_path / "zero.csv").write_text(out.read_text().replace("cycle_time_s: 3.8750", "cycle_time_s: 0.0000"))
     assert read_measurement(str(tmp_path / "zero.csv")).end_time == pytest.approx(5.875)
+    # alone, in a file written before end_time_s, cycle_time_s is the span: never 0
+    (tmp_path / "zero_old.csv").write_text(old.replace("cycle_time_s: 5.8750", "cycle_time_s: 0"))
+    with pytest.raises(MeasurementError, match="cycle_time_s: '0' is not a time in s \\(a number above 0\\)"):
+        read_measurement(str(tmp_path / "zero_old.csv"))
     for key, value, why in (("end_time_s", "soon", "is not a time"), ("end_time_s", "", "is not a time"),
                             ("end_time_s", "1_0", "is not a time"), ("end_time_s", "0", "is not a time"),
                             ("end_time_s", "nan", "is not a time"), ("cycle_time_s", "-1", "is not a time"),

@@ -330,20 +330,20 @@ def test_overlapping_logged_stops_are_counted_once_and_a_stand_to_the_end_keeps_
 
 def test_time_the_machine_stood_is_counted_once_where_spans_overlap():
     from mtwin.loop.blocks import _overridden
-    from mtwin.loop.measurement import covered, merged
+    from mtwin.loop.measurement import coverage, covered, merged
 
     assert merged([(1, 2), (0.5, 1.5, "STOPPED"), (3, 3), (2, 2.5)]) == [(0.5, 2.5)]
     assert covered([(1, 2), (1, 2)], 0, 10) == pytest.approx(1.0)
     assert covered([(0.5, 1.8), (1.2, 2.0)], 1.0, 1.5) == pytest.approx(0.5)
     t = np.arange(6.0)
     v = {"feed_override": np.array([100, 0, 100, 0, 50, 100.0])}  # at 0 % over 1–2 s and 3–4 s
-    assert _overridden(t, v, 0.5, 4.5, [(1, 2), (1, 2)]) == \
+    assert _overridden(t, v, 0.5, 4.5, coverage([(1, 2), (1, 2)])) == \
         "it ran at a feed override of 0 % for 1.0 s while the machine moved"
-    assert "for 1.0 s" in _overridden(t, v, 0.5, 4.5, [(0.5, 1.8), (1.2, 2.0)])
-    assert _overridden(t, v, 0.5, 4.5, [(1, 2), (2.9, 4.1)]) == ""
+    assert "for 1.0 s" in _overridden(t, v, 0.5, 4.5, coverage([(0.5, 1.8), (1.2, 2.0)]))
+    assert _overridden(t, v, 0.5, 4.5, coverage([(1, 2), (2.9, 4.1)])) == ""
     # where the time at 0 % lies inside the holds, its value is not what is told
     v2 = {"feed_override": np.array([100, 0, 0.5, 100, 100, 100.0])}
-    assert _overridden(t, v2, 0.5, 4.5, [(1, 2)]) == \
+    assert _overridden(t, v2, 0.5, 4.5, coverage([(1, 2)])) == \
         "it ran at a feed override of 0.5 % for 1.0 s while the machine moved"
 
 

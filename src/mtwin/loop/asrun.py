@@ -243,17 +243,37 @@ def _time_mean(t: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, held=
         return cum[i] + v[i] * (x - t[i])
 
     at = v[np.clip(np.searchsorted(t, a, side="right") - 1, 0, len(t) - 1)]
-    # the held spans' time and their own values' integral, taken off; a span held throughout ran
-    # at the value it resumed at (at a hold to the run's end, the value before it)
-    gone, gone_int, resumed = np.zeros(np.shape(a)), np.zeros(np.shape(a)), np.array(at, float)
-    for h0, h1 in held:
-        lo, hi = np.maximum(a, h0), np.minimum(b, h1)
-        gone += np.maximum(hi - lo, 0.0)
-        gone_int += np.where(hi > lo, integral(np.maximum(hi, lo)) - integral(lo), 0.0)
-        k = int(np.searchsorted(t, h1, side="left"))
-        # (the value in force just before h0: a held span begins at the sample that set 0 %)
-        after = v[k] if k < len(t) else v[max(int(np.searchsorted(t, h0, side="left")) - 1, 0)]
-        resumed = np.where((a >= h0) & (b <= h1), after, resumed)
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    if not len(held):
+        span = b - a
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(span > 1e-9, (integral(b) - integral(a)) / span, at)
+    # the held spans' time and their own values' integral, taken off: what stood before x is the
+    # spans x is past, whole (cumulated once), and the part of the one it is in — two binary
+    # searches a record, however many spans (a single-block run stands at every line)
+    s0 = np.array([h[0] for h in held], np.float64)
+    s1 = np.array([h[1] for h in held], np.float64)
+    whole_t = np.concatenate([[0.0], np.cumsum(s1 - s0)])
+    whole_i = np.concatenate([[0.0], np.cumsum(integral(s1) - integral(s0))])
+
+    def stood(x):
+        k = np.searchsorted(s1, x, side="right")
+        kk = np.minimum(k, len(s0) - 1)
+        inside = (k < len(s0)) & (x > s0[kk])
+        return (whole_t[k] + np.where(inside, x - s0[kk], 0.0),
+                whole_i[k] + np.where(inside, integral(x) - integral(s0[kk]), 0.0))
+
+    (ta, ia), (tb, ib) = stood(a), stood(b)
+    later = b > a
+    gone, gone_int = np.where(later, tb - ta, 0.0), np.where(later, ib - ia, 0.0)
+    # a record held throughout ran at the value its span resumed at (at a span to the run's end,
+    # the value in force just before it: a held span begins at the sample that set 0 %)
+    k1 = np.searchsorted(t, s1, side="left")
+    after = np.where(k1 < len(t), v[np.minimum(k1, len(t) - 1)],
+                     v[np.maximum(np.searchsorted(t, s0, side="left") - 1, 0)])
+    j = np.minimum(np.searchsorted(s1, a, side="right"), len(s0) - 1)
+    within = (np.searchsorted(s1, a, side="right") < len(s0)) & (a >= s0[j]) & (b <= s1[j])
+    resumed = np.where(within, after[j], at)
     span = b - a - gone
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (integral(b) - integral(a) - gone_int) / span

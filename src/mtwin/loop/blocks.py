@@ -24,7 +24,7 @@ import re
 import numpy as np
 
 from ..gcode import records as R
-from .measurement import HELD, covered, held_spans
+from .measurement import HELD, coverage, held_spans
 
 _TOOL_CHANGE = re.compile(rb"M0*6(?!\d)")
 _PROGRAM_STOP = re.compile(rb"M0*[01](?![\d.])")  # M00 / M01 (M0, M1): the control may wait for the operator
@@ -356,7 +356,8 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     text_lines = program.data.split(b"\n")
     firsts, nexts, lasts, meas, kinds, excluded, codes, at_lines, starts = [], [], [], [], [], [], [], [], []
     stop_spans = [(a, b) for a, b, _ in stops]
-    stood = [*holds, *stop_spans]  # (a hold inside a logged stop is the stop's: counted once)
+    # (a hold inside a logged stop is the stop's: counted once)
+    stood, stopped = coverage([*holds, *stop_spans]), coverage(stop_spans)
     for k, ln in enumerate(reported):
         nxt = reported[k + 1] if k + 1 < len(reported) else None
         if nxt is not None and nxt <= ln:
@@ -367,7 +368,7 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
         if why:
             excluded.append({"first_line": ln, "last_line": last, "t0": t0, "t1": t1, "reason": why})
             continue
-        d = t1 - t0 - covered(stood, t0, t1)
+        d = t1 - t0 - stood(t0, t1)
         code, at = _stop_code(text_lines[ln - 1:last])
         codes.append(code)
         at_lines.append(ln + at)
@@ -392,7 +393,7 @@ def measured_groups(program, meas_t: np.ndarray, meas_line: np.ndarray, meas_end
     period = report_period(meas_t, meas_line)
     return Groups(np.array(firsts, np.int64), np.array(nexts, np.int64), np.array(lasts, np.int64),
                   np.array(meas, np.float64), kinds, excluded,
-                  covered(stood, 0.0, end) - covered(stop_spans, 0.0, end), logged, codes, at_lines,
+                  stood(0.0, end) - stopped(0.0, end), logged, codes, at_lines,
                   np.array(starts, np.float64), period=period, jitter=report_jitter(meas_t, meas_line, period))
 
 
@@ -406,9 +407,9 @@ def _stop_code(text: list) -> tuple[str, int]:
     return "", 0
 
 
-def _overridden(t: np.ndarray, overrides, t0: float, t1: float, stood=()) -> str:
-    """Why a group's time is not the program's: the feed override below HELD % for a time the
-    spans where the machine stood (holds, logged stops) do not take out.  Where it stood at 0 %,
+def _overridden(t: np.ndarray, overrides, t0: float, t1: float, stood) -> str:
+    """Why a group's time is not the program's: the feed override below HELD % for a time
+    ``stood`` (a :func:`.measurement.coverage` of holds and logged stops) does not take out.  Where it stood at 0 %,
     the time is a hold (:func:`.measurement.held_spans`, the one judge of that) and the group is
     kept, as a feed hold's is; what is left ran at 0 % while the machine moved (a Fanuc-style
     control runs rapids on at 0 %), which the twin cannot replay on the group's feed moves.  Any
@@ -421,7 +422,7 @@ def _overridden(t: np.ndarray, overrides, t0: float, t1: float, stood=()) -> str
     i1 = max(int(np.searchsorted(t, t1, "left")), i0 + 1)  # and every value logged before t1
     edges = np.clip(np.r_[t0, t[i0 + 1:i1], t1], t0, t1)
     vals = np.nan_to_num(v[i0:i1], nan=100.0)
-    left = [(b - a - covered(stood, a, b), x) for a, b, x in zip(edges[:-1], edges[1:], vals) if x < HELD and b > a]
+    left = [(b - a - stood(a, b), x) for a, b, x in zip(edges[:-1], edges[1:], vals) if x < HELD and b > a]
     moved = sum(d for d, _ in left if d > 1e-9)
     if moved > 1e-6:
         return (f"it ran at a feed override of {min(x for d, x in left if d > 1e-9):g} % for {moved:.1f} s while "

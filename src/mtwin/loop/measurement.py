@@ -287,8 +287,9 @@ def log_fields(meta: dict, path: str = "") -> dict:
     out: dict = {}
     # the run's span: ``end_time_s``; files written before it had the span as ``cycle_time_s``
     # (which now is the span less the holds and stops): each is checked where it is given
-    times = {key: _seconds(meta, key, path, least) for key, least in (("end_time_s", False), ("cycle_time_s", True))
-             if key in meta}
+    # (a cycle of 0 s beside its span: the machine stood the whole run; alone, it is the span)
+    times = {key: _seconds(meta, key, path, zero=key == "cycle_time_s" and "end_time_s" in meta)
+             for key in ("end_time_s", "cycle_time_s") if key in meta}
     if times:
         out["end_time"] = times.get("end_time_s", times.get("cycle_time_s"))
         if len(times) == 2 and times["cycle_time_s"] > times["end_time_s"] + 1e-6:
@@ -344,9 +345,25 @@ def merged(spans) -> list:
     return out
 
 
+def coverage(spans):
+    """A function of (a, b): the s of [a, b) inside the spans, their union (a time in two of them
+    counts once).  The spans are merged once and each query is two binary searches: a log's
+    every block group asks it (a single-block run has a stop at every line)."""
+    m = merged(spans)
+    s0 = np.array([a for a, _ in m], np.float64)
+    s1 = np.array([b for _, b in m], np.float64)
+    done = np.concatenate([[0.0], np.cumsum(s1 - s0)])  # the time covered up to each span's start
+
+    def before(x: float) -> float:  # s covered before x
+        k = int(np.searchsorted(s1, x, "right"))  # (the spans ended by x)
+        return float(done[k]) + (max(0.0, x - float(s0[k])) if k < len(s0) else 0.0)
+
+    return lambda a, b: before(b) - before(a) if b > a else 0.0
+
+
 def covered(spans, a: float, b: float) -> float:
     """s of [a, b) inside the spans (their union: a time in two of them counts once)."""
-    return float(sum(max(0.0, min(b, s1) - max(a, s0)) for s0, s1 in merged(spans)))
+    return coverage(spans)(a, b)
 
 
 def held_spans(meas: Measurement) -> list:
